@@ -1,0 +1,47 @@
+# One entry point for humans and CI: `make demo` and `make test` are the README's two commands.
+SHELL := /bin/bash
+VENV ?= .venv
+PY := $(VENV)/bin/python
+CARGO_PROFILE ?= ci
+
+.PHONY: all venv build cli demo test rust-test lint py-test clean
+
+all: test
+
+$(VENV)/.deps: requirements-dev.txt
+	python3 -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade pip
+	$(PY) -m pip install -q -r requirements-dev.txt
+	touch $@
+
+venv: $(VENV)/.deps
+
+## Build the Python extension into .venv (once per run).
+build: venv
+	VIRTUAL_ENV=$(abspath $(VENV)) PATH=$(abspath $(VENV))/bin:$$PATH \
+	  $(VENV)/bin/maturin develop -q --profile $(CARGO_PROFILE)
+
+## The standalone binary.
+cli:
+	cargo build --profile $(CARGO_PROFILE) --features cli --bin foldmatch
+
+## Fit the built-in generated demo case and print before/after figures.
+demo: cli
+	./target/$(CARGO_PROFILE)/foldmatch demo -o demo-out
+
+lint: venv
+	cargo fmt --all -- --check
+	cargo clippy --all-targets --features python,cli -- -D warnings
+	$(VENV)/bin/ruff check python tests bench
+
+rust-test:
+	cargo test --profile $(CARGO_PROFILE) --features cli
+
+py-test: build
+	$(PY) -m pytest -q tests
+
+## Everything CI runs.
+test: lint rust-test py-test
+
+clean:
+	rm -rf $(VENV) target demo-out

@@ -1,0 +1,440 @@
+"""FoldMatch: fit a garment template mesh onto a 3D scan.
+
+Implements *FoldMatch: accurate and high fidelity garment fitting onto 3D scans*: scan points
+attract template points as an N-body system (the NRG motion model, paper §2), and the template
+deforms through regularized per-vertex deformation gradients with a wrinkle-vector field
+(paper §3). The Rust core does the work; this module converts inputs, names the parameters and
+wraps the results.
+
+Inputs are any ``(n, 3)`` array-like (or ``trimesh.Trimesh`` / ``trimesh.PointCloud``).
+C-contiguous float64 arrays are used without a copy; other dtypes or layouts are converted once.
+Outputs are NumPy arrays that own memory allocated by Rust. The GIL is released while the core
+computes.
+
+Examples
+--------
+>>> import foldmatch_rs as fm
+>>> case = fm.folded_sheet(nx=21, ny=21)
+>>> result = fm.fit(case["template_vertices"], case["faces"], case["scan"], iterations=20)
+>>> result.vertices.shape
+(441, 3)
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, field
+from typing import Any, Callable, Optional
+
+import numpy as np
+
+from . import _foldmatch_rs as _core
+from .errors import (
+    FitCancelled,
+    FoldMatchError,
+    InternalError,
+    InvalidInputError,
+    InvalidParameterError,
+    MeshFileError,
+    MeshFormatError,
+    NumericalError,
+)
+
+__version__: str = _core.__version__
+
+if hasattr(os, "register_at_fork"):
+    # rayon's thread pool does not survive fork(): a forked child (multiprocessing, Dask)
+    # computes in a fresh pool of its own.
+    os.register_at_fork(after_in_child=_core._mark_forked)
+
+#: The default fit parameters (the paper's constants with the converging readings of SPEC §2).
+DEFAULT_PARAMS: dict[str, Any] = json.loads(_core.default_params_json())
+
+
+def _points(x: Any, name: str) -> np.ndarray:
+    """An ``(n, 3)`` C-contiguous float64 view of ``x`` (no copy when it already is one)."""
+    if hasattr(x, "vertices"):  # trimesh.Trimesh / PointCloud
+        x = x.vertices
+    a = np.asarray(x)
+    if a.ndim != 2 or a.shape[1] != 3:
+        raise InvalidInputError(f"{name}: expected shape (n, 3), got {a.shape}")
+    if a.shape[0] == 0:
+        raise InvalidInputError(f"{name}: expected at least one point, got 0 rows")
+    if not np.issubdtype(a.dtype, np.number) or np.issubdtype(a.dtype, np.complexfloating):
+        raise InvalidInputError(f"{name}: expected a real numeric array, got dtype {a.dtype}")
+    return np.ascontiguousarray(a, dtype=np.float64)
+
+
+def _faces(f: Any, name: str) -> np.ndarray:
+    """An ``(t, 3)`` int64 array of face indices (range-checked by the core)."""
+    a = np.asarray(f)
+    if a.size == 0:
+        return np.zeros((0, 3), dtype=np.int64)
+    if a.ndim != 2 or a.shape[1] != 3:
+        raise InvalidInputError(f"{name}: expected shape (t, 3) of triangles, got {a.shape}")
+    if not np.issubdtype(a.dtype, np.integer):
+        if not np.all(np.isfinite(a)) or not np.all(np.equal(np.mod(a, 1), 0)):
+            raise InvalidInputError(f"{name}: face indices must be integers")
+    return np.ascontiguousarray(a, dtype=np.int64)
+
+
+def _split_mesh(mesh: Any, faces: Any, name: str) -> tuple[np.ndarray, Optional[np.ndarray]]:
+    if faces is None and hasattr(mesh, "faces"):
+        faces = mesh.faces
+    v = _points(mesh, name)
+    return v, (None if faces is None else _faces(faces, f"{name}_faces"))
+
+
+def _params_json(params: dict[str, Any]) -> str:
+    given = {k: v for k, v in params.items() if v is not None}
+    return json.dumps(given)
+
+
+@dataclass
+class FitResult:
+    """The outcome of :func:`fit`, in the caller's frame and units.
+
+    Attributes
+    ----------
+    vertices : (M, 3) float
+        The fitted template vertices (same order and faces as the template).
+    faces : (T, 3) int
+        The template faces, unchanged.
+    wvf : (M, 3) float
+        Per-step wrinkle-vector field of the last iteration (Eq. 7); tends to a constant as
+        the fit converges.
+    wvf_magnitude : (M,) float
+    wvf_accumulated : (M, 3) float
+        Wrinkle-vector field of the total motion from the input template to the fit: the one
+        that shows the folds (paper Fig. 1), for coloring meshes.
+    wvf_accumulated_magnitude : (M,) float
+    iterations : int
+        Iterations run.
+    history : dict of (iterations,) arrays
+        ``mean_displacement``, ``max_displacement`` (normalized units: target bounding-box
+        diagonals) and ``degenerate_gradients`` per iteration.
+    snapshots : list of (int, (M, 3) array)
+        Vertex positions every ``snapshot_every`` iterations, when requested.
+    params : dict
+        Every parameter used.
+    diagnostics : dict
+        Facts about the run: K, ring size, removed faces, (ω₀Δt)², curvature source, frame.
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    wvf: np.ndarray
+    wvf_magnitude: np.ndarray
+    wvf_accumulated: np.ndarray
+    wvf_accumulated_magnitude: np.ndarray
+    iterations: int
+    history: dict[str, np.ndarray]
+    snapshots: list[tuple[int, np.ndarray]] = field(default_factory=list)
+    params: dict[str, Any] = field(default_factory=dict)
+    diagnostics: dict[str, Any] = field(default_factory=dict)
+
+    def to_trimesh(self, accumulated: bool = True) -> Any:
+        """The fitted mesh as a ``trimesh.Trimesh`` with the wrinkle-field magnitude as vertex
+        colors (viridis) and the field in ``vertex_attributes``."""
+        import trimesh  # optional dependency
+
+        mag = self.wvf_accumulated_magnitude if accumulated else self.wvf_magnitude
+        mesh = trimesh.Trimesh(self.vertices, self.faces, process=False)
+        lo, hi = float(np.min(mag)), float(np.max(mag))
+        t = (mag - lo) / (hi - lo) if hi > lo else np.zeros_like(mag)
+        mesh.visual.vertex_colors = trimesh.visual.interpolate(t, color_map="viridis")
+        mesh.vertex_attributes["wvf"] = self.wvf_accumulated if accumulated else self.wvf
+        mesh.vertex_attributes["wvf_magnitude"] = mag
+        return mesh
+
+
+def fit(
+    template: Any,
+    template_faces: Any = None,
+    target: Any = None,
+    *,
+    target_faces: Any = None,
+    method: Optional[str] = None,
+    iterations: Optional[int] = None,
+    rings: Optional[int] = None,
+    rho: Optional[float] = None,
+    k_min: Optional[int] = None,
+    k_max: Optional[int] = None,
+    gravity: Optional[float] = None,
+    softening: Optional[float] = None,
+    damping: Optional[float] = None,
+    time_step: Optional[float] = None,
+    template_mass: Optional[float] = None,
+    target_mass: Optional[float] = None,
+    alpha_floor: Optional[float] = None,
+    numerator: Optional[str] = None,
+    summation: Optional[str] = None,
+    damping_mode: Optional[str] = None,
+    psi: Optional[float] = None,
+    normal_completion: Optional[float] = None,
+    regularization: Optional[str] = None,
+    rotation_source: Optional[str] = None,
+    velocity_sync: Optional[bool] = None,
+    normalize: Optional[bool] = None,
+    tolerance: Optional[float] = None,
+    use_curvature: Optional[bool] = None,
+    prealign: Optional[str] = None,
+    snapshot_every: Optional[int] = None,
+    callback: Optional[Callable[[dict[str, Any]], Optional[bool]]] = None,
+    threads: Optional[int] = None,
+) -> FitResult:
+    """Fit a template mesh onto a target scan (FoldMatch, paper §2–3).
+
+    Parameters
+    ----------
+    template : (M, 3) float or trimesh.Trimesh
+        Template vertices (or a mesh, whose faces are then used).
+    template_faces : (T, 3) int, optional
+        Template triangles (required unless ``template`` is a mesh).
+    target : (N, 3) float or trimesh.Trimesh / trimesh.PointCloud
+        The scan.
+    target_faces : (F, 3) int, optional
+        Scan triangles, when the scan is a mesh (only used for its Gaussian curvature).
+    method : {"foldmatch", "nrga"}
+        FoldMatch (default) or the NRGa point-based baseline.
+    iterations : int
+        ξ, the number of iterations (100).
+    rings : int
+        n of the n-ring template neighborhoods (2).
+    rho, k_min, k_max : float, int, int
+        Target neighborhood size ``K = clamp(floor(rho * N), k_min, k_max)`` (0.002, 8, 64).
+    gravity, softening, damping, time_step, template_mass, target_mass : float
+        N-body constants G, ε, η, Δt, m(Y), m(X) (1.67, 0.1, 0.1, 0.006, 1, 1), in the
+        normalized frame.
+    alpha_floor : float
+        Positive floor of the curvature term α of Eq. 2 (0.1).
+    numerator : {"centered", "literal"}
+        Eq. 2 numerator ``α(Y−X)`` (default) or the printed ``Yα − X``.
+    summation : {"mean", "sum"}
+        Mean of the K neighbour forces (default) or their plain sum.
+    damping_mode : {"fraction", "force"}
+        η as the fraction of velocity removed per step (default) or as the ``−ηv`` force.
+    psi : float
+        ψ, the wrinkle stretch coefficient (0.05).
+    normal_completion : float
+        γ, weight of the normal pair that completes Eq. 4 on flat rings (0.3).
+    regularization : {"affine_invariant", "log_euclidean", "none"}
+        Mean used by Eq. 5.
+    rotation_source : {"regularized", "raw"}
+        Gradient entering Eq. 8.
+    velocity_sync : bool
+        Velocities follow the applied motion after each update (True).
+    normalize : bool
+        Work in the normalized frame: centered on the scan, unit bounding-box diagonal (True).
+    tolerance : float
+        Stop when an iteration's mean displacement (normalized units) is below this (0: off).
+    use_curvature : bool
+        Use the curvature term of Eq. 2 (True).
+    prealign : {"none", "centroid"}
+        ``"centroid"`` moves the template's centroid onto the scan's first; with ``"none"`` a
+        template more than one scan diagonal away raises :class:`InvalidInputError`.
+    snapshot_every : int
+        Keep the vertex positions every this many iterations (0: none).
+    callback : callable, optional
+        Called after every iteration with a dict (``iteration``, ``iterations``,
+        ``mean_displacement``, ``max_displacement``); returning ``False`` stops the fit, which
+        returns what it has. An exception raised by the callback propagates.
+    threads : int, optional
+        Number of worker threads (default: all cores). Results are bit-identical for any count.
+
+    Returns
+    -------
+    FitResult
+
+    Raises
+    ------
+    InvalidInputError
+        Empty or wrongly shaped arrays, NaN/Inf, face indices out of range, a far-away template.
+    InvalidParameterError
+        A parameter out of range or an unknown option value.
+    NumericalError
+        The fit diverged.
+    """
+    if target is None:
+        raise InvalidInputError("target: missing (pass the scan as the third argument)")
+    tv, tf = _split_mesh(template, template_faces, "template_vertices")
+    if tf is None:
+        raise InvalidInputError("template_faces: missing (pass faces or a trimesh.Trimesh)")
+    x, xf = _split_mesh(target, target_faces, "target")
+    params = dict(
+        method=method, iterations=iterations, rings=rings, rho=rho, k_min=k_min, k_max=k_max,
+        gravity=gravity, softening=softening, damping=damping, time_step=time_step,
+        template_mass=template_mass, target_mass=target_mass, alpha_floor=alpha_floor,
+        numerator=numerator, summation=summation, damping_mode=damping_mode, psi=psi,
+        normal_completion=normal_completion, regularization=regularization,
+        rotation_source=rotation_source, velocity_sync=velocity_sync, normalize=normalize,
+        tolerance=tolerance, use_curvature=use_curvature, prealign=prealign,
+        snapshot_every=snapshot_every,
+    )
+    raw = _core.fit_raw(tv, tf, x, xf, _params_json(params), callback, threads)
+    return FitResult(
+        vertices=raw["vertices"],
+        faces=tf,
+        wvf=raw["wvf"],
+        wvf_magnitude=raw["wvf_magnitude"],
+        wvf_accumulated=raw["wvf_accumulated"],
+        wvf_accumulated_magnitude=raw["wvf_accumulated_magnitude"],
+        iterations=raw["iterations"],
+        history={
+            "mean_displacement": raw["mean_displacement"],
+            "max_displacement": raw["max_displacement"],
+            "degenerate_gradients": raw["degenerate_gradients"],
+        },
+        snapshots=raw["snapshots"],
+        params=json.loads(raw["params_json"]),
+        diagnostics=json.loads(raw["diagnostics_json"]),
+    )
+
+
+# ---- the stages, for researchers who recombine them -------------------------------------
+
+
+def knn(points: Any, queries: Any, k: int, threads: Optional[int] = None) -> tuple[np.ndarray, np.ndarray]:
+    """The ``k`` nearest ``points`` of every query (k-d tree).
+
+    Returns
+    -------
+    indices : (Q, k) uint32
+        Nearest first.
+    squared_distances : (Q, k) float
+    """
+    return _core.knn_query(_points(points, "points"), _points(queries, "queries"), int(k), threads)
+
+
+def nbody_step(
+    positions: Any, velocities: Any, target: Any, neighbours: Any, curvature: Any, **params: Any
+) -> tuple[np.ndarray, np.ndarray]:
+    """One N-body step (Eq. 2–3) for template points with K scan ``neighbours`` each.
+
+    Parameters
+    ----------
+    positions, velocities : (M, 3) float
+    target : (N, 3) float
+    neighbours : (M, K) int
+        Indices into ``target``.
+    curvature : (N,) float
+        Gaussian curvature κ of every scan point.
+    **params
+        Any N-body parameter of :func:`fit` (gravity, softening, ...).
+
+    Returns
+    -------
+    velocities : (M, 3) float
+        ``v^{t+Δt}``.
+    proposed : (M, 3) float
+        ``Y^t + v^{t+Δt} Δt``.
+    """
+    nb = np.ascontiguousarray(np.asarray(neighbours), dtype=np.int64)
+    kappa = np.ascontiguousarray(np.asarray(curvature), dtype=np.float64)
+    return _core.nbody_step(
+        _points(positions, "positions"), _points(velocities, "velocities"),
+        _points(target, "target"), nb, kappa, _params_json(params),
+    )
+
+
+def n_rings(faces: Any, n_vertices: int, rings: int = 2) -> tuple[np.ndarray, np.ndarray]:
+    """n-ring neighborhoods Γᵏ_Y as CSR arrays ``(offsets (M+1,), members)``; row k lists
+    vertex k first, then the vertices within graph distance ``rings``."""
+    return _core.n_rings(_faces(faces, "faces"), int(n_vertices), int(rings))
+
+
+def gaussian_curvature(points: Any, faces: Any = None) -> np.ndarray:
+    """Gaussian curvature κ per point: angle deficit over mixed area for a mesh, a local
+    quadric fit for a point cloud. Returns ``(N,)`` float."""
+    return _core.gaussian_curvature(
+        _points(points, "points"), None if faces is None else _faces(faces, "faces")
+    )
+
+
+def deformation_gradients(
+    old: Any, new: Any, faces: Any, rings: int = 2, normal_completion: float = 0.3
+) -> tuple[np.ndarray, np.ndarray]:
+    """Deformation gradients H_k (Eq. 4, with the normal completion) of the motion
+    ``old → new``. Returns ``(gradients (M, 3, 3), degenerate (M,) bool)``."""
+    return _core.deformation_gradients(
+        _points(old, "old"), _points(new, "new"), _faces(faces, "faces"), int(rings),
+        float(normal_completion),
+    )
+
+
+def regularize(
+    gradients: Any, offsets: Any, members: Any, mode: str = "affine_invariant"
+) -> tuple[np.ndarray, np.ndarray]:
+    """Regularization of the gradients over neighborhoods (Eq. 5 on the stretch part, chordal
+    mean of the rotations). Returns ``(rotations (M, 3, 3), stretches (M, 3, 3))``."""
+    return _core.regularize_gradients(
+        np.ascontiguousarray(gradients, dtype=np.float64),
+        np.ascontiguousarray(offsets, dtype=np.int64),
+        np.ascontiguousarray(members, dtype=np.int64),
+        mode,
+    )
+
+
+def polar_decomposition(matrices: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Polar decomposition ``H = R U`` (R a proper rotation, U symmetric positive) of every
+    ``(3, 3)`` matrix. Returns ``(rotations, stretches)``."""
+    return _core.polar_decomposition(np.ascontiguousarray(matrices, dtype=np.float64))
+
+
+def wrinkle_field(stretches: Any, psi: float = 0.05) -> tuple[np.ndarray, np.ndarray]:
+    """ψ-modified stretch tensors Û and wrinkle vectors ``λ̂1 e1`` (Eq. 6–7).
+    Returns ``(modified_stretches (M, 3, 3), wvf (M, 3))``."""
+    return _core.wrinkle_field(np.ascontiguousarray(stretches, dtype=np.float64), float(psi))
+
+
+def solve_rotations(gradients: Any, modified_stretches: Any) -> np.ndarray:
+    """Eq. 8: ``argmin_R ||H − R Û||_F`` over rotations, for every vertex. Returns (M, 3, 3)."""
+    return _core.solve_rotations(
+        np.ascontiguousarray(gradients, dtype=np.float64),
+        np.ascontiguousarray(modified_stretches, dtype=np.float64),
+    )
+
+
+def foldmatch_update(old: Any, proposed: Any, faces: Any, **params: Any) -> tuple[np.ndarray, np.ndarray]:
+    """One FoldMatch deformation update (Eq. 4–8 and ``Y ← R* Y + t*``) of the motion from
+    ``old`` to the N-body ``proposed`` positions. Returns ``(new positions, per-step wvf)``."""
+    return _core.foldmatch_update(
+        _points(old, "old"), _points(proposed, "proposed"), _faces(faces, "faces"),
+        _params_json(params),
+    )
+
+
+def folded_sheet(**spec: Any) -> dict[str, np.ndarray]:
+    """A generated case with ground truth: a flat sheet template (``template_vertices``,
+    ``faces``), the same sheet folded, rotated and offset (``ground_truth``, same vertex
+    order), and a ``scan`` of it (the folded vertices, or ``scan_points`` surface samples with
+    ``noise``). Keyword arguments: nx, ny, width, height, fold_amplitude, folds,
+    rotation_degrees, offset, scan_points, noise, seed."""
+    return _core.folded_sheet(**spec)
+
+
+__all__ = [
+    "DEFAULT_PARAMS",
+    "FitResult",
+    "fit",
+    "knn",
+    "nbody_step",
+    "n_rings",
+    "gaussian_curvature",
+    "deformation_gradients",
+    "regularize",
+    "polar_decomposition",
+    "wrinkle_field",
+    "solve_rotations",
+    "foldmatch_update",
+    "folded_sheet",
+    "FoldMatchError",
+    "InvalidInputError",
+    "InvalidParameterError",
+    "MeshFileError",
+    "MeshFormatError",
+    "NumericalError",
+    "FitCancelled",
+    "InternalError",
+]

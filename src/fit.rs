@@ -1,0 +1,555 @@
+//! The fit driver: ξ iterations of the N-body step (§2) followed by the FoldMatch deformation
+//! model (§3) or the NRGa rigid-per-vertex update (SPEC §2.10–2.11).
+//!
+//! One iteration, for every template vertex k (all from the same step's state, so the result
+//! does not depend on the thread count):
+//! 1. Γᵏ_X ← the K nearest scan points of Y_k ([`crate::knn`]);
+//! 2. velocity and proposed position from Eq. 2–3 ([`crate::nbody`]);
+//! 3. FoldMatch: H_k from the ring's old and proposed positions (Eq. 4), regularized (Eq. 5),
+//!    ψ-modified stretch and wrinkle vector (Eq. 6–7), rotation by Procrustes (Eq. 8);
+//!    NRGa: Kabsch rotation of the k-NN neighborhood;
+//! 4. `Y_k ← R_k* Y_k + t_k*`; velocities re-synchronized with the applied motion.
+//!
+//! All per-vertex buffers are allocated once per fit ([`Workspace`]).
+
+use crate::curvature::{gaussian_curvature_mesh, gaussian_curvature_points};
+use crate::deformation::deformation_gradient;
+use crate::error::{FoldMatchError, Result};
+use crate::knn::{neighborhood_size, PointIndex};
+use crate::math::{vec3, Mat3, Vec3};
+use crate::mesh::{clean_faces, validate_faces, validate_points, vertex_normals, VertexFaces};
+use crate::nbody::{self, NBodyParams};
+use crate::normalize::Frame;
+use crate::regularize::{regularize, RegularizeBuffers, Regularization};
+use crate::rings::{n_rings, Neighborhoods};
+use crate::rotation::{kabsch, ring_centroids, solve_rotation, transform_vertex};
+use crate::wrinkle::modified_stretch;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+/// Which motion/deformation model updates the template.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Method {
+    /// The paper's method: n-ring deformation gradients, Eq. 4–8.
+    #[serde(rename = "foldmatch")]
+    FoldMatch,
+    /// The NRGa baseline: per-vertex rigid (Kabsch) fit of a k-NN neighborhood.
+    Nrga,
+}
+
+/// Which gradient enters the rotation solve of Eq. 8.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RotationSource {
+    /// The regularized gradient `R̄ Ū` (default). Û commutes with Ū, so R* = R̄ and ψ moves no
+    /// vertex: it shapes only the wrinkle-vector field (SPEC §2.9).
+    Regularized,
+    /// The raw Eq. 4 gradient, in which ψ does act on the rotation.
+    Raw,
+}
+
+/// What to do with a template placed far from the scan.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Prealign {
+    /// Fit as given; a template whose centroid is more than [`FAR_AWAY`] target diagonals
+    /// from the scan's centroid is rejected with [`FoldMatchError::FarAway`].
+    None,
+    /// Translate the template so its centroid lies on the scan's centroid first.
+    Centroid,
+}
+
+/// Distance (in target bounding-box diagonals) beyond which an unaligned template is refused.
+pub const FAR_AWAY: f64 = 1.0;
+
+/// Every parameter of a fit. `Default` gives the paper's constants (§4) with the converging
+/// readings of SPEC §2.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct FitParams {
+    /// FoldMatch or NRGa.
+    pub method: Method,
+    /// ξ, the number of iterations.
+    pub iterations: usize,
+    /// n of the n-ring template neighborhoods Γᵏ_Y.
+    pub rings: usize,
+    /// ρ, the target neighborhood size as a fraction of the scan's point count.
+    pub rho: f64,
+    /// Lower clamp of K.
+    pub k_min: usize,
+    /// Upper clamp of K.
+    pub k_max: usize,
+    /// N-body constants and readings.
+    #[serde(flatten)]
+    pub nbody: NBodyParams,
+    /// ψ, the wrinkle stretch coefficient.
+    pub psi: f64,
+    /// γ, weight of the normal completion of Eq. 4 (0 disables it).
+    pub normal_completion: f64,
+    /// Mean used by Eq. 5.
+    pub regularization: Regularization,
+    /// Gradient used by Eq. 8.
+    pub rotation_source: RotationSource,
+    /// Set velocities to the applied motion after each update (SPEC §2.4); `false` keeps the
+    /// integrated velocity (literal reading).
+    pub velocity_sync: bool,
+    /// Work in the normalized frame (SPEC §1).
+    pub normalize: bool,
+    /// Stop early when the mean displacement of an iteration (normalized units) is below this
+    /// (0 disables).
+    pub tolerance: f64,
+    /// Use the curvature term of Eq. 2 (`false` sets κ = 0, i.e. α = 1).
+    pub use_curvature: bool,
+    /// Handling of a template placed far from the scan.
+    pub prealign: Prealign,
+    /// Keep the vertex positions every this many iterations (0 keeps none).
+    pub snapshot_every: usize,
+}
+
+impl Default for FitParams {
+    fn default() -> Self {
+        Self {
+            method: Method::FoldMatch,
+            iterations: 100,
+            rings: 2,
+            rho: 0.002,
+            k_min: 8,
+            k_max: 64,
+            nbody: NBodyParams::default(),
+            psi: 0.05,
+            normal_completion: 0.3,
+            regularization: Regularization::AffineInvariant,
+            rotation_source: RotationSource::Regularized,
+            velocity_sync: true,
+            normalize: true,
+            tolerance: 0.0,
+            use_curvature: true,
+            prealign: Prealign::None,
+            snapshot_every: 0,
+        }
+    }
+}
+
+impl FitParams {
+    /// Parses parameters from a JSON object; missing keys take their defaults, unknown keys are
+    /// an error naming the key.
+    pub fn from_json(text: &str) -> Result<Self> {
+        let given: serde_json::Map<String, serde_json::Value> = serde_json::from_str(text)
+            .map_err(|e| FoldMatchError::parameter("params", text, &format!("not a JSON object: {e}")))?;
+        let known = serde_json::to_value(Self::default()).expect("FitParams serializes");
+        let known = known.as_object().expect("FitParams is an object");
+        if let Some(bad) = given.keys().find(|k| !known.contains_key(*k)) {
+            let names: Vec<&str> = known.keys().map(String::as_str).collect();
+            return Err(FoldMatchError::parameter(bad, "?", &format!("unknown parameter; known: {}", names.join(", "))));
+        }
+        let params: Self = serde_json::from_value(serde_json::Value::Object(given))
+            .map_err(|e| FoldMatchError::parameter("params", text, &e.to_string()))?;
+        params.validate()?;
+        Ok(params)
+    }
+
+    /// The parameters as a JSON object (every key, defaults included).
+    pub fn to_json(&self) -> String {
+        serde_json::to_string(self).expect("FitParams serializes")
+    }
+
+    /// Checks every parameter's range.
+    pub fn validate(&self) -> Result<()> {
+        let p = &self.nbody;
+        let positive = [
+            ("rho", self.rho),
+            ("gravity", p.gravity),
+            ("softening", p.softening),
+            ("time_step", p.time_step),
+            ("template_mass", p.template_mass),
+            ("target_mass", p.target_mass),
+        ];
+        for (name, v) in positive {
+            if !(v > 0.0 && v.is_finite()) {
+                return Err(FoldMatchError::parameter(name, v, "must be positive and finite"));
+            }
+        }
+        if !(0.0..=1.0).contains(&p.damping) {
+            return Err(FoldMatchError::parameter("damping", p.damping, "must be in [0, 1]"));
+        }
+        if !(p.alpha_floor > 0.0 && p.alpha_floor <= 1.0) {
+            return Err(FoldMatchError::parameter("alpha_floor", p.alpha_floor, "must be in (0, 1]"));
+        }
+        if !(self.psi.is_finite() && self.psi.abs() < 1.0) {
+            return Err(FoldMatchError::parameter("psi", self.psi, "must be finite with |psi| < 1"));
+        }
+        if !(self.normal_completion >= 0.0 && self.normal_completion.is_finite()) {
+            return Err(FoldMatchError::parameter(
+                "normal_completion",
+                self.normal_completion,
+                "must be finite and >= 0",
+            ));
+        }
+        if !(self.tolerance >= 0.0 && self.tolerance.is_finite()) {
+            return Err(FoldMatchError::parameter("tolerance", self.tolerance, "must be finite and >= 0"));
+        }
+        if !(1..=8).contains(&self.rings) {
+            return Err(FoldMatchError::parameter("rings", self.rings, "must be in 1..=8"));
+        }
+        if self.k_min == 0 || self.k_max < self.k_min {
+            return Err(FoldMatchError::parameter(
+                "k_min/k_max",
+                format!("{}/{}", self.k_min, self.k_max),
+                "need 1 <= k_min <= k_max",
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// One iteration's figures.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct IterationRecord {
+    /// 1-based iteration number.
+    pub iteration: usize,
+    /// Mean vertex displacement of the iteration, in normalized units (target diagonals).
+    pub mean_displacement: f64,
+    /// Largest vertex displacement of the iteration, in normalized units.
+    pub max_displacement: f64,
+    /// Vertices whose deformation gradient was rank-deficient (identity used in the missing
+    /// directions).
+    pub degenerate_gradients: usize,
+}
+
+/// What a progress observer sees after every iteration.
+#[derive(Clone, Copy, Debug)]
+pub struct Progress {
+    /// Iterations done.
+    pub iteration: usize,
+    /// Iterations planned (ξ).
+    pub iterations: usize,
+    /// The iteration's figures.
+    pub record: IterationRecord,
+}
+
+/// Facts about the inputs and the run, for reports.
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+pub struct Diagnostics {
+    /// K, the target neighborhood size used.
+    pub target_neighbours: usize,
+    /// Mean size of the template neighborhoods (the vertex included).
+    pub mean_ring_size: f64,
+    /// Indices of template faces with a repeated vertex (ignored by the fit).
+    pub degenerate_faces: Vec<usize>,
+    /// Indices of template faces repeating an earlier face (ignored by the fit).
+    pub duplicate_faces: Vec<usize>,
+    /// Template vertices in no face (they follow their own particle; no gradient).
+    pub isolated_vertices: usize,
+    /// `(ω₀Δt)²` of the near-field spring (SPEC §2.4; stable well below 1).
+    pub omega0_dt_squared: f64,
+    /// The curvature source: "mesh", "point_cloud" or "off".
+    pub curvature: String,
+    /// Whether the tolerance stopped the fit before ξ iterations.
+    pub converged: bool,
+    /// Whether the observer stopped the fit.
+    pub stopped_by_callback: bool,
+    /// The normalized frame used.
+    pub frame: Option<Frame>,
+}
+
+/// The outcome of a fit, in the user's frame.
+#[derive(Clone, Debug)]
+pub struct FitResult {
+    /// Fitted vertices (M).
+    pub vertices: Vec<[f64; 3]>,
+    /// Per-step wrinkle-vector field of the last iteration (M).
+    pub wvf: Vec<[f64; 3]>,
+    /// Wrinkle-vector field of the total motion from the input template to the fit (M).
+    pub wvf_accumulated: Vec<[f64; 3]>,
+    /// Iterations run.
+    pub iterations: usize,
+    /// Per-iteration figures.
+    pub history: Vec<IterationRecord>,
+    /// `(iteration, vertices)` snapshots, user frame, when requested.
+    pub snapshots: Vec<(usize, Vec<[f64; 3]>)>,
+    /// The parameters used.
+    pub params: FitParams,
+    /// Facts about the run.
+    pub diagnostics: Diagnostics,
+}
+
+/// Per-vertex buffers of the FoldMatch deformation model, allocated once per fit.
+pub struct Workspace {
+    normals_old: Vec<[f64; 3]>,
+    normals_new: Vec<[f64; 3]>,
+    raw: Vec<Mat3>,
+    degenerate: Vec<bool>,
+    reg: RegularizeBuffers,
+    reg_rotation: Vec<Mat3>,
+    reg_stretch: Vec<Mat3>,
+    /// Wrinkle vector of every vertex from the last [`deformation_model`] call.
+    pub wvf: Vec<[f64; 3]>,
+    /// Solved rotation R_k* of every vertex.
+    pub rotation: Vec<Mat3>,
+}
+
+impl Workspace {
+    /// Buffers for `m` vertices.
+    pub fn new(m: usize) -> Self {
+        Self {
+            normals_old: vec![[0.0; 3]; m],
+            normals_new: vec![[0.0; 3]; m],
+            raw: vec![Mat3::identity(); m],
+            degenerate: vec![false; m],
+            reg: RegularizeBuffers::new(m),
+            reg_rotation: vec![Mat3::identity(); m],
+            reg_stretch: vec![Mat3::identity(); m],
+            wvf: vec![[0.0; 3]; m],
+            rotation: vec![Mat3::identity(); m],
+        }
+    }
+}
+
+/// The mesh-side inputs of the deformation model.
+pub struct TemplateTopology<'a> {
+    /// Template faces (cleaned).
+    pub faces: &'a [[u32; 3]],
+    /// Vertex → faces incidence.
+    pub incidence: &'a VertexFaces,
+    /// Γᵏ_Y.
+    pub rings: &'a Neighborhoods,
+}
+
+/// Runs Eq. 4–8 on the motion `old → new`: fills `ws.rotation` (R_k*) and `ws.wvf`, and returns
+/// the number of rank-deficient gradients.
+pub fn deformation_model(
+    old: &[[f64; 3]],
+    new: &[[f64; 3]],
+    topo: &TemplateTopology<'_>,
+    params: &FitParams,
+    ws: &mut Workspace,
+) -> usize {
+    vertex_normals(old, topo.faces, topo.incidence, &mut ws.normals_old);
+    vertex_normals(new, topo.faces, topo.incidence, &mut ws.normals_new);
+    let (n_old, n_new) = (&ws.normals_old, &ws.normals_new);
+    ws.raw.par_iter_mut().zip(ws.degenerate.par_iter_mut()).enumerate().for_each(|(k, (h, deg))| {
+        let (g, d) =
+            deformation_gradient(k, topo.rings.of(k), old, new, &n_old[k], &n_new[k], params.normal_completion);
+        *h = g;
+        *deg = d;
+    });
+    regularize(&ws.raw, topo.rings, params.regularization, &mut ws.reg, &mut ws.reg_rotation, &mut ws.reg_stretch);
+    let (raw, reg_r, reg_u) = (&ws.raw, &ws.reg_rotation, &ws.reg_stretch);
+    ws.rotation.par_iter_mut().zip(ws.wvf.par_iter_mut()).enumerate().for_each(|(k, (rot, w))| {
+        let m = modified_stretch(&reg_u[k], params.psi);
+        *w = m.wrinkle.into();
+        let h = match params.rotation_source {
+            RotationSource::Regularized => reg_r[k] * reg_u[k],
+            RotationSource::Raw => raw[k],
+        };
+        *rot = solve_rotation(&h, &m.stretch);
+    });
+    ws.degenerate.iter().filter(|&&d| d).count()
+}
+
+/// Fits the template to the target.
+///
+/// * `template_vertices` (M), `template_faces` (T) — the template mesh;
+/// * `target` (N) — the scan points; `target_faces` — its faces when it is a mesh (used for
+///   curvature only);
+/// * `observer` — called after every iteration; returning `false` stops the fit, which then
+///   returns what it has (with `diagnostics.stopped_by_callback`).
+pub fn fit(
+    template_vertices: &[[f64; 3]],
+    template_faces: &[[u32; 3]],
+    target: &[[f64; 3]],
+    target_faces: Option<&[[u32; 3]]>,
+    params: &FitParams,
+    observer: &mut (dyn FnMut(&Progress) -> bool + Send),
+) -> Result<FitResult> {
+    params.validate()?;
+    validate_points("template_vertices", template_vertices)?;
+    validate_points("target", target)?;
+    validate_faces("template_faces", template_faces, template_vertices.len())?;
+    if let Some(tf) = target_faces {
+        validate_faces("target_faces", tf, target.len())?;
+    }
+    let m = template_vertices.len();
+    let cleaned = clean_faces(template_faces);
+    let faces = &cleaned.faces;
+
+    // Normalized frame (SPEC §1).
+    let frame = if params.normalize { Frame::of_target(target) } else { Frame::identity() };
+    let scan = frame.forward(target);
+    let mut pos = frame.forward(template_vertices);
+    let centroid = pos.iter().fold(Vec3::zeros(), |acc, p| acc + vec3(p)) / m as f64;
+    let scan_centroid = scan.iter().fold(Vec3::zeros(), |acc, p| acc + vec3(p)) / scan.len() as f64;
+    let scan_diag = if params.normalize { 1.0 } else { Frame::of_target(target).scale };
+    let offset = centroid - scan_centroid;
+    match params.prealign {
+        Prealign::Centroid => {
+            for p in &mut pos {
+                *p = (vec3(p) - offset).into();
+            }
+        }
+        Prealign::None if offset.norm() > FAR_AWAY * scan_diag => {
+            return Err(FoldMatchError::FarAway { distance: offset.norm() / scan_diag });
+        }
+        Prealign::None => {}
+    }
+    let start = pos.clone();
+
+    // Target side: k-d tree, K, curvature.
+    let index = PointIndex::new(&scan);
+    let k = neighborhood_size(params.rho, scan.len(), params.k_min, params.k_max);
+    let (kappa, curvature_source) = if !params.use_curvature {
+        (vec![0.0; scan.len()], "off")
+    } else if let Some(tf) = target_faces.filter(|f| !f.is_empty()) {
+        (gaussian_curvature_mesh(&scan, tf), "mesh")
+    } else {
+        (gaussian_curvature_points(&scan, &index), "point_cloud")
+    };
+
+    // Template side: incidence, neighborhoods.
+    let incidence = VertexFaces::new(faces, m);
+    let isolated = (0..m).filter(|&v| incidence.offsets[v] == incidence.offsets[v + 1]).count();
+    let rings = match params.method {
+        Method::FoldMatch => n_rings(faces, m, params.rings),
+        Method::Nrga => knn_neighborhoods(&start, params),
+    };
+    let topo = TemplateTopology { faces, incidence: &incidence, rings: &rings };
+
+    let mut diagnostics = Diagnostics {
+        target_neighbours: k,
+        mean_ring_size: rings.members.len() as f64 / m as f64,
+        degenerate_faces: cleaned.degenerate.clone(),
+        duplicate_faces: cleaned.duplicate.clone(),
+        isolated_vertices: isolated,
+        omega0_dt_squared: params.nbody.omega0_dt_squared(k),
+        curvature: curvature_source.into(),
+        frame: Some(frame),
+        ..Default::default()
+    };
+
+    // Buffers, allocated once.
+    let mut vel = vec![[0.0; 3]; m];
+    let mut proposed = vec![[0.0; 3]; m];
+    let mut next = vec![[0.0; 3]; m];
+    let mut disp = vec![0.0; m];
+    let mut nn_idx = vec![0u32; m * k];
+    let mut nn_d2 = vec![0.0; m * k];
+    let mut ws = Workspace::new(m);
+    let mut history = Vec::with_capacity(params.iterations);
+    let mut snapshots = Vec::new();
+    let dt = params.nbody.time_step;
+
+    for it in 1..=params.iterations {
+        index.nearest_all(&pos, k, &mut nn_idx, &mut nn_d2);
+        nbody::step(&pos, &mut vel, &nn_idx, k, &scan, &kappa, &params.nbody, &mut proposed);
+        let degenerate = match params.method {
+            Method::FoldMatch => {
+                let d = deformation_model(&pos, &proposed, &topo, params, &mut ws);
+                let (rot, old, new) = (&ws.rotation, &pos, &proposed);
+                next.par_iter_mut().enumerate().for_each(|(v, out)| {
+                    let (c_old, c_new) = ring_centroids(rings.of(v), old, new);
+                    *out = transform_vertex(&rot[v], &vec3(&old[v]), &c_old, &c_new).into();
+                });
+                d
+            }
+            Method::Nrga => {
+                let (old, new) = (&pos, &proposed);
+                next.par_iter_mut().enumerate().for_each(|(v, out)| {
+                    let ring = rings.of(v);
+                    let (c_old, c_new) = ring_centroids(ring, old, new);
+                    let r = kabsch(ring, old, new, &c_old, &c_new);
+                    *out = transform_vertex(&r, &vec3(&old[v]), &c_old, &c_new).into();
+                });
+                0
+            }
+        };
+        // Velocities follow the applied motion (SPEC §2.4); displacement figures.
+        disp.par_iter_mut().zip(vel.par_iter_mut()).enumerate().for_each(|(v, (d, vl))| {
+            let delta = vec3(&next[v]) - vec3(&pos[v]);
+            *d = delta.norm();
+            if params.velocity_sync {
+                *vl = (delta / dt).into();
+            }
+        });
+        if let Some(bad) = next.iter().position(|p| !p.iter().all(|x| x.is_finite())) {
+            return Err(FoldMatchError::Numerical(format!(
+                "vertex {bad} became non-finite at iteration {it}"
+            )));
+        }
+        std::mem::swap(&mut pos, &mut next);
+        // Sequential reduction: identical for any thread count.
+        let mean = disp.iter().sum::<f64>() / m as f64;
+        let max = disp.iter().copied().fold(0.0, f64::max);
+        let record = IterationRecord { iteration: it, mean_displacement: mean, max_displacement: max, degenerate_gradients: degenerate };
+        history.push(record);
+        if params.snapshot_every > 0 && it % params.snapshot_every == 0 {
+            let mut snap = pos.clone();
+            frame.inverse_in_place(&mut snap);
+            snapshots.push((it, snap));
+        }
+        if !observer(&Progress { iteration: it, iterations: params.iterations, record }) {
+            diagnostics.stopped_by_callback = true;
+            break;
+        }
+        if params.tolerance > 0.0 && mean < params.tolerance {
+            diagnostics.converged = true;
+            break;
+        }
+    }
+
+    // Per-step field of the last iteration, and the accumulated field of the total motion.
+    let wvf = if params.method == Method::FoldMatch && !history.is_empty() {
+        ws.wvf.clone()
+    } else {
+        vec![[0.0; 3]; m]
+    };
+    let acc_rings;
+    let acc_topo = if params.method == Method::FoldMatch {
+        topo
+    } else {
+        acc_rings = n_rings(faces, m, params.rings);
+        TemplateTopology { faces, incidence: &incidence, rings: &acc_rings }
+    };
+    deformation_model(&start, &pos, &acc_topo, params, &mut ws);
+    let wvf_accumulated = ws.wvf;
+
+    frame.inverse_in_place(&mut pos);
+    Ok(FitResult {
+        vertices: pos,
+        wvf,
+        wvf_accumulated,
+        iterations: history.len(),
+        history,
+        snapshots,
+        params: params.clone(),
+        diagnostics,
+    })
+}
+
+/// NRGa neighborhoods: the K_Y nearest template points of every template vertex (itself
+/// included), `K_Y = clamp(⌊ρM⌋, k_min, k_max)`, on the initial template.
+fn knn_neighborhoods(start: &[[f64; 3]], params: &FitParams) -> Neighborhoods {
+    let m = start.len();
+    let k = neighborhood_size(params.rho, m, params.k_min, params.k_max);
+    let index = PointIndex::new(start);
+    let mut idx = vec![0u32; m * k];
+    let mut d2 = vec![0.0; m * k];
+    index.nearest_all(start, k, &mut idx, &mut d2);
+    Neighborhoods { offsets: (0..=m).map(|i| i * k).collect(), members: idx }
+}
+
+/// Fits without an observer.
+pub fn fit_simple(
+    template_vertices: &[[f64; 3]],
+    template_faces: &[[u32; 3]],
+    target: &[[f64; 3]],
+    target_faces: Option<&[[u32; 3]]>,
+    params: &FitParams,
+) -> Result<FitResult> {
+    fit(template_vertices, template_faces, target, target_faces, params, &mut |_| true)
+}
+
+/// Magnitudes of a vector field.
+pub fn magnitudes(field: &[[f64; 3]]) -> Vec<f64> {
+    field.iter().map(|v| vec3(v).norm()).collect()
+}

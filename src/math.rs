@@ -1,0 +1,305 @@
+//! Small 3×3 linear algebra used by every stage: type aliases, a Jacobi symmetric
+//! eigensolver, functions of symmetric positive-definite (SPD) matrices and the polar
+//! decomposition.
+//!
+//! All routines work on stack values (`Matrix3`, `Vector3`) and never allocate, so they can be
+//! called from the per-iteration hot loop.
+
+use nalgebra as na;
+
+/// The float type used throughout.
+pub type Real = f64;
+/// A 3D point / vector.
+pub type Vec3 = na::Vector3<Real>;
+/// A 3×3 matrix.
+pub type Mat3 = na::Matrix3<Real>;
+
+/// Converts a `[f64; 3]` row into a [`Vec3`].
+#[inline]
+pub fn vec3(p: &[Real; 3]) -> Vec3 {
+    Vec3::new(p[0], p[1], p[2])
+}
+
+/// Result of a symmetric 3×3 eigen-decomposition, eigenvalues sorted in descending order.
+#[derive(Clone, Copy, Debug)]
+pub struct SymEigen3 {
+    /// Eigenvalues λ1 ≥ λ2 ≥ λ3.
+    pub values: Vec3,
+    /// Unit eigenvectors as columns (column i belongs to `values[i]`), forming a right-handed
+    /// orthonormal basis (det = +1).
+    pub vectors: Mat3,
+}
+
+impl SymEigen3 {
+    /// Rebuilds `Σ f(λ_i) e_i e_iᵀ`: the matrix function `f` of the decomposed matrix.
+    #[inline]
+    pub fn map(&self, f: impl Fn(Real) -> Real) -> Mat3 {
+        let v = &self.vectors;
+        let d = Vec3::new(f(self.values[0]), f(self.values[1]), f(self.values[2]));
+        let mut out = Mat3::zeros();
+        for i in 0..3 {
+            let e = v.column(i);
+            out += d[i] * e * e.transpose();
+        }
+        out
+    }
+}
+
+/// Eigen-decomposition of a symmetric 3×3 matrix by cyclic Jacobi rotations.
+///
+/// The input is symmetrized first (`(A + Aᵀ)/2`), so tiny asymmetries from round-off are
+/// harmless. Jacobi is unconditionally convergent and accurate
+/// to a few ulps relative to ‖A‖, including for repeated eigenvalues (where closed-form cubic
+/// solvers lose precision). At most 16 sweeps; in practice 4–6.
+pub fn sym_eigen3(a: &Mat3) -> SymEigen3 {
+    let mut m = [[0.0; 3]; 3];
+    for (i, row) in m.iter_mut().enumerate() {
+        for (j, x) in row.iter_mut().enumerate() {
+            *x = 0.5 * (a[(i, j)] + a[(j, i)]);
+        }
+    }
+    let mut v = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    for _sweep in 0..16 {
+        let off = m[0][1] * m[0][1] + m[0][2] * m[0][2] + m[1][2] * m[1][2];
+        let diag = m[0][0] * m[0][0] + m[1][1] * m[1][1] + m[2][2] * m[2][2];
+        if off <= 1e-32 * diag || off == 0.0 {
+            break;
+        }
+        for (p, q) in [(0usize, 1usize), (0, 2), (1, 2)] {
+            let apq = m[p][q];
+            if apq == 0.0 {
+                continue;
+            }
+            let theta = (m[q][q] - m[p][p]) / (2.0 * apq);
+            let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
+            let t = if theta == 0.0 { 1.0 } else { t };
+            let c = 1.0 / (t * t + 1.0).sqrt();
+            let s = t * c;
+            // A ← Jᵀ A J with J the rotation in the (p, q) plane.
+            for row in &mut m {
+                let (kp, kq) = (row[p], row[q]);
+                row[p] = c * kp - s * kq;
+                row[q] = s * kp + c * kq;
+            }
+            for k in 0..3 {
+                let (pk, qk) = (m[p][k], m[q][k]);
+                m[p][k] = c * pk - s * qk;
+                m[q][k] = s * pk + c * qk;
+            }
+            for row in &mut v {
+                let (kp, kq) = (row[p], row[q]);
+                row[p] = c * kp - s * kq;
+                row[q] = s * kp + c * kq;
+            }
+        }
+    }
+    // Sort descending.
+    let mut idx = [0usize, 1, 2];
+    idx.sort_by(|&i, &j| m[j][j].total_cmp(&m[i][i]));
+    let values = Vec3::new(m[idx[0]][idx[0]], m[idx[1]][idx[1]], m[idx[2]][idx[2]]);
+    let mut vectors = Mat3::zeros();
+    for (col, &i) in idx.iter().enumerate() {
+        for r in 0..3 {
+            vectors[(r, col)] = v[r][i];
+        }
+    }
+    if vectors.determinant() < 0.0 {
+        let c = -vectors.column(2);
+        vectors.set_column(2, &c);
+    }
+    SymEigen3 { values, vectors }
+}
+
+/// Polar decomposition `H = R U` with `R ∈ SO(3)` and `U` symmetric positive semi-definite.
+///
+/// Computed from the eigen-decomposition of `Hᵀ H = V Σ² Vᵀ`: `U = V Σ Vᵀ`, and the rotation's
+/// columns `w_i = H v_i / σ_i` for the two largest singular values, the third completed as
+/// `w_1 × w_2`. Consequences, both intended:
+/// * the result is a proper rotation even when `H` is rank-deficient (σ₃ = 0);
+/// * when `det H < 0` (an inverted, orientation-reversing gradient) the reflection is dropped:
+///   `R U` is then the nearest orientation-preserving deformation, not `H` itself.
+#[derive(Clone, Copy, Debug)]
+pub struct Polar {
+    /// The rotation factor `R`.
+    pub rotation: Mat3,
+    /// The stretch factor `U` (SPD when `H` is non-singular).
+    pub stretch: Mat3,
+}
+
+/// See [`Polar`].
+pub fn polar(h: &Mat3) -> Polar {
+    let eig = sym_eigen3(&(h.transpose() * h));
+    let sigma = eig.values.map(|x| x.max(0.0).sqrt());
+    let stretch = eig.map(|x| x.max(0.0).sqrt());
+    let rotation = rotation_from_svd_parts(h, &eig.vectors, &sigma);
+    Polar { rotation, stretch }
+}
+
+/// The rotation closest to `m` in the Frobenius norm (orthogonal Procrustes with the
+/// determinant fixed to +1): `argmin_{R ∈ SO(3)} ‖m − R‖_F`.
+pub fn nearest_rotation(m: &Mat3) -> Mat3 {
+    let eig = sym_eigen3(&(m.transpose() * m));
+    let sigma = eig.values.map(|x| x.max(0.0).sqrt());
+    rotation_from_svd_parts(m, &eig.vectors, &sigma)
+}
+
+/// Builds `W Vᵀ` from `m`, its right singular vectors `v` (right-handed) and singular values.
+fn rotation_from_svd_parts(m: &Mat3, v: &Mat3, sigma: &Vec3) -> Mat3 {
+    let scale = sigma[0];
+    if !(scale > 0.0) || !scale.is_finite() {
+        return Mat3::identity();
+    }
+    let v1 = v.column(0).into_owned();
+    let v2 = v.column(1).into_owned();
+    let w1 = (m * v1) / sigma[0];
+    // Second left singular vector: Gram–Schmidt against w1 for robustness; when σ₂ ≈ 0
+    // (rank-1 input) any unit vector orthogonal to w1 is a valid choice.
+    let mut w2 = if sigma[1] > 1e-12 * scale {
+        m * v2 / sigma[1]
+    } else {
+        any_orthogonal(&w1)
+    };
+    let w1 = w1.normalize();
+    w2 -= w1 * w1.dot(&w2);
+    let n2 = w2.norm();
+    let w2 = if n2 > 1e-12 { w2 / n2 } else { any_orthogonal(&w1) };
+    let w3 = w1.cross(&w2);
+    let v3 = v1.cross(&v2);
+    w1 * v1.transpose() + w2 * v2.transpose() + w3 * v3.transpose()
+}
+
+/// A unit vector orthogonal to the unit vector `a`.
+pub fn any_orthogonal(a: &Vec3) -> Vec3 {
+    let helper = if a.x.abs() < 0.9 { Vec3::x() } else { Vec3::y() };
+    a.cross(&helper).normalize()
+}
+
+/// Precomputed square root and inverse square root of an SPD matrix (one eigen-decomposition).
+#[derive(Clone, Copy, Debug)]
+pub struct SpdRoots {
+    /// `U^{½}`.
+    pub sqrt: Mat3,
+    /// `U^{-½}`.
+    pub inv_sqrt: Mat3,
+}
+
+/// Smallest eigenvalue accepted when inverting an SPD matrix (values are clamped up to it).
+pub const SPD_FLOOR: Real = 1e-12;
+
+/// `U^{½}` and `U^{-½}` of a symmetric positive (semi-)definite matrix; eigenvalues are
+/// clamped to [`SPD_FLOOR`] so the result is always finite.
+pub fn spd_roots(u: &Mat3) -> SpdRoots {
+    let e = sym_eigen3(u);
+    SpdRoots {
+        sqrt: e.map(|x| x.max(SPD_FLOOR).sqrt()),
+        inv_sqrt: e.map(|x| 1.0 / x.max(SPD_FLOOR).sqrt()),
+    }
+}
+
+/// Matrix logarithm of an SPD matrix (eigenvalues clamped to [`SPD_FLOOR`]).
+pub fn spd_log(m: &Mat3) -> Mat3 {
+    sym_eigen3(m).map(|x| x.max(SPD_FLOOR).ln())
+}
+
+/// Matrix exponential of a symmetric matrix.
+pub fn sym_exp(m: &Mat3) -> Mat3 {
+    sym_eigen3(m).map(Real::exp)
+}
+
+/// Whether every entry is finite.
+#[inline]
+pub fn is_finite3(m: &Mat3) -> bool {
+    m.iter().all(|x| x.is_finite())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_relative_eq;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    fn random_rotation(rng: &mut ChaCha8Rng) -> Mat3 {
+        let axis = Vec3::new(rng.random(), rng.random(), rng.random()) - Vec3::repeat(0.5);
+        let angle = rng.random_range(-3.0..3.0);
+        *na::Rotation3::from_axis_angle(&na::Unit::new_normalize(axis), angle).matrix()
+    }
+
+    #[test]
+    fn jacobi_reconstructs_random_symmetric() {
+        let mut rng = ChaCha8Rng::seed_from_u64(1);
+        for _ in 0..200 {
+            let a = Mat3::from_fn(|_, _| rng.random_range(-1.0..1.0));
+            let s = a + a.transpose();
+            let e = sym_eigen3(&s);
+            assert!(e.values[0] >= e.values[1] && e.values[1] >= e.values[2]);
+            assert_relative_eq!(e.map(|x| x), s, epsilon = 1e-12);
+            assert_relative_eq!(e.vectors.determinant(), 1.0, epsilon = 1e-12);
+            assert_relative_eq!(e.vectors.transpose() * e.vectors, Mat3::identity(), epsilon = 1e-12);
+        }
+    }
+
+    #[test]
+    fn jacobi_handles_repeated_eigenvalues() {
+        let e = sym_eigen3(&(Mat3::identity() * 2.0));
+        assert_relative_eq!(e.values, Vec3::repeat(2.0));
+        let d = Mat3::from_diagonal(&Vec3::new(1.0, 3.0, 3.0));
+        let e = sym_eigen3(&d);
+        assert_relative_eq!(e.values, Vec3::new(3.0, 3.0, 1.0));
+    }
+
+    #[test]
+    fn polar_recovers_random_rotation_and_stretch() {
+        let mut rng = ChaCha8Rng::seed_from_u64(2);
+        for _ in 0..200 {
+            let r = random_rotation(&mut rng);
+            let b = Mat3::from_fn(|_, _| rng.random_range(-0.5..0.5));
+            let u = Mat3::identity() + b * b.transpose();
+            let p = polar(&(r * u));
+            assert_relative_eq!(p.rotation, r, epsilon = 1e-9);
+            assert_relative_eq!(p.stretch, u, epsilon = 1e-9);
+        }
+    }
+
+    #[test]
+    fn polar_of_rank_deficient_is_a_rotation() {
+        let h = Mat3::new(1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0);
+        let p = polar(&h);
+        assert_relative_eq!(p.rotation, Mat3::identity(), epsilon = 1e-12);
+        let p = polar(&Mat3::zeros());
+        assert_relative_eq!(p.rotation, Mat3::identity());
+    }
+
+    #[test]
+    fn polar_drops_reflection() {
+        let h = Mat3::from_diagonal(&Vec3::new(1.0, 2.0, -0.5));
+        let p = polar(&h);
+        assert_relative_eq!(p.rotation.determinant(), 1.0, epsilon = 1e-12);
+        let e = sym_eigen3(&p.stretch);
+        assert!(e.values[2] > 0.0);
+    }
+
+    #[test]
+    fn nearest_rotation_matches_svd() {
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        for _ in 0..100 {
+            let m = Mat3::from_fn(|_, _| rng.random_range(-1.0..1.0));
+            let r = nearest_rotation(&m);
+            let svd = m.svd(true, true);
+            let (u, vt) = (svd.u.unwrap(), svd.v_t.unwrap());
+            let mut d = Mat3::identity();
+            d[(2, 2)] = (u * vt).determinant().signum();
+            assert_relative_eq!(r, u * d * vt, epsilon = 1e-8);
+        }
+    }
+
+    #[test]
+    fn spd_functions_are_consistent() {
+        let b = Mat3::new(0.3, 0.1, 0.0, 0.1, 0.2, 0.05, 0.0, 0.05, 0.4);
+        let u = Mat3::identity() + b * b.transpose();
+        let r = spd_roots(&u);
+        assert_relative_eq!(r.sqrt * r.sqrt, u, epsilon = 1e-12);
+        assert_relative_eq!(r.sqrt * r.inv_sqrt, Mat3::identity(), epsilon = 1e-12);
+        assert_relative_eq!(sym_exp(&spd_log(&u)), u, epsilon = 1e-12);
+    }
+}

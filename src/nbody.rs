@@ -1,0 +1,227 @@
+//! The NRG motion model (paper §2): scan points attract template points as an N-body system.
+//! The force of Eq. 2 with its curvature term, and the damped integration of Eq. 3, in the
+//! converging readings of SPEC §2.3–2.4; each literal reading of the paper stays reachable
+//! through [`ForceNumerator`], [`ForceSum`] and [`DampingMode`].
+
+use crate::math::{vec3, Vec3};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+/// The numerator of Eq. 2.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ForceNumerator {
+    /// `α_kj (Y_k − X_j)`: translation-invariant (default, SPEC §2.3).
+    Centered,
+    /// `Y_k α_kj − X_j`, as printed: depends on the origin.
+    Literal,
+}
+
+/// How the per-neighbour forces are combined.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ForceSum {
+    /// Mean over the K neighbours, i.e. m(X_j) = 1/K (default; SPEC §2.4: the sum overshoots).
+    Mean,
+    /// Plain sum, as printed.
+    Sum,
+}
+
+/// How η dissipates velocity.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DampingMode {
+    /// `v ← (1 − η) v + F/m Δt`: η is the fraction of velocity dissipated per step (default).
+    Fraction,
+    /// `F ← F − η v`, as printed in Eq. 2 (dissipates only ηΔt per step).
+    Force,
+}
+
+/// Constants of the N-body simulation (paper §4 defaults).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct NBodyParams {
+    /// Gravitational constant G.
+    pub gravity: f64,
+    /// Softening length ε.
+    pub softening: f64,
+    /// Damping η.
+    pub damping: f64,
+    /// Time step Δt.
+    pub time_step: f64,
+    /// Template particle mass m(Y).
+    pub template_mass: f64,
+    /// Scan particle mass m(X).
+    pub target_mass: f64,
+    /// Positive floor applied to the curvature term α_kj (SPEC §2.3).
+    pub alpha_floor: f64,
+    /// Numerator reading of Eq. 2.
+    pub numerator: ForceNumerator,
+    /// Combination of neighbour forces.
+    pub summation: ForceSum,
+    /// Damping reading.
+    pub damping_mode: DampingMode,
+}
+
+impl Default for NBodyParams {
+    fn default() -> Self {
+        Self {
+            gravity: 1.67,
+            softening: 0.1,
+            damping: 0.1,
+            time_step: 0.006,
+            template_mass: 1.0,
+            target_mass: 1.0,
+            alpha_floor: 0.1,
+            numerator: ForceNumerator::Centered,
+            summation: ForceSum::Mean,
+            damping_mode: DampingMode::Fraction,
+        }
+    }
+}
+
+impl NBodyParams {
+    /// `(ω₀Δt)²` of the near-field spring for K neighbours: stiffness `K_eff·G·m(X)/ε³` per
+    /// unit template mass, with `K_eff = 1` for [`ForceSum::Mean`] and K for [`ForceSum::Sum`].
+    /// Explicit integration overshoots when this approaches 1 (SPEC §2.4).
+    pub fn omega0_dt_squared(&self, k: usize) -> f64 {
+        let k_eff = match self.summation {
+            ForceSum::Mean => 1.0,
+            ForceSum::Sum => k as f64,
+        };
+        k_eff * self.gravity * self.target_mass / self.softening.powi(3) * self.time_step.powi(2)
+    }
+}
+
+/// The curvature term `α_kj = max(1 − ½ κ_j ‖Y_k − X_j‖², α_floor)`.
+#[inline]
+pub fn alpha(kappa: f64, dist2: f64, floor: f64) -> f64 {
+    (1.0 - 0.5 * kappa * dist2).max(floor)
+}
+
+/// The gravitational part of Eq. 2 on one template point at `y` from its scan neighbours
+/// `neighbours` (indices into `target`, with curvatures `kappa`), without the damping term.
+pub fn gravitational_force(
+    y: &Vec3,
+    neighbours: &[u32],
+    target: &[[f64; 3]],
+    kappa: &[f64],
+    p: &NBodyParams,
+) -> Vec3 {
+    let omega = p.gravity * p.template_mass * p.target_mass;
+    let eps2 = p.softening * p.softening;
+    let mut f = Vec3::zeros();
+    for &j in neighbours {
+        let x = vec3(&target[j as usize]);
+        let diff = y - x;
+        let d2 = diff.norm_squared();
+        let a = alpha(kappa[j as usize], d2, p.alpha_floor);
+        let numerator = match p.numerator {
+            ForceNumerator::Centered => a * diff,
+            ForceNumerator::Literal => a * y - x,
+        };
+        let denom = (d2 + eps2).powf(1.5) * a.powf(1.5);
+        f -= omega * numerator / denom;
+    }
+    match p.summation {
+        ForceSum::Mean if !neighbours.is_empty() => f / neighbours.len() as f64,
+        _ => f,
+    }
+}
+
+/// One integration step (Eq. 2–3) for every template point, in parallel.
+///
+/// `neighbours` holds K scan indices per template point (row-major, M × K). Updates
+/// `velocities` to `v^{t+Δt}` and writes the proposed positions `Y^t + v^{t+Δt} Δt` to
+/// `proposed`.
+pub fn step(
+    positions: &[[f64; 3]],
+    velocities: &mut [[f64; 3]],
+    neighbours: &[u32],
+    k: usize,
+    target: &[[f64; 3]],
+    kappa: &[f64],
+    p: &NBodyParams,
+    proposed: &mut [[f64; 3]],
+) {
+    let dt = p.time_step;
+    velocities
+        .par_iter_mut()
+        .zip(proposed.par_iter_mut())
+        .enumerate()
+        .for_each(|(i, (vel, out))| {
+            let y = vec3(&positions[i]);
+            let v = vec3(vel);
+            let f = gravitational_force(&y, &neighbours[i * k..(i + 1) * k], target, kappa, p);
+            let v_new = match p.damping_mode {
+                DampingMode::Fraction => (1.0 - p.damping) * v + f / p.template_mass * dt,
+                DampingMode::Force => v + (f - p.damping * v) / p.template_mass * dt,
+            };
+            *vel = v_new.into();
+            *out = (y + v_new * dt).into();
+        });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn single_pair_force_is_newtonian_far_away() {
+        // κ = 0, far field: |F| → G m m / d² pointing to the attractor.
+        let p = NBodyParams { softening: 1e-6, ..Default::default() };
+        let f = gravitational_force(&Vec3::new(3.0, 0.0, 0.0), &[0], &[[0.0; 3]], &[0.0], &p);
+        assert!((f.x + 1.67 / 9.0).abs() < 1e-9 && f.y == 0.0 && f.z == 0.0);
+    }
+
+    #[test]
+    fn centered_force_is_translation_invariant_literal_is_not() {
+        let target = [[0.1, 0.2, 0.0], [0.0, -0.1, 0.05]];
+        let kappa = [2.0, -1.0];
+        let y = Vec3::new(0.3, 0.1, -0.2);
+        let shift = Vec3::new(5.0, -3.0, 1.0);
+        let shifted: Vec<[f64; 3]> = target.iter().map(|t| (vec3(t) + shift).into()).collect();
+        for (num, invariant) in [(ForceNumerator::Centered, true), (ForceNumerator::Literal, false)] {
+            let p = NBodyParams { numerator: num, ..Default::default() };
+            let a = gravitational_force(&y, &[0, 1], &target, &kappa, &p);
+            let b = gravitational_force(&(y + shift), &[0, 1], &shifted, &kappa, &p);
+            assert_eq!((a - b).norm() < 1e-12, invariant, "{num:?}");
+        }
+    }
+
+    #[test]
+    fn mean_is_sum_over_k_and_alpha_is_floored() {
+        let target = [[0.0; 3], [0.1, 0.0, 0.0], [0.0, 0.1, 0.0]];
+        let y = Vec3::new(0.05, 0.05, 0.3);
+        let kappa = [0.0, 1e6, -3.0];
+        let mean = gravitational_force(&y, &[0, 1, 2], &target, &kappa, &NBodyParams::default());
+        let sum_p = NBodyParams { summation: ForceSum::Sum, ..Default::default() };
+        let sum = gravitational_force(&y, &[0, 1, 2], &target, &kappa, &sum_p);
+        assert!((mean * 3.0 - sum).norm() < 1e-12);
+        assert_eq!(alpha(1e6, 1.0, 0.1), 0.1);
+        assert!(mean.iter().all(|x| x.is_finite()));
+    }
+
+    #[test]
+    fn damping_readings() {
+        let pos = [[0.0; 3]];
+        let target = [[0.0; 3]];
+        for (mode, want) in [(DampingMode::Fraction, 0.9), (DampingMode::Force, 1.0 - 0.1 * 0.006)] {
+            let p = NBodyParams { damping_mode: mode, ..Default::default() };
+            let mut vel = [[1.0, 0.0, 0.0]];
+            let mut out = [[0.0; 3]];
+            // Target at the point itself: zero force, only damping acts.
+            step(&pos, &mut vel, &[0], 1, &target, &[0.0], &p, &mut out);
+            assert!((vel[0][0] - want).abs() < 1e-15, "{mode:?}");
+            assert!((out[0][0] - want * 0.006).abs() < 1e-15);
+        }
+    }
+
+    #[test]
+    fn omega_report() {
+        let p = NBodyParams::default();
+        assert!((p.omega0_dt_squared(28) - 0.060_12).abs() < 1e-4);
+        let s = NBodyParams { summation: ForceSum::Sum, ..p };
+        assert!((s.omega0_dt_squared(28) - 1.683).abs() < 1e-3);
+    }
+}

@@ -1,0 +1,539 @@
+//! Python bindings (`foldmatch_rs._foldmatch_rs`): thin wrappers that only convert types and
+//! errors. Inputs are read without a copy when they are C-contiguous float64 (the Python layer
+//! converts anything else once); outputs are NumPy arrays that take ownership of Rust `Vec`s.
+//! The GIL is released during compute, and a panic is caught and raised as
+//! `foldmatch_rs.InternalError` rather than crossing the boundary.
+
+use crate::error::FoldMatchError;
+use crate::fit::{self, FitParams, Progress};
+use crate::math::Mat3;
+use crate::{curvature, deformation, knn, nbody, regularize, rings, rotation, synthetic, wrinkle};
+use numpy::ndarray::{Array1, Array2, Array3};
+use numpy::{IntoPyArray, PyUntypedArrayMethods, PyArray1, PyArray2, PyArray3, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3};
+use pyo3::exceptions::PyRuntimeError;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// Set in a forked child (see `_mark_forked`): rayon's global pool does not survive `fork`, so
+/// the child computes in a fresh pool of its own.
+static FORKED: AtomicBool = AtomicBool::new(false);
+
+/// Maps a crate error to the Python exception class of the same name in `foldmatch_rs.errors`.
+fn to_pyerr(err: FoldMatchError) -> PyErr {
+    let class = match &err {
+        FoldMatchError::Shape { .. }
+        | FoldMatchError::NonFinite { .. }
+        | FoldMatchError::FaceIndex { .. }
+        | FoldMatchError::FarAway { .. } => "InvalidInputError",
+        FoldMatchError::Parameter { .. } => "InvalidParameterError",
+        FoldMatchError::Io { .. } => "MeshFileError",
+        FoldMatchError::Format { .. } => "MeshFormatError",
+        FoldMatchError::Cancelled { .. } => "FitCancelled",
+        FoldMatchError::Numerical(_) => "NumericalError",
+    };
+    raise(class, err.to_string())
+}
+
+/// Builds an instance of `foldmatch_rs.errors.<class>(message)`.
+fn raise(class: &str, message: String) -> PyErr {
+    Python::attach(|py| {
+        let made = py
+            .import("foldmatch_rs.errors")
+            .and_then(|m| m.getattr(class))
+            .and_then(|cls| cls.call1((message.clone(),)));
+        match made {
+            Ok(obj) => PyErr::from_value(obj),
+            Err(_) => PyRuntimeError::new_err(message),
+        }
+    })
+}
+
+/// Runs `work` without the GIL, in a dedicated pool when `threads` is given or after a fork,
+/// turning a panic into `InternalError`.
+fn compute<T: Send>(py: Python<'_>, threads: Option<usize>, work: impl FnOnce() -> T + Send) -> PyResult<T> {
+    let outcome = py.detach(|| {
+        catch_unwind(AssertUnwindSafe(|| {
+            if threads.is_some() || FORKED.load(Ordering::Relaxed) {
+                let pool = rayon::ThreadPoolBuilder::new().num_threads(threads.unwrap_or(0)).build();
+                match pool {
+                    Ok(pool) => Ok(pool.install(work)),
+                    Err(e) => Err(format!("could not start {threads:?} threads: {e}")),
+                }
+            } else {
+                Ok(work())
+            }
+        }))
+    });
+    match outcome {
+        Ok(Ok(v)) => Ok(v),
+        Ok(Err(msg)) => Err(raise("InternalError", msg)),
+        Err(panic) => {
+            let msg = panic
+                .downcast_ref::<String>()
+                .cloned()
+                .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
+                .unwrap_or_else(|| "unknown panic".into());
+            Err(raise("InternalError", format!("internal error (please report): {msg}")))
+        }
+    }
+}
+
+/// A `(n, 3)` float64 C-contiguous array viewed as points, without a copy.
+fn points<'a>(name: &str, a: &'a PyReadonlyArray2<'_, f64>) -> PyResult<&'a [[f64; 3]]> {
+    let shape = a.shape();
+    if shape[1] != 3 {
+        return Err(to_pyerr(FoldMatchError::shape(name, format!("expected shape (n, 3), got {shape:?}"))));
+    }
+    let flat = a
+        .as_slice()
+        .map_err(|_| to_pyerr(FoldMatchError::shape(name, "expected a C-contiguous array")))?;
+    Ok(flat.as_chunks::<3>().0)
+}
+
+/// A `(t, 3)` int64 face array as `u32` triples (copied: faces are small, and the indices are
+/// range-checked on the way, negative ones included).
+fn faces(name: &str, a: &PyReadonlyArray2<'_, i64>, n_vertices: usize) -> PyResult<Vec<[u32; 3]>> {
+    let shape = a.shape();
+    if shape[1] != 3 {
+        return Err(to_pyerr(FoldMatchError::shape(name, format!("expected shape (t, 3), got {shape:?}"))));
+    }
+    let view = a.as_array();
+    let mut out = Vec::with_capacity(shape[0]);
+    for (face, row) in view.outer_iter().enumerate() {
+        let mut f = [0u32; 3];
+        for (c, &v) in row.iter().enumerate() {
+            if v < 0 || v as usize >= n_vertices {
+                return Err(to_pyerr(FoldMatchError::FaceIndex { name: name.into(), face, vertex: v, count: n_vertices }));
+            }
+            f[c] = v as u32;
+        }
+        out.push(f);
+    }
+    Ok(out)
+}
+
+fn array2(py: Python<'_>, v: Vec<[f64; 3]>) -> Bound<'_, PyArray2<f64>> {
+    let n = v.len();
+    Array2::from_shape_vec((n, 3), v.into_flattened()).expect("n×3").into_pyarray(py)
+}
+
+fn mats_to_array<'py>(py: Python<'py>, m: &[Mat3]) -> Bound<'py, PyArray3<f64>> {
+    let mut flat = Vec::with_capacity(m.len() * 9);
+    for a in m {
+        for r in 0..3 {
+            for c in 0..3 {
+                flat.push(a[(r, c)]);
+            }
+        }
+    }
+    Array3::from_shape_vec((m.len(), 3, 3), flat).expect("n×3×3").into_pyarray(py)
+}
+
+fn array_to_mats(name: &str, a: &PyReadonlyArray3<'_, f64>) -> PyResult<Vec<Mat3>> {
+    let shape = a.shape();
+    if shape[1] != 3 || shape[2] != 3 {
+        return Err(to_pyerr(FoldMatchError::shape(name, format!("expected shape (n, 3, 3), got {shape:?}"))));
+    }
+    let v = a.as_array();
+    Ok((0..shape[0]).map(|i| Mat3::from_fn(|r, c| v[[i, r, c]])).collect())
+}
+
+fn csr<'a>(offsets: &'a PyReadonlyArray1<'_, i64>, members: &'a PyReadonlyArray1<'_, i64>) -> PyResult<rings::Neighborhoods> {
+    let offsets: Vec<usize> = offsets.as_array().iter().map(|&x| x.max(0) as usize).collect();
+    let members: Vec<u32> = members.as_array().iter().map(|&x| x.max(0) as u32).collect();
+    let ok = !offsets.is_empty()
+        && offsets[0] == 0
+        && offsets.windows(2).all(|w| w[0] <= w[1])
+        && *offsets.last().unwrap() == members.len()
+        && members.iter().all(|&j| (j as usize) < offsets.len() - 1);
+    if !ok {
+        return Err(to_pyerr(FoldMatchError::shape("neighborhoods", "offsets/members do not form a valid CSR over the vertices")));
+    }
+    Ok(rings::Neighborhoods { offsets, members })
+}
+
+fn params_from(json: &str) -> PyResult<FitParams> {
+    FitParams::from_json(json).map_err(to_pyerr)
+}
+
+/// The default fit parameters as a JSON object.
+#[pyfunction]
+fn default_params_json() -> String {
+    FitParams::default().to_json()
+}
+
+/// Fits a template to a target; see `foldmatch_rs.fit`.
+#[pyfunction]
+#[pyo3(signature = (template_vertices, template_faces, target, target_faces, params_json, callback=None, threads=None))]
+#[allow(clippy::too_many_arguments)]
+fn fit_raw<'py>(
+    py: Python<'py>,
+    template_vertices: PyReadonlyArray2<'py, f64>,
+    template_faces: PyReadonlyArray2<'py, i64>,
+    target: PyReadonlyArray2<'py, f64>,
+    target_faces: Option<PyReadonlyArray2<'py, i64>>,
+    params_json: &str,
+    callback: Option<Py<PyAny>>,
+    threads: Option<usize>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let params = params_from(params_json)?;
+    let tv = points("template_vertices", &template_vertices)?;
+    let x = points("target", &target)?;
+    let tf = faces("template_faces", &template_faces, tv.len())?;
+    let xf = match &target_faces {
+        Some(f) => Some(faces("target_faces", f, x.len())?),
+        None => None,
+    };
+    let mut callback_error: Option<PyErr> = None;
+    let result = {
+        let callback_error = &mut callback_error;
+        let mut observer = |p: &Progress| -> bool {
+            let Some(cb) = &callback else { return true };
+            Python::attach(|py| {
+                let info = PyDict::new(py);
+                let filled = info
+                    .set_item("iteration", p.iteration)
+                    .and_then(|_| info.set_item("iterations", p.iterations))
+                    .and_then(|_| info.set_item("mean_displacement", p.record.mean_displacement))
+                    .and_then(|_| info.set_item("max_displacement", p.record.max_displacement));
+                match filled.and_then(|_| cb.call1(py, (info,))) {
+                    Ok(ret) => !(ret.bind(py).is_instance_of::<pyo3::types::PyBool>() && !ret.is_truthy(py).unwrap_or(true)),
+                    Err(e) => {
+                        *callback_error = Some(e);
+                        false
+                    }
+                }
+            })
+        };
+        compute(py, threads, || fit::fit(tv, &tf, x, xf.as_deref(), &params, &mut observer))?
+    };
+    if let Some(e) = callback_error {
+        return Err(e);
+    }
+    let r = result.map_err(to_pyerr)?;
+    let d = PyDict::new(py);
+    d.set_item("wvf_magnitude", fit::magnitudes(&r.wvf).into_pyarray(py))?;
+    d.set_item("wvf_accumulated_magnitude", fit::magnitudes(&r.wvf_accumulated).into_pyarray(py))?;
+    d.set_item("vertices", array2(py, r.vertices))?;
+    d.set_item("wvf", array2(py, r.wvf))?;
+    d.set_item("wvf_accumulated", array2(py, r.wvf_accumulated))?;
+    d.set_item("iterations", r.iterations)?;
+    let h = &r.history;
+    d.set_item("mean_displacement", h.iter().map(|x| x.mean_displacement).collect::<Vec<_>>().into_pyarray(py))?;
+    d.set_item("max_displacement", h.iter().map(|x| x.max_displacement).collect::<Vec<_>>().into_pyarray(py))?;
+    d.set_item("degenerate_gradients", h.iter().map(|x| x.degenerate_gradients as u64).collect::<Vec<_>>().into_pyarray(py))?;
+    let snaps: Vec<(usize, Bound<'_, PyArray2<f64>>)> = r.snapshots.into_iter().map(|(i, s)| (i, array2(py, s))).collect();
+    d.set_item("snapshots", snaps)?;
+    d.set_item("params_json", r.params.to_json())?;
+    d.set_item("diagnostics_json", serde_json::to_string(&r.diagnostics).expect("serializable"))?;
+    Ok(d)
+}
+
+/// k nearest neighbours: `(indices (q, k) uint32, squared distances (q, k))`.
+#[pyfunction]
+#[pyo3(signature = (points, queries, k, threads=None))]
+fn knn_query<'py>(
+    py: Python<'py>,
+    points: PyReadonlyArray2<'py, f64>,
+    queries: PyReadonlyArray2<'py, f64>,
+    k: usize,
+    threads: Option<usize>,
+) -> PyResult<(Bound<'py, PyArray2<u32>>, Bound<'py, PyArray2<f64>>)> {
+    let p = self::points("points", &points)?;
+    let q = self::points("queries", &queries)?;
+    crate::mesh::validate_points("points", p).map_err(to_pyerr)?;
+    if k == 0 || k > p.len() {
+        return Err(to_pyerr(FoldMatchError::parameter("k", k, &format!("must be in 1..={}", p.len()))));
+    }
+    let (idx, d2) = compute(py, threads, || {
+        let index = knn::PointIndex::new(p);
+        let mut idx = vec![0u32; q.len() * k];
+        let mut d2 = vec![0.0; q.len() * k];
+        index.nearest_all(q, k, &mut idx, &mut d2);
+        (idx, d2)
+    })?;
+    Ok((
+        Array2::from_shape_vec((q.len(), k), idx).expect("q×k").into_pyarray(py),
+        Array2::from_shape_vec((q.len(), k), d2).expect("q×k").into_pyarray(py),
+    ))
+}
+
+/// One N-body step (Eq. 2–3): `(velocities, proposed positions)`.
+#[pyfunction]
+#[pyo3(signature = (positions, velocities, target, neighbours, curvature, params_json="{}"))]
+fn nbody_step<'py>(
+    py: Python<'py>,
+    positions: PyReadonlyArray2<'py, f64>,
+    velocities: PyReadonlyArray2<'py, f64>,
+    target: PyReadonlyArray2<'py, f64>,
+    neighbours: PyReadonlyArray2<'py, i64>,
+    curvature: PyReadonlyArray1<'py, f64>,
+    params_json: &str,
+) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>)> {
+    let params = params_from(params_json)?;
+    let y = points("positions", &positions)?;
+    let v = points("velocities", &velocities)?;
+    let x = points("target", &target)?;
+    let kappa = curvature.as_slice().map_err(|_| to_pyerr(FoldMatchError::shape("curvature", "expected a contiguous 1-D array")))?;
+    let nshape = neighbours.shape();
+    if v.len() != y.len() || nshape[0] != y.len() || nshape[1] == 0 || kappa.len() != x.len() {
+        return Err(to_pyerr(FoldMatchError::shape("nbody_step", "positions, velocities and neighbours need M rows; curvature needs N values")));
+    }
+    let k = nshape[1];
+    let mut nn = Vec::with_capacity(y.len() * k);
+    for &j in neighbours.as_array().iter() {
+        if j < 0 || j as usize >= x.len() {
+            return Err(to_pyerr(FoldMatchError::shape("neighbours", format!("index {j} out of range 0..{}", x.len()))));
+        }
+        nn.push(j as u32);
+    }
+    let (vel, prop) = compute(py, None, || {
+        let mut vel = v.to_vec();
+        let mut prop = vec![[0.0; 3]; y.len()];
+        nbody::step(y, &mut vel, &nn, k, x, kappa, &params.nbody, &mut prop);
+        (vel, prop)
+    })?;
+    Ok((array2(py, vel), array2(py, prop)))
+}
+
+/// n-ring neighborhoods as CSR `(offsets (M+1,), members)`, each row starting with the vertex.
+#[pyfunction]
+#[pyo3(signature = (faces, n_vertices, rings=2))]
+fn n_rings<'py>(
+    py: Python<'py>,
+    faces: PyReadonlyArray2<'py, i64>,
+    n_vertices: usize,
+    rings: usize,
+) -> PyResult<(Bound<'py, PyArray1<u64>>, Bound<'py, PyArray1<u32>>)> {
+    let f = self::faces("faces", &faces, n_vertices)?;
+    let nb = compute(py, None, || rings::n_rings(&f, n_vertices, rings))?;
+    let offsets: Vec<u64> = nb.offsets.iter().map(|&o| o as u64).collect();
+    Ok((offsets.into_pyarray(py), nb.members.into_pyarray(py)))
+}
+
+/// Gaussian curvature per point: angle deficit when `faces` is given, quadric fit otherwise.
+#[pyfunction]
+#[pyo3(signature = (points, faces=None))]
+fn gaussian_curvature<'py>(
+    py: Python<'py>,
+    points: PyReadonlyArray2<'py, f64>,
+    faces: Option<PyReadonlyArray2<'py, i64>>,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let p = self::points("points", &points)?;
+    crate::mesh::validate_points("points", p).map_err(to_pyerr)?;
+    let f = match &faces {
+        Some(f) => Some(self::faces("faces", f, p.len())?),
+        None => None,
+    };
+    let k = compute(py, None, || match &f {
+        Some(f) => curvature::gaussian_curvature_mesh(p, f),
+        None => curvature::gaussian_curvature_points(p, &knn::PointIndex::new(p)),
+    })?;
+    Ok(k.into_pyarray(py))
+}
+
+/// Deformation gradients (Eq. 4) of the motion `old → new` over n-ring neighborhoods:
+/// `(gradients (M, 3, 3), degenerate (M,) bool)`.
+#[pyfunction]
+#[pyo3(signature = (old, new, faces, rings=2, normal_completion=0.3))]
+fn deformation_gradients<'py>(
+    py: Python<'py>,
+    old: PyReadonlyArray2<'py, f64>,
+    new: PyReadonlyArray2<'py, f64>,
+    faces: PyReadonlyArray2<'py, i64>,
+    rings: usize,
+    normal_completion: f64,
+) -> PyResult<(Bound<'py, PyArray3<f64>>, Bound<'py, PyArray1<bool>>)> {
+    let o = points("old", &old)?;
+    let n = points("new", &new)?;
+    if o.len() != n.len() {
+        return Err(to_pyerr(FoldMatchError::shape("new", format!("expected {} rows like old, got {}", o.len(), n.len()))));
+    }
+    let f = self::faces("faces", &faces, o.len())?;
+    let (h, deg) = compute(py, None, || {
+        let clean = crate::mesh::clean_faces(&f).faces;
+        let inc = crate::mesh::VertexFaces::new(&clean, o.len());
+        let nb = rings::n_rings(&clean, o.len(), rings);
+        let mut no = vec![[0.0; 3]; o.len()];
+        let mut nn = vec![[0.0; 3]; o.len()];
+        crate::mesh::vertex_normals(o, &clean, &inc, &mut no);
+        crate::mesh::vertex_normals(n, &clean, &inc, &mut nn);
+        (0..o.len())
+            .map(|k| deformation::deformation_gradient(k, nb.of(k), o, n, &no[k], &nn[k], normal_completion))
+            .unzip::<_, _, Vec<_>, Vec<_>>()
+    })?;
+    Ok((mats_to_array(py, &h), Array1::from_vec(deg).into_pyarray(py)))
+}
+
+/// Regularization (Eq. 5): `(rotations, stretches)`, each (M, 3, 3).
+#[pyfunction]
+#[pyo3(signature = (gradients, offsets, members, mode="affine_invariant"))]
+fn regularize_gradients<'py>(
+    py: Python<'py>,
+    gradients: PyReadonlyArray3<'py, f64>,
+    offsets: PyReadonlyArray1<'py, i64>,
+    members: PyReadonlyArray1<'py, i64>,
+    mode: &str,
+) -> PyResult<(Bound<'py, PyArray3<f64>>, Bound<'py, PyArray3<f64>>)> {
+    let h = array_to_mats("gradients", &gradients)?;
+    let nb = csr(&offsets, &members)?;
+    if nb.len() != h.len() {
+        return Err(to_pyerr(FoldMatchError::shape("offsets", format!("expected {} rows, got {}", h.len(), nb.len()))));
+    }
+    let mode: regularize::Regularization = serde_json::from_value(serde_json::Value::String(mode.into()))
+        .map_err(|_| to_pyerr(FoldMatchError::parameter("mode", mode, "one of affine_invariant, log_euclidean, none")))?;
+    let (r, u) = compute(py, None, || {
+        let mut buf = regularize::RegularizeBuffers::new(h.len());
+        let (mut r, mut u) = (vec![Mat3::zeros(); h.len()], vec![Mat3::zeros(); h.len()]);
+        regularize::regularize(&h, &nb, mode, &mut buf, &mut r, &mut u);
+        (r, u)
+    })?;
+    Ok((mats_to_array(py, &r), mats_to_array(py, &u)))
+}
+
+/// Polar decomposition `H = R U` of every matrix: `(rotations, stretches)`.
+#[pyfunction]
+fn polar_decomposition<'py>(
+    py: Python<'py>,
+    matrices: PyReadonlyArray3<'py, f64>,
+) -> PyResult<(Bound<'py, PyArray3<f64>>, Bound<'py, PyArray3<f64>>)> {
+    let h = array_to_mats("matrices", &matrices)?;
+    let (r, u): (Vec<Mat3>, Vec<Mat3>) = h.iter().map(|m| {
+        let p = crate::math::polar(m);
+        (p.rotation, p.stretch)
+    }).unzip();
+    Ok((mats_to_array(py, &r), mats_to_array(py, &u)))
+}
+
+/// ψ-modified stretch and wrinkle vectors (Eq. 6–7): `(modified stretches (M,3,3), wvf (M,3))`.
+#[pyfunction]
+#[pyo3(signature = (stretches, psi=0.05))]
+fn wrinkle_field<'py>(
+    py: Python<'py>,
+    stretches: PyReadonlyArray3<'py, f64>,
+    psi: f64,
+) -> PyResult<(Bound<'py, PyArray3<f64>>, Bound<'py, PyArray2<f64>>)> {
+    let u = array_to_mats("stretches", &stretches)?;
+    let (uh, w): (Vec<Mat3>, Vec<[f64; 3]>) = u.iter().map(|m| {
+        let s = wrinkle::modified_stretch(m, psi);
+        (s.stretch, <[f64; 3]>::from(s.wrinkle))
+    }).unzip();
+    Ok((mats_to_array(py, &uh), array2(py, w)))
+}
+
+/// Rotation solve of Eq. 8 for every vertex: `argmin_R ‖H − R Û‖_F`, (M, 3, 3).
+#[pyfunction]
+fn solve_rotations<'py>(
+    py: Python<'py>,
+    gradients: PyReadonlyArray3<'py, f64>,
+    modified_stretches: PyReadonlyArray3<'py, f64>,
+) -> PyResult<Bound<'py, PyArray3<f64>>> {
+    let h = array_to_mats("gradients", &gradients)?;
+    let u = array_to_mats("modified_stretches", &modified_stretches)?;
+    if h.len() != u.len() {
+        return Err(to_pyerr(FoldMatchError::shape("modified_stretches", "needs as many matrices as gradients")));
+    }
+    let r: Vec<Mat3> = h.iter().zip(&u).map(|(h, u)| rotation::solve_rotation(h, u)).collect();
+    Ok(mats_to_array(py, &r))
+}
+
+/// One FoldMatch update (Eq. 4–8 and the per-vertex transform) of the motion `old → proposed`:
+/// `(new positions (M,3), per-step wvf (M,3))`.
+#[pyfunction]
+#[pyo3(signature = (old, proposed, faces, params_json="{}"))]
+fn foldmatch_update<'py>(
+    py: Python<'py>,
+    old: PyReadonlyArray2<'py, f64>,
+    proposed: PyReadonlyArray2<'py, f64>,
+    faces: PyReadonlyArray2<'py, i64>,
+    params_json: &str,
+) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>)> {
+    let params = params_from(params_json)?;
+    let o = points("old", &old)?;
+    let n = points("proposed", &proposed)?;
+    if o.len() != n.len() {
+        return Err(to_pyerr(FoldMatchError::shape("proposed", "needs as many rows as old")));
+    }
+    let f = self::faces("faces", &faces, o.len())?;
+    let (next, wvf) = compute(py, None, || {
+        let clean = crate::mesh::clean_faces(&f).faces;
+        let inc = crate::mesh::VertexFaces::new(&clean, o.len());
+        let nb = rings::n_rings(&clean, o.len(), params.rings);
+        let topo = fit::TemplateTopology { faces: &clean, incidence: &inc, rings: &nb };
+        let mut ws = fit::Workspace::new(o.len());
+        fit::deformation_model(o, n, &topo, &params, &mut ws);
+        let next: Vec<[f64; 3]> = (0..o.len())
+            .map(|v| {
+                let (co, cn) = rotation::ring_centroids(nb.of(v), o, n);
+                rotation::transform_vertex(&ws.rotation[v], &crate::math::vec3(&o[v]), &co, &cn).into()
+            })
+            .collect();
+        (next, ws.wvf)
+    })?;
+    Ok((array2(py, next), array2(py, wvf)))
+}
+
+/// The generated folded-sheet case: a dict of arrays (template_vertices, faces, ground_truth,
+/// scan).
+#[pyfunction]
+#[pyo3(signature = (nx=41, ny=41, width=1.0, height=1.0, fold_amplitude=0.06, folds=2.5, rotation_degrees=8.0, offset=(0.03, -0.02, 0.04), scan_points=0, noise=0.0, seed=1))]
+#[allow(clippy::too_many_arguments)]
+fn folded_sheet<'py>(
+    py: Python<'py>,
+    nx: usize,
+    ny: usize,
+    width: f64,
+    height: f64,
+    fold_amplitude: f64,
+    folds: f64,
+    rotation_degrees: f64,
+    offset: (f64, f64, f64),
+    scan_points: usize,
+    noise: f64,
+    seed: u64,
+) -> PyResult<Bound<'py, PyDict>> {
+    if nx < 2 || ny < 2 {
+        return Err(to_pyerr(FoldMatchError::parameter("nx/ny", format!("{nx}/{ny}"), "need at least 2 vertices per side")));
+    }
+    let spec = synthetic::SheetSpec {
+        nx, ny, width, height, fold_amplitude, folds, rotation_degrees,
+        offset: [offset.0, offset.1, offset.2], scan_points, noise, seed,
+    };
+    let c = synthetic::folded_sheet(&spec);
+    let d = PyDict::new(py);
+    d.set_item("template_vertices", array2(py, c.template_vertices))?;
+    let faces: Vec<i64> = c.faces.iter().flat_map(|f| f.map(i64::from)).collect();
+    d.set_item("faces", Array2::from_shape_vec((c.faces.len(), 3), faces).expect("t×3").into_pyarray(py))?;
+    d.set_item("ground_truth", array2(py, c.ground_truth))?;
+    d.set_item("scan", array2(py, c.scan))?;
+    Ok(d)
+}
+
+/// Marks this process as a forked child (registered with `os.register_at_fork`).
+#[pyfunction]
+fn _mark_forked() {
+    FORKED.store(true, Ordering::Relaxed);
+}
+
+/// The compiled core of `foldmatch_rs`.
+#[pymodule]
+fn _foldmatch_rs(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(default_params_json, m)?)?;
+    m.add_function(wrap_pyfunction!(fit_raw, m)?)?;
+    m.add_function(wrap_pyfunction!(knn_query, m)?)?;
+    m.add_function(wrap_pyfunction!(nbody_step, m)?)?;
+    m.add_function(wrap_pyfunction!(n_rings, m)?)?;
+    m.add_function(wrap_pyfunction!(gaussian_curvature, m)?)?;
+    m.add_function(wrap_pyfunction!(deformation_gradients, m)?)?;
+    m.add_function(wrap_pyfunction!(regularize_gradients, m)?)?;
+    m.add_function(wrap_pyfunction!(polar_decomposition, m)?)?;
+    m.add_function(wrap_pyfunction!(wrinkle_field, m)?)?;
+    m.add_function(wrap_pyfunction!(solve_rotations, m)?)?;
+    m.add_function(wrap_pyfunction!(foldmatch_update, m)?)?;
+    m.add_function(wrap_pyfunction!(folded_sheet, m)?)?;
+    m.add_function(wrap_pyfunction!(_mark_forked, m)?)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

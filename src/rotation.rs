@@ -1,0 +1,71 @@
+//! Per-vertex transformation (paper Eq. 8, SPEC §2.9–2.11).
+//!
+//! `R_k* = argmin_{R ∈ SO(3)} ‖H_k − R Û_k‖_F` is an orthogonal Procrustes problem: R* is the
+//! rotation factor of `H_k Û_kᵀ`. The translation is `t_k* = Ȳ'_k − R_k* Ȳ_k` with Ȳ, Ȳ' the
+//! centroids of Γᵏ_Y at t and t+Δt, and the vertex moves to `R_k* Y_k + t_k*`.
+//! For NRGa (SPEC §2.11) the rotation is the Kabsch fit of the neighborhood's old to new
+//! positions instead.
+
+use crate::math::{nearest_rotation, vec3, Mat3, Vec3};
+
+/// Solves Eq. 8: the rotation closest to `h` once the stretch `u_hat` is factored out.
+#[inline]
+pub fn solve_rotation(h: &Mat3, u_hat: &Mat3) -> Mat3 {
+    nearest_rotation(&(h * u_hat.transpose()))
+}
+
+/// Centroids of `ring` in `old` and `new` positions.
+#[inline]
+pub fn ring_centroids(ring: &[u32], old: &[[f64; 3]], new: &[[f64; 3]]) -> (Vec3, Vec3) {
+    let mut c_old = Vec3::zeros();
+    let mut c_new = Vec3::zeros();
+    for &j in ring {
+        c_old += vec3(&old[j as usize]);
+        c_new += vec3(&new[j as usize]);
+    }
+    let n = ring.len().max(1) as f64;
+    (c_old / n, c_new / n)
+}
+
+/// The updated position `R Y_k + t` with `t = Ȳ' − R Ȳ`, i.e. `Ȳ' + R (Y_k − Ȳ)`.
+#[inline]
+pub fn transform_vertex(rotation: &Mat3, y: &Vec3, c_old: &Vec3, c_new: &Vec3) -> Vec3 {
+    c_new + rotation * (y - c_old)
+}
+
+/// Kabsch rotation of the neighborhood: the rotation best mapping `old − Ȳ` onto `new − Ȳ'`.
+pub fn kabsch(ring: &[u32], old: &[[f64; 3]], new: &[[f64; 3]], c_old: &Vec3, c_new: &Vec3) -> Mat3 {
+    let mut cov = Mat3::zeros();
+    for &j in ring {
+        cov += (vec3(&new[j as usize]) - c_new) * (vec3(&old[j as usize]) - c_old).transpose();
+    }
+    nearest_rotation(&cov)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_relative_eq;
+
+    #[test]
+    fn procrustes_recovers_random_rotation() {
+        let r = *nalgebra::Rotation3::from_euler_angles(1.0, -0.4, 2.5).matrix();
+        let u = Mat3::new(1.2, 0.1, 0.0, 0.1, 0.9, 0.0, 0.0, 0.0, 1.0);
+        assert_relative_eq!(solve_rotation(&(r * u), &u), r, epsilon = 1e-10);
+        // Any SPD Û sharing U's eigenvectors gives the same rotation.
+        assert_relative_eq!(solve_rotation(&(r * u), &(u * u)), r, epsilon = 1e-10);
+    }
+
+    #[test]
+    fn kabsch_recovers_rigid_motion() {
+        let old = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 2.0, 0.0], [0.0, 0.0, 3.0], [1.0, 1.0, 1.0]];
+        let r = *nalgebra::Rotation3::from_euler_angles(0.5, 0.2, -1.3).matrix();
+        let t = Vec3::new(3.0, -2.0, 0.5);
+        let new: Vec<[f64; 3]> = old.iter().map(|p| (r * vec3(p) + t).into()).collect();
+        let ring = [0, 1, 2, 3, 4];
+        let (co, cn) = ring_centroids(&ring, &old, &new);
+        let rk = kabsch(&ring, &old, &new, &co, &cn);
+        assert_relative_eq!(rk, r, epsilon = 1e-10);
+        assert_relative_eq!(transform_vertex(&rk, &vec3(&old[4]), &co, &cn), vec3(&new[4]), epsilon = 1e-10);
+    }
+}
