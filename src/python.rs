@@ -7,7 +7,7 @@
 use crate::error::FoldMatchError;
 use crate::fit::{self, FitParams, Progress};
 use crate::math::Mat3;
-use crate::{curvature, deformation, knn, nbody, regularize, rings, rotation, synthetic, wrinkle};
+use crate::{curvature, deformation, knn, metrics, nbody, regularize, rings, rotation, synthetic, wrinkle};
 use numpy::ndarray::{Array1, Array2, Array3};
 use numpy::{IntoPyArray, PyUntypedArrayMethods, PyArray1, PyArray2, PyArray3, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3};
 use pyo3::exceptions::PyRuntimeError;
@@ -511,6 +511,56 @@ fn folded_sheet<'py>(
     Ok(d)
 }
 
+/// The paper's metrics (SPEC §3) of a fit: a dict keyed by the metric names.
+#[pyfunction]
+#[pyo3(signature = (template_vertices, template_faces, fitted_vertices, target, ground_truth=None, tau_s=0.02, tau_e=2.0))]
+#[allow(clippy::too_many_arguments)]
+fn evaluate<'py>(
+    py: Python<'py>,
+    template_vertices: PyReadonlyArray2<'py, f64>,
+    template_faces: PyReadonlyArray2<'py, i64>,
+    fitted_vertices: PyReadonlyArray2<'py, f64>,
+    target: PyReadonlyArray2<'py, f64>,
+    ground_truth: Option<PyReadonlyArray2<'py, f64>>,
+    tau_s: f64,
+    tau_e: f64,
+) -> PyResult<Bound<'py, PyDict>> {
+    let tv = points("template_vertices", &template_vertices)?;
+    let fv = points("fitted_vertices", &fitted_vertices)?;
+    let x = points("target", &target)?;
+    let gt = match &ground_truth {
+        Some(g) => Some(points("ground_truth", g)?),
+        None => None,
+    };
+    let f = faces("template_faces", &template_faces, tv.len())?;
+    let params = metrics::MetricsParams { tau_s, tau_e, ..Default::default() };
+    let input = metrics::MetricsInput { template_vertices: tv, faces: &f, fitted_vertices: fv, target: x, ground_truth: gt };
+    let m = compute(py, None, || metrics::evaluate(&input, &params))?.map_err(to_pyerr)?;
+    let d = PyDict::new(py);
+    d.set_item("f_H", m.f_h)?;
+    d.set_item("f_S", m.f_s)?;
+    d.set_item("f_E", m.f_e)?;
+    d.set_item("f_F", m.f_f)?;
+    d.set_item("f_R", m.f_r)?;
+    d.set_item("f_lambda", m.f_lambda)?;
+    d.set_item("f_lambda_terms", m.f_lambda_terms)?;
+    d.set_item("chamfer", m.chamfer)?;
+    d.set_item("scan_to_fit_mean", m.scan_to_fit_mean)?;
+    d.set_item("scan_to_fit_p95", m.scan_to_fit_p95)?;
+    d.set_item("fit_to_scan_mean", m.fit_to_scan_mean)?;
+    d.set_item("hausdorff_before", m.hausdorff_before)?;
+    d.set_item("hausdorff_after", m.hausdorff_after)?;
+    d.set_item("rmse", m.rmse)?;
+    d.set_item("target_diagonal", m.target_diagonal)?;
+    d.set_item("num_faces", m.num_faces)?;
+    d.set_item("num_degenerate_faces", m.num_degenerate_faces)?;
+    d.set_item("num_evaluated_faces", m.num_evaluated_faces)?;
+    d.set_item("num_collapsed_faces", m.num_collapsed_faces)?;
+    d.set_item("num_expanded_faces", m.num_expanded_faces)?;
+    d.set_item("num_flipped_faces", m.num_flipped_faces)?;
+    Ok(d)
+}
+
 /// Marks this process as a forked child (registered with `os.register_at_fork`).
 #[pyfunction]
 fn _mark_forked() {
@@ -533,6 +583,7 @@ fn _foldmatch_rs(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(solve_rotations, m)?)?;
     m.add_function(wrap_pyfunction!(foldmatch_update, m)?)?;
     m.add_function(wrap_pyfunction!(folded_sheet, m)?)?;
+    m.add_function(wrap_pyfunction!(evaluate, m)?)?;
     m.add_function(wrap_pyfunction!(_mark_forked, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())

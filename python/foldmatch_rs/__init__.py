@@ -405,6 +405,52 @@ def foldmatch_update(old: Any, proposed: Any, faces: Any, **params: Any) -> tupl
     )
 
 
+def evaluate(
+    template: Any,
+    template_faces: Any,
+    fitted: Any,
+    target: Any,
+    ground_truth: Any = None,
+    *,
+    tau_s: float = 0.02,
+    tau_e: float = 2.0,
+) -> dict[str, Any]:
+    """The paper's evaluation metrics (§4, SPEC §3) of a fit.
+
+    Parameters
+    ----------
+    template : (M, 3) float or trimesh.Trimesh
+        The template before fitting (Y).
+    template_faces : (T, 3) int
+    fitted : (M, 3) float or FitResult
+        The fitted vertices (Ŷ).
+    target : (N, 3) float
+        The scan (X).
+    ground_truth : (M, 3) float, optional
+        True positions of the template vertices, when known.
+    tau_s, tau_e : float
+        Area-ratio thresholds of f_S (collapse) and f_E (expansion).
+
+    Returns
+    -------
+    dict
+        ``f_H`` (Hausdorff ratio after/before), ``f_S``, ``f_E``, ``f_F`` (fractions of
+        collapsed, expanded, flipped faces), ``f_R`` (ground-truth RMSE / target diagonal, or
+        None), ``f_lambda`` (mean of the available terms, named in ``f_lambda_terms``),
+        ``chamfer``, ``scan_to_fit_mean``, ``scan_to_fit_p95``, ``fit_to_scan_mean``,
+        ``hausdorff_before``, ``hausdorff_after``, ``rmse``, ``target_diagonal`` and face counts.
+    """
+    return _core.evaluate(
+        _points(template, "template_vertices"),
+        _faces(template_faces, "template_faces"),
+        _points(fitted, "fitted_vertices"),
+        _points(target, "target"),
+        None if ground_truth is None else _points(ground_truth, "ground_truth"),
+        float(tau_s),
+        float(tau_e),
+    )
+
+
 def folded_sheet(**spec: Any) -> dict[str, np.ndarray]:
     """A generated case with ground truth: a flat sheet template (``template_vertices``,
     ``faces``), the same sheet folded, rotated and offset (``ground_truth``, same vertex
@@ -429,6 +475,7 @@ __all__ = [
     "solve_rotations",
     "foldmatch_update",
     "folded_sheet",
+    "evaluate",
     "FoldMatchError",
     "InvalidInputError",
     "InvalidParameterError",
