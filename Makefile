@@ -4,7 +4,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 CARGO_PROFILE ?= ci
 
-.PHONY: all venv build cli demo test rust-test lint py-test clean
+.PHONY: all venv build cli demo test rust-test lint stubtest py-test clean
 
 all: test
 
@@ -32,16 +32,20 @@ demo: cli
 lint: venv
 	cargo fmt --all -- --check
 	cargo clippy --all-targets --features python,cli -- -D warnings
-	$(VENV)/bin/ruff check python tests bench
+	$(VENV)/bin/ruff check python tests $(wildcard bench)
 
 rust-test:
 	cargo test --profile $(CARGO_PROFILE) --features cli
+
+## Type stubs must match the built module.
+stubtest: build
+	$(PY) -m mypy.stubtest foldmatch_rs._foldmatch_rs
 
 py-test: build
 	$(PY) -m pytest -q tests
 
 ## Everything CI runs.
-test: lint rust-test py-test
+test: lint rust-test stubtest py-test
 
 clean:
 	rm -rf $(VENV) target demo-out

@@ -18,12 +18,14 @@
 //! 8. [`wrinkle`] — polar decomposition, ψ-modified stretch and the wrinkle-vector field
 //!    (Eq. 6–7);
 //! 9. [`rotation`] — co-rotational rotation solve and translation (Eq. 8), per-vertex update;
-//! 10. [`fit`] — the driver: ξ iterations of the above, FoldMatch and NRGa modes.
+//! 10. [`mod@fit`] — the driver: ξ iterations of the above, FoldMatch and NRGa modes.
 //!
 //! [`math`] holds the 3×3 algebra shared by all stages, [`mesh`] the template mesh checks and
 //! geometry, [`error`] the error type.
 #![warn(missing_docs)]
 
+#[cfg(feature = "cli")]
+pub mod cli;
 pub mod curvature;
 pub mod deformation;
 pub mod error;

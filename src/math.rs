@@ -51,6 +51,7 @@ impl SymEigen3 {
 /// harmless. Jacobi is unconditionally convergent and accurate
 /// to a few ulps relative to ‖A‖, including for repeated eigenvalues (where closed-form cubic
 /// solvers lose precision). At most 16 sweeps; in practice 4–6.
+#[allow(clippy::needless_range_loop)] // index-heavy Jacobi sweeps read best with indices
 pub fn sym_eigen3(a: &Mat3) -> SymEigen3 {
     let mut m = [[0.0; 3]; 3];
     for (i, row) in m.iter_mut().enumerate() {
@@ -146,7 +147,7 @@ pub fn nearest_rotation(m: &Mat3) -> Mat3 {
 /// Builds `W Vᵀ` from `m`, its right singular vectors `v` (right-handed) and singular values.
 fn rotation_from_svd_parts(m: &Mat3, v: &Mat3, sigma: &Vec3) -> Mat3 {
     let scale = sigma[0];
-    if !(scale > 0.0) || !scale.is_finite() {
+    if scale <= 0.0 || !scale.is_finite() {
         return Mat3::identity();
     }
     let v1 = v.column(0).into_owned();

@@ -162,8 +162,8 @@ mod tests {
         let inc = VertexFaces::new(&f, 5);
         let mut n = vec![[0.0; 3]; 5];
         vertex_normals(&p, &f, &inc, &mut n);
-        for k in 0..4 {
-            assert_eq!(n[k], [0.0, 0.0, 1.0]);
+        for normal in &n[..4] {
+            assert_eq!(*normal, [0.0, 0.0, 1.0]);
         }
         assert_eq!(n[4], [0.0; 3], "isolated vertex has no normal");
     }

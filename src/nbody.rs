@@ -134,6 +134,7 @@ pub fn gravitational_force(
 /// `neighbours` holds K scan indices per template point (row-major, M × K). Updates
 /// `velocities` to `v^{t+Δt}` and writes the proposed positions `Y^t + v^{t+Δt} Δt` to
 /// `proposed`.
+#[allow(clippy::too_many_arguments)]
 pub fn step(
     positions: &[[f64; 3]],
     velocities: &mut [[f64; 3]],

@@ -50,8 +50,8 @@ impl Frame {
     /// Maps frame coordinates back to user coordinates, in place.
     pub fn inverse_in_place(&self, points: &mut [[Real; 3]]) {
         for p in points {
-            for i in 0..3 {
-                p[i] = p[i] * self.scale + self.center[i];
+            for (x, c) in p.iter_mut().zip(self.center) {
+                *x = *x * self.scale + c;
             }
         }
     }

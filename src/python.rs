@@ -4,6 +4,8 @@
 //! The GIL is released during compute, and a panic is caught and raised as
 //! `foldmatch_rs.InternalError` rather than crossing the boundary.
 
+#![allow(clippy::type_complexity)] // tuples of NumPy arrays returned to Python
+
 use crate::error::FoldMatchError;
 use crate::fit::{self, FitParams, Progress};
 use crate::math::Mat3;
@@ -199,7 +201,8 @@ fn fit_raw<'py>(
                     .and_then(|_| info.set_item("mean_displacement", p.record.mean_displacement))
                     .and_then(|_| info.set_item("max_displacement", p.record.max_displacement));
                 match filled.and_then(|_| cb.call1(py, (info,))) {
-                    Ok(ret) => !(ret.bind(py).is_instance_of::<pyo3::types::PyBool>() && !ret.is_truthy(py).unwrap_or(true)),
+                    // Only an explicit `False` stops the fit (None continues).
+                    Ok(ret) => !ret.bind(py).is_instance_of::<pyo3::types::PyBool>() || ret.is_truthy(py).unwrap_or(true),
                     Err(e) => {
                         *callback_error = Some(e);
                         false
