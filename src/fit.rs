@@ -105,6 +105,23 @@ pub struct FitParams {
     pub prealign: Prealign,
     /// Keep the vertex positions every this many iterations (0 keeps none).
     pub snapshot_every: usize,
+    /// Two-way attraction: weight of the pull of every scan point on its nearest template
+    /// vertex, added to Eq. 2 (0: the paper's one-way attraction).
+    pub two_way: f64,
+    /// Rigid phase: this fraction of the ξ iterations comes first and moves the whole template
+    /// rigidly (one Kabsch fit of all vertices' old to proposed positions). FoldMatch only.
+    pub rigid_fraction: f64,
+    /// Coarse phase: the next fraction of the iterations moves every vertex by the Kabsch rigid
+    /// fit of its large geodesic neighborhood (`coarse_rings`), i.e. piecewise rigidly, before
+    /// the FoldMatch n-ring model takes over. FoldMatch only.
+    pub coarse_fraction: f64,
+    /// Radius (graph distance) of the neighborhoods of the coarse phase.
+    pub coarse_rings: usize,
+    /// Softening annealing: ε starts at `anneal × ε` and decreases linearly to ε over
+    /// `anneal_iterations` (1: constant ε, the paper's reading).
+    pub anneal: f64,
+    /// Iterations over which the softening anneals.
+    pub anneal_iterations: usize,
 }
 
 impl Default for FitParams {
@@ -127,21 +144,62 @@ impl Default for FitParams {
             use_curvature: true,
             prealign: Prealign::None,
             snapshot_every: 0,
+            two_way: 1.0,
+            rigid_fraction: 0.3,
+            coarse_fraction: 0.3,
+            coarse_rings: 8,
+            anneal: 1.0,
+            anneal_iterations: 0,
         }
     }
 }
 
 impl FitParams {
+    /// The paper's method as printed, with only the converging readings of SPEC §2: one-way
+    /// attraction, no rigid or coarse phase (the `"paper"` preset).
+    pub fn paper() -> Self {
+        Self { two_way: 0.0, rigid_fraction: 0.0, coarse_fraction: 0.0, ..Self::default() }
+    }
+
+    /// A named preset: `"default"` (the most accurate configuration measured, see
+    /// docs/method.md) or `"paper"` ([`FitParams::paper`]).
+    pub fn preset(name: &str) -> Result<Self> {
+        match name {
+            "default" => Ok(Self::default()),
+            "paper" => Ok(Self::paper()),
+            other => Err(FoldMatchError::parameter("preset", other, "one of default, paper")),
+        }
+    }
+
+    /// Iterations of the rigid and coarse phases: `(rigid, coarse)`, both 0 for NRGa.
+    pub fn phase_iterations(&self) -> (usize, usize) {
+        if self.method == Method::Nrga {
+            return (0, 0);
+        }
+        let rigid = (self.rigid_fraction * self.iterations as f64).round() as usize;
+        let coarse = (self.coarse_fraction * self.iterations as f64).round() as usize;
+        (rigid, coarse.min(self.iterations.saturating_sub(rigid)))
+    }
+
     /// Parses parameters from a JSON object; missing keys take their defaults, unknown keys are
     /// an error naming the key.
     pub fn from_json(text: &str) -> Result<Self> {
-        let given: serde_json::Map<String, serde_json::Value> = serde_json::from_str(text)
+        Self::from_json_over(text, Self::default())
+    }
+
+    /// Like [`FitParams::from_json`], with missing keys taken from `base` (a preset).
+    pub fn from_json_over(text: &str, base: Self) -> Result<Self> {
+        let mut given: serde_json::Map<String, serde_json::Value> = serde_json::from_str(text)
             .map_err(|e| FoldMatchError::parameter("params", text, &format!("not a JSON object: {e}")))?;
         let known = serde_json::to_value(Self::default()).expect("FitParams serializes");
         let known = known.as_object().expect("FitParams is an object");
         if let Some(bad) = given.keys().find(|k| !known.contains_key(*k)) {
             let names: Vec<&str> = known.keys().map(String::as_str).collect();
             return Err(FoldMatchError::parameter(bad, "?", &format!("unknown parameter; known: {}", names.join(", "))));
+        }
+        let base = serde_json::to_value(base).expect("FitParams serializes");
+        for (key, value) in base.as_object().expect("object") {
+            given.entry(key.clone()).or_insert_with(|| value.clone());
         }
         let params: Self = serde_json::from_value(serde_json::Value::Object(given))
             .map_err(|e| FoldMatchError::parameter("params", text, &e.to_string()))?;
@@ -188,6 +246,27 @@ impl FitParams {
         }
         if !(self.tolerance >= 0.0 && self.tolerance.is_finite()) {
             return Err(FoldMatchError::parameter("tolerance", self.tolerance, "must be finite and >= 0"));
+        }
+        if !(self.two_way >= 0.0 && self.two_way.is_finite()) {
+            return Err(FoldMatchError::parameter("two_way", self.two_way, "must be finite and >= 0"));
+        }
+        for (name, v) in [("rigid_fraction", self.rigid_fraction), ("coarse_fraction", self.coarse_fraction)] {
+            if !(0.0..=1.0).contains(&v) {
+                return Err(FoldMatchError::parameter(name, v, "must be in [0, 1]"));
+            }
+        }
+        if self.rigid_fraction + self.coarse_fraction > 1.0 {
+            return Err(FoldMatchError::parameter(
+                "rigid_fraction + coarse_fraction",
+                self.rigid_fraction + self.coarse_fraction,
+                "must be <= 1",
+            ));
+        }
+        if !(1..=32).contains(&self.coarse_rings) {
+            return Err(FoldMatchError::parameter("coarse_rings", self.coarse_rings, "must be in 1..=32"));
+        }
+        if !(self.anneal >= 1.0 && self.anneal.is_finite()) {
+            return Err(FoldMatchError::parameter("anneal", self.anneal, "must be finite and >= 1"));
         }
         if !(1..=8).contains(&self.rings) {
             return Err(FoldMatchError::parameter("rings", self.rings, "must be in 1..=8"));
@@ -435,14 +514,43 @@ pub fn fit(
     let mut nn_idx = vec![0u32; m * k];
     let mut nn_d2 = vec![0.0; m * k];
     let mut ws = Workspace::new(m);
+    let two_way = params.two_way > 0.0 && params.method == Method::FoldMatch;
+    let (rigid_iterations, coarse_iterations) = params.phase_iterations();
+    let mut reverse_force = vec![[0.0; 3]; if two_way { m } else { 0 }];
+    let mut reverse_count = vec![0u32; if two_way { m } else { 0 }];
+    let mut scan_nearest = vec![0u32; if two_way { scan.len() } else { 0 }];
+    let all_vertices: Vec<u32> = if rigid_iterations > 0 { (0..m as u32).collect() } else { Vec::new() };
+    let coarse_rings = if coarse_iterations > 0 { n_rings(faces, m, params.coarse_rings) } else { Neighborhoods::default() };
     let mut history = Vec::with_capacity(params.iterations);
     let mut snapshots = Vec::new();
     let dt = params.nbody.time_step;
 
     for it in 1..=params.iterations {
         index.nearest_all(&pos, k, &mut nn_idx, &mut nn_d2);
-        nbody::step(&pos, &mut vel, &nn_idx, k, &scan, &kappa, &params.nbody, &mut proposed);
+        let nbody_params = annealed(params, it);
+        let extra = if two_way {
+            let template_index = PointIndex::new(&pos);
+            scan_nearest.par_iter_mut().zip(scan.par_iter()).for_each(|(n, x)| *n = template_index.nearest_one(x).0);
+            nbody::reverse_attraction(&pos, &scan, &kappa, &scan_nearest, params.two_way, &nbody_params, &mut reverse_count, &mut reverse_force);
+            Some(reverse_force.as_slice())
+        } else {
+            None
+        };
+        nbody::step(&pos, &mut vel, &nn_idx, k, &scan, &kappa, &nbody_params, extra, &mut proposed);
         let degenerate = match params.method {
+            _ if it <= rigid_iterations => {
+                let (c_old, c_new) = ring_centroids(&all_vertices, &pos, &proposed);
+                let r = kabsch(&all_vertices, &pos, &proposed, &c_old, &c_new);
+                let old = &pos;
+                next.par_iter_mut().enumerate().for_each(|(v, out)| {
+                    *out = transform_vertex(&r, &vec3(&old[v]), &c_old, &c_new).into();
+                });
+                0
+            }
+            _ if it <= rigid_iterations + coarse_iterations => {
+                kabsch_update(&coarse_rings, &pos, &proposed, &mut next);
+                0
+            }
             Method::FoldMatch => {
                 let d = deformation_model(&pos, &proposed, &topo, params, &mut ws);
                 let (rot, old, new) = (&ws.rotation, &pos, &proposed);
@@ -453,13 +561,7 @@ pub fn fit(
                 d
             }
             Method::Nrga => {
-                let (old, new) = (&pos, &proposed);
-                next.par_iter_mut().enumerate().for_each(|(v, out)| {
-                    let ring = rings.of(v);
-                    let (c_old, c_new) = ring_centroids(ring, old, new);
-                    let r = kabsch(ring, old, new, &c_old, &c_new);
-                    *out = transform_vertex(&r, &vec3(&old[v]), &c_old, &c_new).into();
-                });
+                kabsch_update(&rings, &pos, &proposed, &mut next);
                 0
             }
         };
@@ -524,6 +626,28 @@ pub fn fit(
         params: params.clone(),
         diagnostics,
     })
+}
+
+/// Moves every vertex by the Kabsch rigid fit of its neighborhood's motion `old → new`
+/// (the NRGa update, and the coarse phase).
+fn kabsch_update(rings: &Neighborhoods, old: &[[f64; 3]], new: &[[f64; 3]], next: &mut [[f64; 3]]) {
+    next.par_iter_mut().enumerate().for_each(|(v, out)| {
+        let ring = rings.of(v);
+        let (c_old, c_new) = ring_centroids(ring, old, new);
+        let r = kabsch(ring, old, new, &c_old, &c_new);
+        *out = transform_vertex(&r, &vec3(&old[v]), &c_old, &c_new).into();
+    });
+}
+
+/// The N-body constants of iteration `it` (1-based): the softening annealed from
+/// `anneal × ε` down to ε over `anneal_iterations`.
+fn annealed(params: &FitParams, it: usize) -> NBodyParams {
+    let mut p = params.nbody;
+    if params.anneal > 1.0 && params.anneal_iterations > 0 {
+        let remaining = 1.0 - ((it - 1) as f64 / params.anneal_iterations as f64).min(1.0);
+        p.softening *= 1.0 + (params.anneal - 1.0) * remaining;
+    }
+    p
 }
 
 /// NRGa neighborhoods: the K_Y nearest template points of every template vertex (itself

@@ -99,6 +99,22 @@ pub fn alpha(kappa: f64, dist2: f64, floor: f64) -> f64 {
     (1.0 - 0.5 * kappa * dist2).max(floor)
 }
 
+/// One term of the sum in Eq. 2: the pull of the scan point `x` (curvature `kappa`) on the
+/// template point `y`.
+#[inline]
+pub fn pair_force(y: &Vec3, x: &Vec3, kappa: f64, p: &NBodyParams) -> Vec3 {
+    let omega = p.gravity * p.template_mass * p.target_mass;
+    let diff = y - x;
+    let d2 = diff.norm_squared();
+    let a = alpha(kappa, d2, p.alpha_floor);
+    let numerator = match p.numerator {
+        ForceNumerator::Centered => a * diff,
+        ForceNumerator::Literal => a * y - x,
+    };
+    let denom = (d2 + p.softening * p.softening).powf(1.5) * a.powf(1.5);
+    -omega * numerator / denom
+}
+
 /// The gravitational part of Eq. 2 on one template point at `y` from its scan neighbours
 /// `neighbours` (indices into `target`, with curvatures `kappa`), without the damping term.
 pub fn gravitational_force(
@@ -108,20 +124,9 @@ pub fn gravitational_force(
     kappa: &[f64],
     p: &NBodyParams,
 ) -> Vec3 {
-    let omega = p.gravity * p.template_mass * p.target_mass;
-    let eps2 = p.softening * p.softening;
     let mut f = Vec3::zeros();
     for &j in neighbours {
-        let x = vec3(&target[j as usize]);
-        let diff = y - x;
-        let d2 = diff.norm_squared();
-        let a = alpha(kappa[j as usize], d2, p.alpha_floor);
-        let numerator = match p.numerator {
-            ForceNumerator::Centered => a * diff,
-            ForceNumerator::Literal => a * y - x,
-        };
-        let denom = (d2 + eps2).powf(1.5) * a.powf(1.5);
-        f -= omega * numerator / denom;
+        f += pair_force(y, &vec3(&target[j as usize]), kappa[j as usize], p);
     }
     match p.summation {
         ForceSum::Mean if !neighbours.is_empty() => f / neighbours.len() as f64,
@@ -131,7 +136,8 @@ pub fn gravitational_force(
 
 /// One integration step (Eq. 2–3) for every template point, in parallel.
 ///
-/// `neighbours` holds K scan indices per template point (row-major, M × K). Updates
+/// `neighbours` holds K scan indices per template point (row-major, M × K). `extra` is an
+/// optional additional force per template point (the two-way attraction). Updates
 /// `velocities` to `v^{t+Δt}` and writes the proposed positions `Y^t + v^{t+Δt} Δt` to
 /// `proposed`.
 #[allow(clippy::too_many_arguments)]
@@ -143,6 +149,7 @@ pub fn step(
     target: &[[f64; 3]],
     kappa: &[f64],
     p: &NBodyParams,
+    extra: Option<&[[f64; 3]]>,
     proposed: &mut [[f64; 3]],
 ) {
     let dt = p.time_step;
@@ -153,7 +160,10 @@ pub fn step(
         .for_each(|(i, (vel, out))| {
             let y = vec3(&positions[i]);
             let v = vec3(vel);
-            let f = gravitational_force(&y, &neighbours[i * k..(i + 1) * k], target, kappa, p);
+            let mut f = gravitational_force(&y, &neighbours[i * k..(i + 1) * k], target, kappa, p);
+            if let Some(extra) = extra {
+                f += vec3(&extra[i]);
+            }
             let v_new = match p.damping_mode {
                 DampingMode::Fraction => (1.0 - p.damping) * v + f / p.template_mass * dt,
                 DampingMode::Force => v + (f - p.damping * v) / p.template_mass * dt,
@@ -161,6 +171,37 @@ pub fn step(
             *vel = v_new.into();
             *out = (y + v_new * dt).into();
         });
+}
+
+/// Two-way attraction: every scan point also pulls its nearest template point. `nearest[j]` is
+/// the template point nearest to scan point j; the pulls on each template point are averaged
+/// (so a point chosen by many scan points is not pulled harder than by its own neighbours),
+/// scaled by `weight` and written to `out`. Accumulated in scan order, so the result does not
+/// depend on the thread count. `counts` is scratch space of the template's length.
+#[allow(clippy::too_many_arguments)]
+pub fn reverse_attraction(
+    positions: &[[f64; 3]],
+    target: &[[f64; 3]],
+    kappa: &[f64],
+    nearest: &[u32],
+    weight: f64,
+    p: &NBodyParams,
+    counts: &mut [u32],
+    out: &mut [[f64; 3]],
+) {
+    out.iter_mut().for_each(|f| *f = [0.0; 3]);
+    counts.iter_mut().for_each(|c| *c = 0);
+    for (j, &k) in nearest.iter().enumerate() {
+        let k = k as usize;
+        let f = vec3(&out[k]) + pair_force(&vec3(&positions[k]), &vec3(&target[j]), kappa[j], p);
+        out[k] = f.into();
+        counts[k] += 1;
+    }
+    out.par_iter_mut().zip(counts.par_iter()).for_each(|(f, &c)| {
+        if c > 0 {
+            *f = (vec3(f) * (weight / c as f64)).into();
+        }
+    });
 }
 
 #[cfg(test)]
@@ -212,7 +253,7 @@ mod tests {
             let mut vel = [[1.0, 0.0, 0.0]];
             let mut out = [[0.0; 3]];
             // Target at the point itself: zero force, only damping acts.
-            step(&pos, &mut vel, &[0], 1, &target, &[0.0], &p, &mut out);
+            step(&pos, &mut vel, &[0], 1, &target, &[0.0], &p, None, &mut out);
             assert!((vel[0][0] - want).abs() < 1e-15, "{mode:?}");
             assert!((out[0][0] - want * 0.006).abs() < 1e-15);
         }

@@ -160,15 +160,16 @@ fn params_from(json: &str) -> PyResult<FitParams> {
     FitParams::from_json(json).map_err(to_pyerr)
 }
 
-/// The default fit parameters as a JSON object.
+/// The parameters of a preset (`"default"` or `"paper"`) as a JSON object.
 #[pyfunction]
-fn default_params_json() -> String {
-    FitParams::default().to_json()
+#[pyo3(signature = (preset="default"))]
+fn default_params_json(preset: &str) -> PyResult<String> {
+    Ok(FitParams::preset(preset).map_err(to_pyerr)?.to_json())
 }
 
 /// Fits a template to a target; see `foldmatch_rs.fit`.
 #[pyfunction]
-#[pyo3(signature = (template_vertices, template_faces, target, target_faces, params_json, callback=None, threads=None))]
+#[pyo3(signature = (template_vertices, template_faces, target, target_faces, params_json, callback=None, threads=None, preset="default"))]
 #[allow(clippy::too_many_arguments)]
 fn fit_raw<'py>(
     py: Python<'py>,
@@ -179,8 +180,10 @@ fn fit_raw<'py>(
     params_json: &str,
     callback: Option<Py<PyAny>>,
     threads: Option<usize>,
+    preset: &str,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let params = params_from(params_json)?;
+    let base = FitParams::preset(preset).map_err(to_pyerr)?;
+    let params = FitParams::from_json_over(params_json, base).map_err(to_pyerr)?;
     let tv = points("template_vertices", &template_vertices)?;
     let x = points("target", &target)?;
     let tf = faces("template_faces", &template_faces, tv.len())?;
@@ -295,7 +298,7 @@ fn nbody_step<'py>(
     let (vel, prop) = compute(py, None, || {
         let mut vel = v.to_vec();
         let mut prop = vec![[0.0; 3]; y.len()];
-        nbody::step(y, &mut vel, &nn, k, x, kappa, &params.nbody, &mut prop);
+        nbody::step(y, &mut vel, &nn, k, x, kappa, &params.nbody, None, &mut prop);
         (vel, prop)
     })?;
     Ok((array2(py, vel), array2(py, prop)))

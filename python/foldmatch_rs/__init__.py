@@ -48,8 +48,12 @@ if hasattr(os, "register_at_fork"):
     # computes in a fresh pool of its own.
     os.register_at_fork(after_in_child=_core._mark_forked)
 
-#: The default fit parameters (the paper's constants with the converging readings of SPEC §2).
-DEFAULT_PARAMS: dict[str, Any] = json.loads(_core.default_params_json())
+#: The default fit parameters: the paper's constants with the converging readings of SPEC §2,
+#: plus the fidelity options that won on the comparison harness (docs/method.md).
+DEFAULT_PARAMS: dict[str, Any] = json.loads(_core.default_params_json("default"))
+#: The paper's method as printed (one-way attraction, no rigid/coarse phases), with only the
+#: converging readings of SPEC §2: ``fit(..., preset="paper")``.
+PAPER_PARAMS: dict[str, Any] = json.loads(_core.default_params_json("paper"))
 
 
 def _points(x: Any, name: str) -> np.ndarray:
@@ -155,6 +159,7 @@ def fit(
     target: Any = None,
     *,
     target_faces: Any = None,
+    preset: str = "default",
     method: Optional[str] = None,
     iterations: Optional[int] = None,
     rings: Optional[int] = None,
@@ -181,6 +186,12 @@ def fit(
     use_curvature: Optional[bool] = None,
     prealign: Optional[str] = None,
     snapshot_every: Optional[int] = None,
+    two_way: Optional[float] = None,
+    rigid_fraction: Optional[float] = None,
+    coarse_fraction: Optional[float] = None,
+    coarse_rings: Optional[int] = None,
+    anneal: Optional[float] = None,
+    anneal_iterations: Optional[int] = None,
     callback: Optional[Callable[[dict[str, Any]], Optional[bool]]] = None,
     threads: Optional[int] = None,
 ) -> FitResult:
@@ -196,6 +207,10 @@ def fit(
         The scan.
     target_faces : (F, 3) int, optional
         Scan triangles, when the scan is a mesh (only used for its Gaussian curvature).
+    preset : {"default", "paper"}
+        Where unset parameters come from: ``"default"`` (:data:`DEFAULT_PARAMS`, the most
+        accurate configuration measured) or ``"paper"`` (:data:`PAPER_PARAMS`, the method as
+        the paper describes it).
     method : {"foldmatch", "nrga"}
         FoldMatch (default) or the NRGa point-based baseline.
     iterations : int
@@ -236,6 +251,18 @@ def fit(
         template more than one scan diagonal away raises :class:`InvalidInputError`.
     snapshot_every : int
         Keep the vertex positions every this many iterations (0: none).
+    two_way : float
+        Weight of the two-way attraction: every scan point also pulls its nearest template
+        vertex (1.0; 0 is the paper's one-way attraction; FoldMatch only).
+    rigid_fraction : float
+        Rigid phase: this fraction of the iterations comes first and moves the whole template
+        rigidly under the N-body forces (0.3; FoldMatch only).
+    coarse_fraction, coarse_rings : float, int
+        Coarse phase: the next fraction of the iterations moves every vertex by the rigid fit
+        of its ``coarse_rings``-ring neighborhood, i.e. piecewise rigidly (0.3, 8).
+    anneal, anneal_iterations : float, int
+        Softening annealing: ε starts at ``anneal × ε`` and decreases linearly to ε over
+        ``anneal_iterations`` (1: constant, the paper's reading).
     callback : callable, optional
         Called after every iteration with a dict (``iteration``, ``iterations``,
         ``mean_displacement``, ``max_displacement``); returning ``False`` stops the fit, which
@@ -270,9 +297,11 @@ def fit(
         normal_completion=normal_completion, regularization=regularization,
         rotation_source=rotation_source, velocity_sync=velocity_sync, normalize=normalize,
         tolerance=tolerance, use_curvature=use_curvature, prealign=prealign,
-        snapshot_every=snapshot_every,
+        snapshot_every=snapshot_every, two_way=two_way, rigid_fraction=rigid_fraction,
+        coarse_fraction=coarse_fraction, coarse_rings=coarse_rings,
+        anneal=anneal, anneal_iterations=anneal_iterations,
     )
-    raw = _core.fit_raw(tv, tf, x, xf, _params_json(params), callback, threads)
+    raw = _core.fit_raw(tv, tf, x, xf, _params_json(params), callback, threads, preset)
     return FitResult(
         vertices=raw["vertices"],
         faces=tf,
@@ -462,6 +491,7 @@ def folded_sheet(**spec: Any) -> dict[str, np.ndarray]:
 
 __all__ = [
     "DEFAULT_PARAMS",
+    "PAPER_PARAMS",
     "FitResult",
     "fit",
     "knn",

@@ -10,7 +10,7 @@ __version__: str
 F64 = npt.NDArray[np.float64]
 I64 = npt.NDArray[np.int64]
 
-def default_params_json() -> str: ...
+def default_params_json(preset: str = "default") -> str: ...
 def fit_raw(
     template_vertices: F64,
     template_faces: I64,
@@ -19,6 +19,7 @@ def fit_raw(
     params_json: str,
     callback: Optional[Callable[[dict[str, Any]], Any]] = None,
     threads: Optional[int] = None,
+    preset: str = "default",
 ) -> dict[str, Any]: ...
 def knn_query(
     points: F64, queries: F64, k: int, threads: Optional[int] = None
