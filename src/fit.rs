@@ -15,7 +15,7 @@
 use crate::curvature::{gaussian_curvature_mesh, gaussian_curvature_points};
 use crate::deformation::deformation_gradient;
 use crate::error::{FoldMatchError, Result};
-use crate::knn::{neighborhood_size, PointIndex};
+use crate::knn::{neighborhood_size, NeighborCache, PointIndex};
 use crate::math::{vec3, Mat3, Vec3};
 use crate::mesh::{clean_faces, validate_faces, validate_points, vertex_normals, VertexFaces};
 use crate::nbody::{self, NBodyParams};
@@ -117,6 +117,10 @@ pub struct FitParams {
     pub coarse_fraction: f64,
     /// Radius (graph distance) of the neighborhoods of the coarse phase.
     pub coarse_rings: usize,
+    /// Re-use earlier k-NN candidates when that is provably exact (see
+    /// [`crate::knn::NeighborCache`]); `false` queries the k-d tree for every vertex every
+    /// iteration. Results are the same either way.
+    pub knn_cache: bool,
     /// Softening annealing: ε starts at `anneal × ε` and decreases linearly to ε over
     /// `anneal_iterations` (1: constant ε, the paper's reading).
     pub anneal: f64,
@@ -148,6 +152,7 @@ impl Default for FitParams {
             rigid_fraction: 0.3,
             coarse_fraction: 0.3,
             coarse_rings: 8,
+            knn_cache: true,
             anneal: 1.0,
             anneal_iterations: 0,
         }
@@ -307,6 +312,41 @@ pub struct Progress {
     pub record: IterationRecord,
 }
 
+/// Wall-clock seconds spent in each stage over the whole fit (for the benchmarks' breakdown).
+#[derive(Clone, Copy, Debug, Default, Serialize, Deserialize)]
+pub struct StageTimes {
+    /// Target neighborhoods (k-d tree queries).
+    pub knn: f64,
+    /// Two-way attraction (template k-d tree, reverse queries and forces).
+    pub two_way: f64,
+    /// Force and integration (Eq. 2–3).
+    pub nbody: f64,
+    /// Vertex normals and deformation gradients (Eq. 4).
+    pub gradient: f64,
+    /// Regularization (Eq. 5), polar decompositions included.
+    pub regularize: f64,
+    /// ψ-modified stretch, wrinkle field and rotation solve (Eq. 6–8).
+    pub rotation: f64,
+    /// Per-vertex update (and the rigid / coarse phases' Kabsch fits).
+    pub update: f64,
+}
+
+impl StageTimes {
+    /// Seconds in the deformation model (Eq. 4–8).
+    pub fn model(&self) -> f64 {
+        self.gradient + self.regularize + self.rotation
+    }
+}
+
+/// Runs `f`, adding its wall time to `slot`.
+#[inline]
+fn timed<T>(slot: &mut f64, f: impl FnOnce() -> T) -> T {
+    let start = std::time::Instant::now();
+    let out = f();
+    *slot += start.elapsed().as_secs_f64();
+    out
+}
+
 /// Facts about the inputs and the run, for reports.
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct Diagnostics {
@@ -330,6 +370,8 @@ pub struct Diagnostics {
     pub stopped_by_callback: bool,
     /// The normalized frame used.
     pub frame: Option<Frame>,
+    /// Seconds per stage.
+    pub stage_seconds: StageTimes,
 }
 
 /// The outcome of a fit, in the user's frame.
@@ -366,6 +408,8 @@ pub struct Workspace {
     pub wvf: Vec<[f64; 3]>,
     /// Solved rotation R_k* of every vertex.
     pub rotation: Vec<Mat3>,
+    /// Seconds spent per stage so far.
+    pub times: StageTimes,
 }
 
 impl Workspace {
@@ -381,6 +425,7 @@ impl Workspace {
             reg_stretch: vec![Mat3::identity(); m],
             wvf: vec![[0.0; 3]; m],
             rotation: vec![Mat3::identity(); m],
+            times: StageTimes::default(),
         }
     }
 }
@@ -404,26 +449,34 @@ pub fn deformation_model(
     params: &FitParams,
     ws: &mut Workspace,
 ) -> usize {
-    vertex_normals(old, topo.faces, topo.incidence, &mut ws.normals_old);
-    vertex_normals(new, topo.faces, topo.incidence, &mut ws.normals_new);
-    let (n_old, n_new) = (&ws.normals_old, &ws.normals_new);
-    ws.raw.par_iter_mut().zip(ws.degenerate.par_iter_mut()).enumerate().for_each(|(k, (h, deg))| {
-        let (g, d) =
-            deformation_gradient(k, topo.rings.of(k), old, new, &n_old[k], &n_new[k], params.normal_completion);
-        *h = g;
-        *deg = d;
+    let mut times = ws.times;
+    timed(&mut times.gradient, || {
+        vertex_normals(old, topo.faces, topo.incidence, &mut ws.normals_old);
+        vertex_normals(new, topo.faces, topo.incidence, &mut ws.normals_new);
+        let (n_old, n_new) = (&ws.normals_old, &ws.normals_new);
+        ws.raw.par_iter_mut().zip(ws.degenerate.par_iter_mut()).enumerate().for_each(|(k, (h, deg))| {
+            let (g, d) =
+                deformation_gradient(k, topo.rings.of(k), old, new, &n_old[k], &n_new[k], params.normal_completion);
+            *h = g;
+            *deg = d;
+        });
     });
-    regularize(&ws.raw, topo.rings, params.regularization, &mut ws.reg, &mut ws.reg_rotation, &mut ws.reg_stretch);
-    let (raw, reg_r, reg_u) = (&ws.raw, &ws.reg_rotation, &ws.reg_stretch);
-    ws.rotation.par_iter_mut().zip(ws.wvf.par_iter_mut()).enumerate().for_each(|(k, (rot, w))| {
-        let m = modified_stretch(&reg_u[k], params.psi);
-        *w = m.wrinkle.into();
-        let h = match params.rotation_source {
-            RotationSource::Regularized => reg_r[k] * reg_u[k],
-            RotationSource::Raw => raw[k],
-        };
-        *rot = solve_rotation(&h, &m.stretch);
+    timed(&mut times.regularize, || {
+        regularize(&ws.raw, topo.rings, params.regularization, &mut ws.reg, &mut ws.reg_rotation, &mut ws.reg_stretch)
     });
+    timed(&mut times.rotation, || {
+        let (raw, reg_r, reg_u) = (&ws.raw, &ws.reg_rotation, &ws.reg_stretch);
+        ws.rotation.par_iter_mut().zip(ws.wvf.par_iter_mut()).enumerate().for_each(|(k, (rot, w))| {
+            let m = modified_stretch(&reg_u[k], params.psi);
+            *w = m.wrinkle.into();
+            let h = match params.rotation_source {
+                RotationSource::Regularized => reg_r[k] * reg_u[k],
+                RotationSource::Raw => raw[k],
+            };
+            *rot = solve_rotation(&h, &m.stretch);
+        });
+    });
+    ws.times = times;
     ws.degenerate.iter().filter(|&&d| d).count()
 }
 
@@ -513,6 +566,7 @@ pub fn fit(
     let mut disp = vec![0.0; m];
     let mut nn_idx = vec![0u32; m * k];
     let mut nn_d2 = vec![0.0; m * k];
+    let mut nn_cache = params.knn_cache.then(|| NeighborCache::new(m, k, scan.len()));
     let mut ws = Workspace::new(m);
     let two_way = params.two_way > 0.0 && params.method == Method::FoldMatch;
     let (rigid_iterations, coarse_iterations) = params.phase_iterations();
@@ -526,17 +580,26 @@ pub fn fit(
     let dt = params.nbody.time_step;
 
     for it in 1..=params.iterations {
-        index.nearest_all(&pos, k, &mut nn_idx, &mut nn_d2);
+        let t = &mut ws.times;
+        timed(&mut t.knn, || match nn_cache.as_mut() {
+            Some(cache) => {
+                cache.query(&index, &pos, &mut nn_idx, &mut nn_d2);
+            }
+            None => index.nearest_all(&pos, k, &mut nn_idx, &mut nn_d2),
+        });
         let nbody_params = annealed(params, it);
         let extra = if two_way {
-            let template_index = PointIndex::new(&pos);
-            scan_nearest.par_iter_mut().zip(scan.par_iter()).for_each(|(n, x)| *n = template_index.nearest_one(x).0);
-            nbody::reverse_attraction(&pos, &scan, &kappa, &scan_nearest, params.two_way, &nbody_params, &mut reverse_count, &mut reverse_force);
+            timed(&mut t.two_way, || {
+                let template_index = PointIndex::new(&pos);
+                scan_nearest.par_iter_mut().zip(scan.par_iter()).for_each(|(n, x)| *n = template_index.nearest_one(x).0);
+                nbody::reverse_attraction(&pos, &scan, &kappa, &scan_nearest, params.two_way, &nbody_params, &mut reverse_count, &mut reverse_force);
+            });
             Some(reverse_force.as_slice())
         } else {
             None
         };
-        nbody::step(&pos, &mut vel, &nn_idx, k, &scan, &kappa, &nbody_params, extra, &mut proposed);
+        timed(&mut t.nbody, || nbody::step(&pos, &mut vel, &nn_idx, k, &scan, &kappa, &nbody_params, extra, &mut proposed));
+        let update_start = std::time::Instant::now();
         let degenerate = match params.method {
             _ if it <= rigid_iterations => {
                 let (c_old, c_new) = ring_centroids(&all_vertices, &pos, &proposed);
@@ -552,7 +615,9 @@ pub fn fit(
                 0
             }
             Method::FoldMatch => {
+                let before = ws.times.model();
                 let d = deformation_model(&pos, &proposed, &topo, params, &mut ws);
+                ws.times.update -= ws.times.model() - before; // counted in their own stages
                 let (rot, old, new) = (&ws.rotation, &pos, &proposed);
                 next.par_iter_mut().enumerate().for_each(|(v, out)| {
                     let (c_old, c_new) = ring_centroids(rings.of(v), old, new);
@@ -565,6 +630,7 @@ pub fn fit(
                 0
             }
         };
+        ws.times.update += update_start.elapsed().as_secs_f64();
         // Velocities follow the applied motion (SPEC §2.4); displacement figures.
         disp.par_iter_mut().zip(vel.par_iter_mut()).enumerate().for_each(|(v, (d, vl))| {
             let delta = vec3(&next[v]) - vec3(&pos[v]);
@@ -599,6 +665,7 @@ pub fn fit(
         }
     }
 
+    diagnostics.stage_seconds = ws.times;
     // Per-step field of the last iteration, and the accumulated field of the total motion.
     let wvf = if params.method == Method::FoldMatch && !history.is_empty() {
         ws.wvf.clone()

@@ -9,7 +9,7 @@ use std::num::NonZero;
 /// A k-d tree over a fixed point set (the scan, or the template for NRGa neighborhoods).
 pub struct PointIndex {
     tree: ImmutableKdTree<f64, 3>,
-    len: usize,
+    points: Vec<[f64; 3]>,
 }
 
 /// The neighborhood size `K = clamp(⌊ρN⌋, k_min, k_max)`, never more than `n` (SPEC §2.1).
@@ -21,17 +21,23 @@ pub fn neighborhood_size(rho: f64, n: usize, k_min: usize, k_max: usize) -> usiz
 impl PointIndex {
     /// Builds the tree over `points` (must be non-empty).
     pub fn new(points: &[[f64; 3]]) -> Self {
-        Self { tree: ImmutableKdTree::new_from_slice(points), len: points.len() }
+        Self { tree: ImmutableKdTree::new_from_slice(points), points: points.to_vec() }
     }
 
     /// Number of indexed points.
     pub fn len(&self) -> usize {
-        self.len
+        self.points.len()
     }
 
     /// Whether the index is empty.
     pub fn is_empty(&self) -> bool {
-        self.len == 0
+        self.points.is_empty()
+    }
+
+    /// The indexed point `j`.
+    #[inline]
+    pub fn point(&self, j: u32) -> &[f64; 3] {
+        &self.points[j as usize]
     }
 
     /// The `k` nearest indexed points of `query`, nearest first, written to `indices` (and the
@@ -54,7 +60,7 @@ impl PointIndex {
     /// The `k` nearest points of every query, in parallel: row `q` of the (len(queries) × k)
     /// row-major outputs belongs to `queries[q]`.
     pub fn nearest_all(&self, queries: &[[f64; 3]], k: usize, indices: &mut [u32], dist2: &mut [f64]) {
-        assert!(k >= 1 && k <= self.len, "k = {k} must be in 1..={}", self.len);
+        assert!(k >= 1 && k <= self.len(), "k = {k} must be in 1..={}", self.len());
         assert_eq!(indices.len(), queries.len() * k);
         assert_eq!(dist2.len(), queries.len() * k);
         indices
@@ -62,6 +68,87 @@ impl PointIndex {
             .zip(dist2.par_chunks_mut(k))
             .zip(queries.par_iter())
             .for_each(|((idx, d2), q)| self.nearest_into(q, idx, d2));
+    }
+}
+
+/// Largest candidate set a [`NeighborCache`] keeps per query point.
+pub const MAX_CACHED: usize = 192;
+
+/// Exact re-use of earlier k-NN queries for points that moved little (SPEC §7, issue
+/// "Performance").
+///
+/// Each point keeps the `c = min(2K, N)` nearest candidates found at its *anchor* position,
+/// with their distances. After the point moved by δ from its anchor, every point outside the
+/// candidate set is at least `d_c − δ` away and the K-th nearest candidate at most `d_K + δ`,
+/// so while `d_c − δ > d_K + δ` the K nearest points are the K nearest candidates: re-ranking
+/// the candidates by their new distances gives exactly the k-d tree's answer (up to the order
+/// of exactly tied distances). Otherwise the point is queried afresh and re-anchored.
+pub struct NeighborCache {
+    k: usize,
+    c: usize,
+    anchors: Vec<[f64; 3]>,
+    candidates: Vec<u32>,
+    candidate_dist: Vec<f64>,
+    /// Per point: 0 = no candidates yet, 1 = candidates re-used, 2 = queried afresh.
+    state: Vec<u8>,
+}
+
+impl NeighborCache {
+    /// A cache for `m` query points, `k` neighbours each, over an index of `n` points.
+    pub fn new(m: usize, k: usize, n: usize) -> Self {
+        let c = (2 * k).min(n).min(MAX_CACHED).max(k);
+        Self {
+            k,
+            c,
+            anchors: vec![[0.0; 3]; m],
+            candidates: vec![0; m * c],
+            candidate_dist: vec![0.0; m * c],
+            state: vec![0; m],
+        }
+    }
+
+    /// The `k` nearest indexed points of every query (same layout and order as
+    /// [`PointIndex::nearest_all`]), re-using candidates where that is provably exact.
+    /// Returns the number of points queried afresh.
+    pub fn query(&mut self, index: &PointIndex, queries: &[[f64; 3]], indices: &mut [u32], dist2: &mut [f64]) -> usize {
+        let (k, c) = (self.k, self.c);
+        let whole_set = c == index.len();
+        self.anchors
+            .par_iter_mut()
+            .zip(self.candidates.par_chunks_mut(c))
+            .zip(self.candidate_dist.par_chunks_mut(c))
+            .zip(self.state.par_iter_mut())
+            .zip(indices.par_chunks_mut(k).zip(dist2.par_chunks_mut(k)))
+            .zip(queries.par_iter())
+            .for_each(|(((((anchor, cand), cand_d), state), (idx, d2)), q)| {
+                let moved = (0..3).map(|a| (q[a] - anchor[a]).powi(2)).sum::<f64>().sqrt();
+                let reusable = *state > 0 && (whole_set || cand_d[c - 1] - moved > cand_d[k - 1] + moved);
+                if reusable {
+                    *state = 1;
+                } else {
+                    index.nearest_into(q, cand, cand_d);
+                    cand_d.iter_mut().for_each(|d| *d = d.sqrt());
+                    *anchor = *q;
+                    *state = 2;
+                }
+                // Re-rank the candidates by their distance to the query's current position.
+                let mut ranked = [(0.0f64, 0u32); MAX_CACHED];
+                let ranked = &mut ranked[..c];
+                for (slot, &j) in ranked.iter_mut().zip(cand.iter()) {
+                    let p = index.point(j);
+                    *slot = ((0..3).map(|a| (q[a] - p[a]).powi(2)).sum::<f64>(), j);
+                }
+                let by_distance = |a: &(f64, u32), b: &(f64, u32)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
+                if c > k {
+                    ranked.select_nth_unstable_by(k - 1, by_distance);
+                }
+                ranked[..k].sort_unstable_by(by_distance);
+                for (s, &(d, j)) in ranked[..k].iter().enumerate() {
+                    idx[s] = j;
+                    d2[s] = d;
+                }
+            });
+        self.state.iter().filter(|&&s| s == 2).count()
     }
 }
 
@@ -86,6 +173,32 @@ mod tests {
     use super::*;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
+
+    #[test]
+    fn cache_equals_fresh_queries_as_points_move() {
+        let mut rng = ChaCha8Rng::seed_from_u64(8);
+        let pts: Vec<[f64; 3]> = (0..3000).map(|_| [rng.random(), rng.random(), rng.random()]).collect();
+        let mut queries: Vec<[f64; 3]> = (0..400).map(|_| [rng.random(), rng.random(), rng.random()]).collect();
+        let index = PointIndex::new(&pts);
+        let k = 12;
+        let mut cache = NeighborCache::new(queries.len(), k, pts.len());
+        let (mut ci, mut cd) = (vec![0; 400 * k], vec![0.0; 400 * k]);
+        let (mut fi, mut fd) = (vec![0; 400 * k], vec![0.0; 400 * k]);
+        let mut reused = 0;
+        for step in 0..30 {
+            let fresh = cache.query(&index, &queries, &mut ci, &mut cd);
+            index.nearest_all(&queries, k, &mut fi, &mut fd);
+            assert_eq!(ci, fi, "step {step}");
+            assert_eq!(cd, fd);
+            reused += queries.len() - fresh;
+            for q in &mut queries {
+                for c in q.iter_mut() {
+                    *c += 0.004 * (rng.random::<f64>() - 0.5);
+                }
+            }
+        }
+        assert!(reused > 5000, "the cache should re-use most queries, re-used {reused}");
+    }
 
     #[test]
     fn k_clamp() {

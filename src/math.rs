@@ -48,63 +48,65 @@ impl SymEigen3 {
 /// Eigen-decomposition of a symmetric 3×3 matrix by cyclic Jacobi rotations.
 ///
 /// The input is symmetrized first (`(A + Aᵀ)/2`), so tiny asymmetries from round-off are
-/// harmless. Jacobi is unconditionally convergent and accurate
-/// to a few ulps relative to ‖A‖, including for repeated eigenvalues (where closed-form cubic
-/// solvers lose precision). At most 16 sweeps; in practice 4–6.
-#[allow(clippy::needless_range_loop)] // index-heavy Jacobi sweeps read best with indices
+/// harmless. Jacobi is unconditionally convergent and accurate to a few ulps relative to ‖A‖,
+/// including for repeated eigenvalues (where closed-form cubic solvers lose precision). The
+/// rotations use the symmetric update of Rutishauser (Numerical Recipes §11.1) on the six
+/// distinct entries; at most 16 sweeps, in practice 3–5.
 pub fn sym_eigen3(a: &Mat3) -> SymEigen3 {
-    let mut m = [[0.0; 3]; 3];
-    for (i, row) in m.iter_mut().enumerate() {
-        for (j, x) in row.iter_mut().enumerate() {
-            *x = 0.5 * (a[(i, j)] + a[(j, i)]);
-        }
-    }
+    // Diagonal d[i] = a_ii; off-diagonal o[r] = a_pq for {p, q, r} = {0, 1, 2}.
+    let mut d = [a[(0, 0)], a[(1, 1)], a[(2, 2)]];
+    let mut o = [
+        0.5 * (a[(1, 2)] + a[(2, 1)]),
+        0.5 * (a[(0, 2)] + a[(2, 0)]),
+        0.5 * (a[(0, 1)] + a[(1, 0)]),
+    ];
+    // Eigenvectors as rows of `v` transposed: v[k][i] = component k of eigenvector i.
     let mut v = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
     for _sweep in 0..16 {
-        let off = m[0][1] * m[0][1] + m[0][2] * m[0][2] + m[1][2] * m[1][2];
-        let diag = m[0][0] * m[0][0] + m[1][1] * m[1][1] + m[2][2] * m[2][2];
+        let off = o[0] * o[0] + o[1] * o[1] + o[2] * o[2];
+        let diag = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
         if off <= 1e-32 * diag || off == 0.0 {
             break;
         }
-        for (p, q) in [(0usize, 1usize), (0, 2), (1, 2)] {
-            let apq = m[p][q];
+        for (p, q, r) in [(0usize, 1usize, 2usize), (0, 2, 1), (1, 2, 0)] {
+            let apq = o[r];
             if apq == 0.0 {
                 continue;
             }
-            let theta = (m[q][q] - m[p][p]) / (2.0 * apq);
-            let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
-            let t = if theta == 0.0 { 1.0 } else { t };
+            let theta = (d[q] - d[p]) / (2.0 * apq);
+            let t = if theta.abs() > 1e100 {
+                0.5 / theta
+            } else {
+                let t = 1.0 / (theta.abs() + (theta * theta + 1.0).sqrt());
+                if theta < 0.0 { -t } else { t }
+            };
             let c = 1.0 / (t * t + 1.0).sqrt();
             let s = t * c;
-            // A ← Jᵀ A J with J the rotation in the (p, q) plane.
-            for row in &mut m {
-                let (kp, kq) = (row[p], row[q]);
-                row[p] = c * kp - s * kq;
-                row[q] = s * kp + c * kq;
-            }
-            for k in 0..3 {
-                let (pk, qk) = (m[p][k], m[q][k]);
-                m[p][k] = c * pk - s * qk;
-                m[q][k] = s * pk + c * qk;
-            }
+            let tau = s / (1.0 + c);
+            d[p] -= t * apq;
+            d[q] += t * apq;
+            o[r] = 0.0;
+            // a_rp is o[q], a_rq is o[p].
+            let (arp, arq) = (o[q], o[p]);
+            o[q] = arp - s * (arq + tau * arp);
+            o[p] = arq + s * (arp - tau * arq);
             for row in &mut v {
                 let (kp, kq) = (row[p], row[q]);
-                row[p] = c * kp - s * kq;
-                row[q] = s * kp + c * kq;
+                row[p] = kp - s * (kq + tau * kp);
+                row[q] = kq + s * (kp - tau * kq);
             }
         }
     }
     // Sort descending.
     let mut idx = [0usize, 1, 2];
-    idx.sort_by(|&i, &j| m[j][j].total_cmp(&m[i][i]));
-    let values = Vec3::new(m[idx[0]][idx[0]], m[idx[1]][idx[1]], m[idx[2]][idx[2]]);
-    let mut vectors = Mat3::zeros();
-    for (col, &i) in idx.iter().enumerate() {
-        for r in 0..3 {
-            vectors[(r, col)] = v[r][i];
-        }
-    }
-    if vectors.determinant() < 0.0 {
+    idx.sort_by(|&i, &j| d[j].total_cmp(&d[i]));
+    let values = Vec3::new(d[idx[0]], d[idx[1]], d[idx[2]]);
+    let vectors = Mat3::from_fn(|r, col| v[r][idx[col]]);
+    // Right-handed basis: the third column as the cross product of the first two (the
+    // eigenvectors are orthonormal, so this only fixes the sign).
+    let e3 = vectors.column(0).cross(&vectors.column(1));
+    let mut vectors = vectors;
+    if e3.dot(&vectors.column(2)) < 0.0 {
         let c = -vectors.column(2);
         vectors.set_column(2, &c);
     }

@@ -111,7 +111,9 @@ pub fn pair_force(y: &Vec3, x: &Vec3, kappa: f64, p: &NBodyParams) -> Vec3 {
         ForceNumerator::Centered => a * diff,
         ForceNumerator::Literal => a * y - x,
     };
-    let denom = (d2 + p.softening * p.softening).powf(1.5) * a.powf(1.5);
+    // x^{3/2} as x·√x: the same value to an ulp, several times cheaper than powf.
+    let soft = d2 + p.softening * p.softening;
+    let denom = soft * soft.sqrt() * a * a.sqrt();
     -omega * numerator / denom
 }
 

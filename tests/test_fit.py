@@ -230,3 +230,19 @@ def test_errors_are_typed_subclasses():
     assert issubclass(fm.MeshFileError, OSError)
     assert issubclass(fm.NumericalError, RuntimeError)
     assert issubclass(fm.InternalError, fm.FoldMatchError)
+
+
+def test_knn_cache_changes_nothing(case):
+    """The k-NN candidate cache is exact: the same fit as querying the tree every time."""
+    args = (case["template_vertices"], case["faces"], case["scan"])
+    cached = fm.fit(*args, iterations=40)
+    fresh = fm.fit(*args, iterations=40, knn_cache=False)
+    np.testing.assert_allclose(cached.vertices, fresh.vertices, rtol=0, atol=1e-12)
+
+
+def test_paper_preset_is_the_method_as_printed(case):
+    r = fm.fit(case["template_vertices"], case["faces"], case["scan"], preset="paper", iterations=5)
+    assert r.params["two_way"] == 0 and r.params["rigid_fraction"] == 0
+    assert r.params["coarse_fraction"] == 0 and r.params["rings"] == 2
+    with pytest.raises(fm.InvalidParameterError, match="preset"):
+        fm.fit(case["template_vertices"], case["faces"], case["scan"], preset="fast")

@@ -190,6 +190,7 @@ def fit(
     rigid_fraction: Optional[float] = None,
     coarse_fraction: Optional[float] = None,
     coarse_rings: Optional[int] = None,
+    knn_cache: Optional[bool] = None,
     anneal: Optional[float] = None,
     anneal_iterations: Optional[int] = None,
     callback: Optional[Callable[[dict[str, Any]], Optional[bool]]] = None,
@@ -260,6 +261,8 @@ def fit(
     coarse_fraction, coarse_rings : float, int
         Coarse phase: the next fraction of the iterations moves every vertex by the rigid fit
         of its ``coarse_rings``-ring neighborhood, i.e. piecewise rigidly (0.3, 8).
+    knn_cache : bool
+        Re-use earlier k-NN candidates where that is provably exact (True; same results).
     anneal, anneal_iterations : float, int
         Softening annealing: ε starts at ``anneal × ε`` and decreases linearly to ε over
         ``anneal_iterations`` (1: constant, the paper's reading).
@@ -299,7 +302,7 @@ def fit(
         tolerance=tolerance, use_curvature=use_curvature, prealign=prealign,
         snapshot_every=snapshot_every, two_way=two_way, rigid_fraction=rigid_fraction,
         coarse_fraction=coarse_fraction, coarse_rings=coarse_rings,
-        anneal=anneal, anneal_iterations=anneal_iterations,
+        anneal=anneal, anneal_iterations=anneal_iterations, knn_cache=knn_cache,
     )
     raw = _core.fit_raw(tv, tf, x, xf, _params_json(params), callback, threads, preset)
     return FitResult(
