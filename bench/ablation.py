@@ -13,9 +13,8 @@ import json
 import pathlib
 import time
 
-import numpy as np
-
 import foldmatch_rs as fm
+import numpy as np
 
 VARIANTS = [
     ("FoldMatch (chosen readings)", {}),

@@ -8,10 +8,30 @@ fn main() {
     let side: usize = args.get(1).map_or(115, |s| s.parse().unwrap());
     let scan: usize = args.get(2).map_or(14_400, |s| s.parse().unwrap());
     let params = FitParams::preset(args.get(3).map_or("default", String::as_str)).unwrap();
-    let case = folded_sheet(&SheetSpec { nx: side, ny: side, scan_points: scan, noise: 0.001, ..Default::default() });
+    let case = folded_sheet(&SheetSpec {
+        nx: side,
+        ny: side,
+        scan_points: scan,
+        noise: 0.001,
+        ..Default::default()
+    });
     let t = std::time::Instant::now();
-    let r = fit_simple(&case.template_vertices, &case.faces, &case.scan, None, &params).unwrap();
+    let r = fit_simple(
+        &case.template_vertices,
+        &case.faces,
+        &case.scan,
+        None,
+        &params,
+    )
+    .unwrap();
     let total = t.elapsed().as_secs_f64();
-    println!("M={} N={} iterations={} threads={} total {:.3}s", case.template_vertices.len(), case.scan.len(), r.iterations, rayon::current_num_threads(), total);
+    println!(
+        "M={} N={} iterations={} threads={} total {:.3}s",
+        case.template_vertices.len(),
+        case.scan.len(),
+        r.iterations,
+        rayon::current_num_threads(),
+        total
+    );
     println!("{:#?}", r.diagnostics.stage_seconds);
 }

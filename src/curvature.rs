@@ -28,7 +28,11 @@ pub fn gaussian_curvature_mesh(vertices: &[[f64; 3]], faces: &[[u32; 3]]) -> Vec
     let mut touched = vec![false; n];
     let mut edge_use: HashMap<(u32, u32), u32> = HashMap::with_capacity(faces.len() * 2);
     for f in faces {
-        let p = [vec3(&vertices[f[0] as usize]), vec3(&vertices[f[1] as usize]), vec3(&vertices[f[2] as usize])];
+        let p = [
+            vec3(&vertices[f[0] as usize]),
+            vec3(&vertices[f[1] as usize]),
+            vec3(&vertices[f[2] as usize]),
+        ];
         let tri_area = 0.5 * (p[1] - p[0]).cross(&(p[2] - p[0])).norm();
         if tri_area <= 0.0 {
             continue;
@@ -110,7 +114,11 @@ fn quadric_curvature(points: &[[f64; 3]], origin: &[f64; 3], neighbours: &[u32])
         cov += d * d.transpose();
     }
     let frame = sym_eigen3(&cov);
-    let (e1, e2, e3) = (frame.vectors.column(0), frame.vectors.column(1), frame.vectors.column(2));
+    let (e1, e2, e3) = (
+        frame.vectors.column(0),
+        frame.vectors.column(1),
+        frame.vectors.column(2),
+    );
     let mut ata = Matrix6::<f64>::zeros();
     let mut atb = Vector6::<f64>::zeros();
     let mut scale2 = 0.0;
@@ -130,7 +138,9 @@ fn quadric_curvature(points: &[[f64; 3]], origin: &[f64; 3], neighbours: &[u32])
         ata += row * row.transpose();
         atb += row * z;
     }
-    let Some(chol) = ata.cholesky() else { return 0.0 };
+    let Some(chol) = ata.cholesky() else {
+        return 0.0;
+    };
     let c = chol.solve(&atb);
     let (a, b, cc, d, e) = (c[0], c[1], c[2], c[3], c[4]);
     let kappa = (4.0 * a * cc - b * b) / (1.0 + d * d + e * e).powi(2);
@@ -153,7 +163,11 @@ mod tests {
             let th = PI * i as f64 / n_lat as f64;
             for j in 0..n_lon {
                 let ph = 2.0 * PI * j as f64 / n_lon as f64;
-                v.push([r * th.sin() * ph.cos(), r * th.sin() * ph.sin(), r * th.cos()]);
+                v.push([
+                    r * th.sin() * ph.cos(),
+                    r * th.sin() * ph.sin(),
+                    r * th.cos(),
+                ]);
             }
         }
         v.push([0.0, 0.0, -r]);
@@ -182,12 +196,21 @@ mod tests {
         let mut sorted = k.clone();
         sorted.sort_by(f64::total_cmp);
         let median = sorted[sorted.len() / 2];
-        assert!((median - 1.0 / (r * r)).abs() < 0.01 / (r * r), "median κ = {median}");
+        assert!(
+            (median - 1.0 / (r * r)).abs() < 0.01 / (r * r),
+            "median κ = {median}"
+        );
     }
 
     #[test]
     fn flat_mesh_and_boundary_have_zero_curvature() {
-        let v = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]];
+        let v = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [-1.0, 0.0, 0.0],
+            [0.0, -1.0, 0.0],
+        ];
         let f = [[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 1]];
         let k = gaussian_curvature_mesh(&v, &f);
         assert!(k[0].abs() < 1e-12);
@@ -211,8 +234,12 @@ mod tests {
         let k = gaussian_curvature_points(&pts, &index);
         let mean = k.iter().sum::<f64>() / n as f64;
         assert!((mean - 4.0).abs() < 0.1, "mean κ = {mean}, want 1/r² = 4");
-        let plane: Vec<[f64; 3]> = (0..400).map(|i| [(i % 20) as f64 * 0.1, (i / 20) as f64 * 0.1, 0.0]).collect();
+        let plane: Vec<[f64; 3]> = (0..400)
+            .map(|i| [(i % 20) as f64 * 0.1, (i / 20) as f64 * 0.1, 0.0])
+            .collect();
         let index = PointIndex::new(&plane);
-        assert!(gaussian_curvature_points(&plane, &index).iter().all(|x| x.abs() < 1e-9));
+        assert!(gaussian_curvature_points(&plane, &index)
+            .iter()
+            .all(|x| x.abs() < 1e-9));
     }
 }

@@ -134,17 +134,20 @@ mod tests {
         let r = *nalgebra::Rotation3::from_euler_angles(0.3, -0.7, 1.1).matrix();
         let new = apply(&r, &Vec3::new(1.0, 2.0, 3.0), &old);
         let n_new: [f64; 3] = (r * Vec3::z()).into();
-        let (h, degenerate) = deformation_gradient(0, &ring, &old, &new, &[0.0, 0.0, 1.0], &n_new, 0.3);
+        let (h, degenerate) =
+            deformation_gradient(0, &ring, &old, &new, &[0.0, 0.0, 1.0], &n_new, 0.3);
         assert!(!degenerate);
         assert_relative_eq!(h, r, epsilon = 1e-10);
         // Without completion the flat ring is rank 2: flagged, never silently inverted.
-        let (_, degenerate) = deformation_gradient(0, &ring, &old, &new, &[0.0, 0.0, 1.0], &n_new, 0.0);
+        let (_, degenerate) =
+            deformation_gradient(0, &ring, &old, &new, &[0.0, 0.0, 1.0], &n_new, 0.0);
         assert!(degenerate);
     }
 
     #[test]
     fn isolated_vertex_gets_identity() {
-        let (h, degenerate) = deformation_gradient(0, &[0], &[[1.0; 3]], &[[2.0; 3]], &[0.0; 3], &[0.0; 3], 0.3);
+        let (h, degenerate) =
+            deformation_gradient(0, &[0], &[[1.0; 3]], &[[2.0; 3]], &[0.0; 3], &[0.0; 3], 0.3);
         assert!(degenerate);
         assert_eq!(h, Mat3::identity());
     }

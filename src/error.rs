@@ -92,10 +92,17 @@ pub type Result<T> = std::result::Result<T, FoldMatchError>;
 impl FoldMatchError {
     /// Convenience constructor for [`FoldMatchError::Parameter`].
     pub fn parameter(name: &str, value: impl std::fmt::Display, reason: &str) -> Self {
-        Self::Parameter { name: name.into(), value: value.to_string(), reason: reason.into() }
+        Self::Parameter {
+            name: name.into(),
+            value: value.to_string(),
+            reason: reason.into(),
+        }
     }
     /// Convenience constructor for [`FoldMatchError::Shape`].
     pub fn shape(name: &str, reason: impl Into<String>) -> Self {
-        Self::Shape { name: name.into(), reason: reason.into() }
+        Self::Shape {
+            name: name.into(),
+            reason: reason.into(),
+        }
     }
 }

@@ -20,7 +20,7 @@ use crate::math::{vec3, Mat3, Vec3};
 use crate::mesh::{clean_faces, validate_faces, validate_points, vertex_normals, VertexFaces};
 use crate::nbody::{self, NBodyParams};
 use crate::normalize::Frame;
-use crate::regularize::{regularize, RegularizeBuffers, Regularization};
+use crate::regularize::{regularize, Regularization, RegularizeBuffers};
 use crate::rings::{n_rings, Neighborhoods};
 use crate::rotation::{kabsch, ring_centroids, solve_rotation, transform_vertex};
 use crate::wrinkle::modified_stretch;
@@ -163,7 +163,12 @@ impl FitParams {
     /// The paper's method as printed, with only the converging readings of SPEC §2: one-way
     /// attraction, no rigid or coarse phase (the `"paper"` preset).
     pub fn paper() -> Self {
-        Self { two_way: 0.0, rigid_fraction: 0.0, coarse_fraction: 0.0, ..Self::default() }
+        Self {
+            two_way: 0.0,
+            rigid_fraction: 0.0,
+            coarse_fraction: 0.0,
+            ..Self::default()
+        }
     }
 
     /// A named preset: `"default"` (the most accurate configuration measured, see
@@ -172,7 +177,11 @@ impl FitParams {
         match name {
             "default" => Ok(Self::default()),
             "paper" => Ok(Self::paper()),
-            other => Err(FoldMatchError::parameter("preset", other, "one of default, paper")),
+            other => Err(FoldMatchError::parameter(
+                "preset",
+                other,
+                "one of default, paper",
+            )),
         }
     }
 
@@ -195,12 +204,18 @@ impl FitParams {
     /// Like [`FitParams::from_json`], with missing keys taken from `base` (a preset).
     pub fn from_json_over(text: &str, base: Self) -> Result<Self> {
         let mut given: serde_json::Map<String, serde_json::Value> = serde_json::from_str(text)
-            .map_err(|e| FoldMatchError::parameter("params", text, &format!("not a JSON object: {e}")))?;
+            .map_err(|e| {
+                FoldMatchError::parameter("params", text, &format!("not a JSON object: {e}"))
+            })?;
         let known = serde_json::to_value(Self::default()).expect("FitParams serializes");
         let known = known.as_object().expect("FitParams is an object");
         if let Some(bad) = given.keys().find(|k| !known.contains_key(*k)) {
             let names: Vec<&str> = known.keys().map(String::as_str).collect();
-            return Err(FoldMatchError::parameter(bad, "?", &format!("unknown parameter; known: {}", names.join(", "))));
+            return Err(FoldMatchError::parameter(
+                bad,
+                "?",
+                &format!("unknown parameter; known: {}", names.join(", ")),
+            ));
         }
         let base = serde_json::to_value(base).expect("FitParams serializes");
         for (key, value) in base.as_object().expect("object") {
@@ -230,17 +245,33 @@ impl FitParams {
         ];
         for (name, v) in positive {
             if !(v > 0.0 && v.is_finite()) {
-                return Err(FoldMatchError::parameter(name, v, "must be positive and finite"));
+                return Err(FoldMatchError::parameter(
+                    name,
+                    v,
+                    "must be positive and finite",
+                ));
             }
         }
         if !(0.0..=1.0).contains(&p.damping) {
-            return Err(FoldMatchError::parameter("damping", p.damping, "must be in [0, 1]"));
+            return Err(FoldMatchError::parameter(
+                "damping",
+                p.damping,
+                "must be in [0, 1]",
+            ));
         }
         if !(p.alpha_floor > 0.0 && p.alpha_floor <= 1.0) {
-            return Err(FoldMatchError::parameter("alpha_floor", p.alpha_floor, "must be in (0, 1]"));
+            return Err(FoldMatchError::parameter(
+                "alpha_floor",
+                p.alpha_floor,
+                "must be in (0, 1]",
+            ));
         }
         if !(self.psi.is_finite() && self.psi.abs() < 1.0) {
-            return Err(FoldMatchError::parameter("psi", self.psi, "must be finite with |psi| < 1"));
+            return Err(FoldMatchError::parameter(
+                "psi",
+                self.psi,
+                "must be finite with |psi| < 1",
+            ));
         }
         if !(self.normal_completion >= 0.0 && self.normal_completion.is_finite()) {
             return Err(FoldMatchError::parameter(
@@ -250,12 +281,23 @@ impl FitParams {
             ));
         }
         if !(self.tolerance >= 0.0 && self.tolerance.is_finite()) {
-            return Err(FoldMatchError::parameter("tolerance", self.tolerance, "must be finite and >= 0"));
+            return Err(FoldMatchError::parameter(
+                "tolerance",
+                self.tolerance,
+                "must be finite and >= 0",
+            ));
         }
         if !(self.two_way >= 0.0 && self.two_way.is_finite()) {
-            return Err(FoldMatchError::parameter("two_way", self.two_way, "must be finite and >= 0"));
+            return Err(FoldMatchError::parameter(
+                "two_way",
+                self.two_way,
+                "must be finite and >= 0",
+            ));
         }
-        for (name, v) in [("rigid_fraction", self.rigid_fraction), ("coarse_fraction", self.coarse_fraction)] {
+        for (name, v) in [
+            ("rigid_fraction", self.rigid_fraction),
+            ("coarse_fraction", self.coarse_fraction),
+        ] {
             if !(0.0..=1.0).contains(&v) {
                 return Err(FoldMatchError::parameter(name, v, "must be in [0, 1]"));
             }
@@ -268,13 +310,25 @@ impl FitParams {
             ));
         }
         if !(1..=32).contains(&self.coarse_rings) {
-            return Err(FoldMatchError::parameter("coarse_rings", self.coarse_rings, "must be in 1..=32"));
+            return Err(FoldMatchError::parameter(
+                "coarse_rings",
+                self.coarse_rings,
+                "must be in 1..=32",
+            ));
         }
         if !(self.anneal >= 1.0 && self.anneal.is_finite()) {
-            return Err(FoldMatchError::parameter("anneal", self.anneal, "must be finite and >= 1"));
+            return Err(FoldMatchError::parameter(
+                "anneal",
+                self.anneal,
+                "must be finite and >= 1",
+            ));
         }
         if !(1..=8).contains(&self.rings) {
-            return Err(FoldMatchError::parameter("rings", self.rings, "must be in 1..=8"));
+            return Err(FoldMatchError::parameter(
+                "rings",
+                self.rings,
+                "must be in 1..=8",
+            ));
         }
         if self.k_min == 0 || self.k_max < self.k_min {
             return Err(FoldMatchError::parameter(
@@ -454,27 +508,49 @@ pub fn deformation_model(
         vertex_normals(old, topo.faces, topo.incidence, &mut ws.normals_old);
         vertex_normals(new, topo.faces, topo.incidence, &mut ws.normals_new);
         let (n_old, n_new) = (&ws.normals_old, &ws.normals_new);
-        ws.raw.par_iter_mut().zip(ws.degenerate.par_iter_mut()).enumerate().for_each(|(k, (h, deg))| {
-            let (g, d) =
-                deformation_gradient(k, topo.rings.of(k), old, new, &n_old[k], &n_new[k], params.normal_completion);
-            *h = g;
-            *deg = d;
-        });
+        ws.raw
+            .par_iter_mut()
+            .zip(ws.degenerate.par_iter_mut())
+            .enumerate()
+            .for_each(|(k, (h, deg))| {
+                let (g, d) = deformation_gradient(
+                    k,
+                    topo.rings.of(k),
+                    old,
+                    new,
+                    &n_old[k],
+                    &n_new[k],
+                    params.normal_completion,
+                );
+                *h = g;
+                *deg = d;
+            });
     });
     timed(&mut times.regularize, || {
-        regularize(&ws.raw, topo.rings, params.regularization, &mut ws.reg, &mut ws.reg_rotation, &mut ws.reg_stretch)
+        regularize(
+            &ws.raw,
+            topo.rings,
+            params.regularization,
+            &mut ws.reg,
+            &mut ws.reg_rotation,
+            &mut ws.reg_stretch,
+        )
     });
     timed(&mut times.rotation, || {
         let (raw, reg_r, reg_u) = (&ws.raw, &ws.reg_rotation, &ws.reg_stretch);
-        ws.rotation.par_iter_mut().zip(ws.wvf.par_iter_mut()).enumerate().for_each(|(k, (rot, w))| {
-            let m = modified_stretch(&reg_u[k], params.psi);
-            *w = m.wrinkle.into();
-            let h = match params.rotation_source {
-                RotationSource::Regularized => reg_r[k] * reg_u[k],
-                RotationSource::Raw => raw[k],
-            };
-            *rot = solve_rotation(&h, &m.stretch);
-        });
+        ws.rotation
+            .par_iter_mut()
+            .zip(ws.wvf.par_iter_mut())
+            .enumerate()
+            .for_each(|(k, (rot, w))| {
+                let m = modified_stretch(&reg_u[k], params.psi);
+                *w = m.wrinkle.into();
+                let h = match params.rotation_source {
+                    RotationSource::Regularized => reg_r[k] * reg_u[k],
+                    RotationSource::Raw => raw[k],
+                };
+                *rot = solve_rotation(&h, &m.stretch);
+            });
     });
     ws.times = times;
     ws.degenerate.iter().filter(|&&d| d).count()
@@ -507,12 +583,20 @@ pub fn fit(
     let faces = &cleaned.faces;
 
     // Normalized frame (SPEC §1).
-    let frame = if params.normalize { Frame::of_target(target) } else { Frame::identity() };
+    let frame = if params.normalize {
+        Frame::of_target(target)
+    } else {
+        Frame::identity()
+    };
     let scan = frame.forward(target);
     let mut pos = frame.forward(template_vertices);
     let centroid = pos.iter().fold(Vec3::zeros(), |acc, p| acc + vec3(p)) / m as f64;
     let scan_centroid = scan.iter().fold(Vec3::zeros(), |acc, p| acc + vec3(p)) / scan.len() as f64;
-    let scan_diag = if params.normalize { 1.0 } else { Frame::of_target(target).scale };
+    let scan_diag = if params.normalize {
+        1.0
+    } else {
+        Frame::of_target(target).scale
+    };
     let offset = centroid - scan_centroid;
     match params.prealign {
         Prealign::Centroid => {
@@ -521,7 +605,9 @@ pub fn fit(
             }
         }
         Prealign::None if offset.norm() > FAR_AWAY * scan_diag => {
-            return Err(FoldMatchError::FarAway { distance: offset.norm() / scan_diag });
+            return Err(FoldMatchError::FarAway {
+                distance: offset.norm() / scan_diag,
+            });
         }
         Prealign::None => {}
     }
@@ -540,12 +626,18 @@ pub fn fit(
 
     // Template side: incidence, neighborhoods.
     let incidence = VertexFaces::new(faces, m);
-    let isolated = (0..m).filter(|&v| incidence.offsets[v] == incidence.offsets[v + 1]).count();
+    let isolated = (0..m)
+        .filter(|&v| incidence.offsets[v] == incidence.offsets[v + 1])
+        .count();
     let rings = match params.method {
         Method::FoldMatch => n_rings(faces, m, params.rings),
         Method::Nrga => knn_neighborhoods(&start, params),
     };
-    let topo = TemplateTopology { faces, incidence: &incidence, rings: &rings };
+    let topo = TemplateTopology {
+        faces,
+        incidence: &incidence,
+        rings: &rings,
+    };
 
     let mut diagnostics = Diagnostics {
         target_neighbours: k,
@@ -566,15 +658,25 @@ pub fn fit(
     let mut disp = vec![0.0; m];
     let mut nn_idx = vec![0u32; m * k];
     let mut nn_d2 = vec![0.0; m * k];
-    let mut nn_cache = params.knn_cache.then(|| NeighborCache::new(m, k, scan.len()));
+    let mut nn_cache = params
+        .knn_cache
+        .then(|| NeighborCache::new(m, k, scan.len()));
     let mut ws = Workspace::new(m);
     let two_way = params.two_way > 0.0 && params.method == Method::FoldMatch;
     let (rigid_iterations, coarse_iterations) = params.phase_iterations();
     let mut reverse_force = vec![[0.0; 3]; if two_way { m } else { 0 }];
     let mut reverse_count = vec![0u32; if two_way { m } else { 0 }];
     let mut scan_nearest = vec![0u32; if two_way { scan.len() } else { 0 }];
-    let all_vertices: Vec<u32> = if rigid_iterations > 0 { (0..m as u32).collect() } else { Vec::new() };
-    let coarse_rings = if coarse_iterations > 0 { n_rings(faces, m, params.coarse_rings) } else { Neighborhoods::default() };
+    let all_vertices: Vec<u32> = if rigid_iterations > 0 {
+        (0..m as u32).collect()
+    } else {
+        Vec::new()
+    };
+    let coarse_rings = if coarse_iterations > 0 {
+        n_rings(faces, m, params.coarse_rings)
+    } else {
+        Neighborhoods::default()
+    };
     let mut history = Vec::with_capacity(params.iterations);
     let mut snapshots = Vec::new();
     let dt = params.nbody.time_step;
@@ -591,14 +693,38 @@ pub fn fit(
         let extra = if two_way {
             timed(&mut t.two_way, || {
                 let template_index = PointIndex::new(&pos);
-                scan_nearest.par_iter_mut().zip(scan.par_iter()).for_each(|(n, x)| *n = template_index.nearest_one(x).0);
-                nbody::reverse_attraction(&pos, &scan, &kappa, &scan_nearest, params.two_way, &nbody_params, &mut reverse_count, &mut reverse_force);
+                scan_nearest
+                    .par_iter_mut()
+                    .zip(scan.par_iter())
+                    .for_each(|(n, x)| *n = template_index.nearest_one(x).0);
+                nbody::reverse_attraction(
+                    &pos,
+                    &scan,
+                    &kappa,
+                    &scan_nearest,
+                    params.two_way,
+                    &nbody_params,
+                    &mut reverse_count,
+                    &mut reverse_force,
+                );
             });
             Some(reverse_force.as_slice())
         } else {
             None
         };
-        timed(&mut t.nbody, || nbody::step(&pos, &mut vel, &nn_idx, k, &scan, &kappa, &nbody_params, extra, &mut proposed));
+        timed(&mut t.nbody, || {
+            nbody::step(
+                &pos,
+                &mut vel,
+                &nn_idx,
+                k,
+                &scan,
+                &kappa,
+                &nbody_params,
+                extra,
+                &mut proposed,
+            )
+        });
         let update_start = std::time::Instant::now();
         let degenerate = match params.method {
             _ if it <= rigid_iterations => {
@@ -632,13 +758,16 @@ pub fn fit(
         };
         ws.times.update += update_start.elapsed().as_secs_f64();
         // Velocities follow the applied motion (SPEC §2.4); displacement figures.
-        disp.par_iter_mut().zip(vel.par_iter_mut()).enumerate().for_each(|(v, (d, vl))| {
-            let delta = vec3(&next[v]) - vec3(&pos[v]);
-            *d = delta.norm();
-            if params.velocity_sync {
-                *vl = (delta / dt).into();
-            }
-        });
+        disp.par_iter_mut()
+            .zip(vel.par_iter_mut())
+            .enumerate()
+            .for_each(|(v, (d, vl))| {
+                let delta = vec3(&next[v]) - vec3(&pos[v]);
+                *d = delta.norm();
+                if params.velocity_sync {
+                    *vl = (delta / dt).into();
+                }
+            });
         if let Some(bad) = next.iter().position(|p| !p.iter().all(|x| x.is_finite())) {
             return Err(FoldMatchError::Numerical(format!(
                 "vertex {bad} became non-finite at iteration {it}"
@@ -648,14 +777,23 @@ pub fn fit(
         // Sequential reduction: identical for any thread count.
         let mean = disp.iter().sum::<f64>() / m as f64;
         let max = disp.iter().copied().fold(0.0, f64::max);
-        let record = IterationRecord { iteration: it, mean_displacement: mean, max_displacement: max, degenerate_gradients: degenerate };
+        let record = IterationRecord {
+            iteration: it,
+            mean_displacement: mean,
+            max_displacement: max,
+            degenerate_gradients: degenerate,
+        };
         history.push(record);
         if params.snapshot_every > 0 && it % params.snapshot_every == 0 {
             let mut snap = pos.clone();
             frame.inverse_in_place(&mut snap);
             snapshots.push((it, snap));
         }
-        if !observer(&Progress { iteration: it, iterations: params.iterations, record }) {
+        if !observer(&Progress {
+            iteration: it,
+            iterations: params.iterations,
+            record,
+        }) {
             diagnostics.stopped_by_callback = true;
             break;
         }
@@ -677,7 +815,11 @@ pub fn fit(
         topo
     } else {
         acc_rings = n_rings(faces, m, params.rings);
-        TemplateTopology { faces, incidence: &incidence, rings: &acc_rings }
+        TemplateTopology {
+            faces,
+            incidence: &incidence,
+            rings: &acc_rings,
+        }
     };
     deformation_model(&start, &pos, &acc_topo, params, &mut ws);
     let wvf_accumulated = ws.wvf;
@@ -726,7 +868,10 @@ fn knn_neighborhoods(start: &[[f64; 3]], params: &FitParams) -> Neighborhoods {
     let mut idx = vec![0u32; m * k];
     let mut d2 = vec![0.0; m * k];
     index.nearest_all(start, k, &mut idx, &mut d2);
-    Neighborhoods { offsets: (0..=m).map(|i| i * k).collect(), members: idx }
+    Neighborhoods {
+        offsets: (0..=m).map(|i| i * k).collect(),
+        members: idx,
+    }
 }
 
 /// Fits without an observer.
@@ -737,7 +882,14 @@ pub fn fit_simple(
     target_faces: Option<&[[u32; 3]]>,
     params: &FitParams,
 ) -> Result<FitResult> {
-    fit(template_vertices, template_faces, target, target_faces, params, &mut |_| true)
+    fit(
+        template_vertices,
+        template_faces,
+        target,
+        target_faces,
+        params,
+        &mut |_| true,
+    )
 }
 
 /// Magnitudes of a vector field.

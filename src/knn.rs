@@ -21,7 +21,10 @@ pub fn neighborhood_size(rho: f64, n: usize, k_min: usize, k_max: usize) -> usiz
 impl PointIndex {
     /// Builds the tree over `points` (must be non-empty).
     pub fn new(points: &[[f64; 3]]) -> Self {
-        Self { tree: ImmutableKdTree::new_from_slice(points), points: points.to_vec() }
+        Self {
+            tree: ImmutableKdTree::new_from_slice(points),
+            points: points.to_vec(),
+        }
     }
 
     /// Number of indexed points.
@@ -44,7 +47,9 @@ impl PointIndex {
     /// squared distances to `dist2`); both slices have length `k`.
     pub fn nearest_into(&self, query: &[f64; 3], indices: &mut [u32], dist2: &mut [f64]) {
         let k = indices.len();
-        let found = self.tree.nearest_n::<SquaredEuclidean>(query, NonZero::new(k).unwrap());
+        let found = self
+            .tree
+            .nearest_n::<SquaredEuclidean>(query, NonZero::new(k).unwrap());
         for (slot, nn) in found.iter().enumerate() {
             indices[slot] = nn.item as u32;
             dist2[slot] = nn.distance;
@@ -59,8 +64,18 @@ impl PointIndex {
 
     /// The `k` nearest points of every query, in parallel: row `q` of the (len(queries) × k)
     /// row-major outputs belongs to `queries[q]`.
-    pub fn nearest_all(&self, queries: &[[f64; 3]], k: usize, indices: &mut [u32], dist2: &mut [f64]) {
-        assert!(k >= 1 && k <= self.len(), "k = {k} must be in 1..={}", self.len());
+    pub fn nearest_all(
+        &self,
+        queries: &[[f64; 3]],
+        k: usize,
+        indices: &mut [u32],
+        dist2: &mut [f64],
+    ) {
+        assert!(
+            k >= 1 && k <= self.len(),
+            "k = {k} must be in 1..={}",
+            self.len()
+        );
         assert_eq!(indices.len(), queries.len() * k);
         assert_eq!(dist2.len(), queries.len() * k);
         indices
@@ -110,7 +125,13 @@ impl NeighborCache {
     /// The `k` nearest indexed points of every query (same layout and order as
     /// [`PointIndex::nearest_all`]), re-using candidates where that is provably exact.
     /// Returns the number of points queried afresh.
-    pub fn query(&mut self, index: &PointIndex, queries: &[[f64; 3]], indices: &mut [u32], dist2: &mut [f64]) -> usize {
+    pub fn query(
+        &mut self,
+        index: &PointIndex,
+        queries: &[[f64; 3]],
+        indices: &mut [u32],
+        dist2: &mut [f64],
+    ) -> usize {
         let (k, c) = (self.k, self.c);
         let whole_set = c == index.len();
         self.anchors
@@ -121,8 +142,12 @@ impl NeighborCache {
             .zip(indices.par_chunks_mut(k).zip(dist2.par_chunks_mut(k)))
             .zip(queries.par_iter())
             .for_each(|(((((anchor, cand), cand_d), state), (idx, d2)), q)| {
-                let moved = (0..3).map(|a| (q[a] - anchor[a]).powi(2)).sum::<f64>().sqrt();
-                let reusable = *state > 0 && (whole_set || cand_d[c - 1] - moved > cand_d[k - 1] + moved);
+                let moved = (0..3)
+                    .map(|a| (q[a] - anchor[a]).powi(2))
+                    .sum::<f64>()
+                    .sqrt();
+                let reusable =
+                    *state > 0 && (whole_set || cand_d[c - 1] - moved > cand_d[k - 1] + moved);
                 if reusable {
                     *state = 1;
                 } else {
@@ -138,7 +163,8 @@ impl NeighborCache {
                     let p = index.point(j);
                     *slot = ((0..3).map(|a| (q[a] - p[a]).powi(2)).sum::<f64>(), j);
                 }
-                let by_distance = |a: &(f64, u32), b: &(f64, u32)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
+                let by_distance =
+                    |a: &(f64, u32), b: &(f64, u32)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
                 if c > k {
                     ranked.select_nth_unstable_by(k - 1, by_distance);
                 }
@@ -154,7 +180,11 @@ impl NeighborCache {
 
 /// Brute-force k nearest neighbours (the exact reference the k-d tree is tested against):
 /// returns (indices, squared distances) nearest first, ties broken by index.
-pub fn brute_force_nearest(points: &[[f64; 3]], query: &[f64; 3], k: usize) -> (Vec<u32>, Vec<f64>) {
+pub fn brute_force_nearest(
+    points: &[[f64; 3]],
+    query: &[f64; 3],
+    k: usize,
+) -> (Vec<u32>, Vec<f64>) {
     let mut all: Vec<(f64, u32)> = points
         .iter()
         .enumerate()
@@ -165,7 +195,10 @@ pub fn brute_force_nearest(points: &[[f64; 3]], query: &[f64; 3], k: usize) -> (
         .collect();
     all.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
     all.truncate(k);
-    (all.iter().map(|x| x.1).collect(), all.iter().map(|x| x.0).collect())
+    (
+        all.iter().map(|x| x.1).collect(),
+        all.iter().map(|x| x.0).collect(),
+    )
 }
 
 #[cfg(test)]
@@ -177,8 +210,12 @@ mod tests {
     #[test]
     fn cache_equals_fresh_queries_as_points_move() {
         let mut rng = ChaCha8Rng::seed_from_u64(8);
-        let pts: Vec<[f64; 3]> = (0..3000).map(|_| [rng.random(), rng.random(), rng.random()]).collect();
-        let mut queries: Vec<[f64; 3]> = (0..400).map(|_| [rng.random(), rng.random(), rng.random()]).collect();
+        let pts: Vec<[f64; 3]> = (0..3000)
+            .map(|_| [rng.random(), rng.random(), rng.random()])
+            .collect();
+        let mut queries: Vec<[f64; 3]> = (0..400)
+            .map(|_| [rng.random(), rng.random(), rng.random()])
+            .collect();
         let index = PointIndex::new(&pts);
         let k = 12;
         let mut cache = NeighborCache::new(queries.len(), k, pts.len());
@@ -197,7 +234,10 @@ mod tests {
                 }
             }
         }
-        assert!(reused > 5000, "the cache should re-use most queries, re-used {reused}");
+        assert!(
+            reused > 5000,
+            "the cache should re-use most queries, re-used {reused}"
+        );
     }
 
     #[test]
@@ -211,8 +251,12 @@ mod tests {
     #[test]
     fn kdtree_equals_brute_force() {
         let mut rng = ChaCha8Rng::seed_from_u64(7);
-        let pts: Vec<[f64; 3]> = (0..2000).map(|_| [rng.random(), rng.random(), rng.random()]).collect();
-        let queries: Vec<[f64; 3]> = (0..300).map(|_| [rng.random(), rng.random(), rng.random::<f64>() * 1.5]).collect();
+        let pts: Vec<[f64; 3]> = (0..2000)
+            .map(|_| [rng.random(), rng.random(), rng.random()])
+            .collect();
+        let queries: Vec<[f64; 3]> = (0..300)
+            .map(|_| [rng.random(), rng.random(), rng.random::<f64>() * 1.5])
+            .collect();
         let index = PointIndex::new(&pts);
         let k = 17;
         let mut idx = vec![0; queries.len() * k];

@@ -78,7 +78,11 @@ pub fn sym_eigen3(a: &Mat3) -> SymEigen3 {
                 0.5 / theta
             } else {
                 let t = 1.0 / (theta.abs() + (theta * theta + 1.0).sqrt());
-                if theta < 0.0 { -t } else { t }
+                if theta < 0.0 {
+                    -t
+                } else {
+                    t
+                }
             };
             let c = 1.0 / (t * t + 1.0).sqrt();
             let s = t * c;
@@ -165,7 +169,11 @@ fn rotation_from_svd_parts(m: &Mat3, v: &Mat3, sigma: &Vec3) -> Mat3 {
     let w1 = w1.normalize();
     w2 -= w1 * w1.dot(&w2);
     let n2 = w2.norm();
-    let w2 = if n2 > 1e-12 { w2 / n2 } else { any_orthogonal(&w1) };
+    let w2 = if n2 > 1e-12 {
+        w2 / n2
+    } else {
+        any_orthogonal(&w1)
+    };
     let w3 = w1.cross(&w2);
     let v3 = v1.cross(&v2);
     w1 * v1.transpose() + w2 * v2.transpose() + w3 * v3.transpose()
@@ -173,7 +181,11 @@ fn rotation_from_svd_parts(m: &Mat3, v: &Mat3, sigma: &Vec3) -> Mat3 {
 
 /// A unit vector orthogonal to the unit vector `a`.
 pub fn any_orthogonal(a: &Vec3) -> Vec3 {
-    let helper = if a.x.abs() < 0.9 { Vec3::x() } else { Vec3::y() };
+    let helper = if a.x.abs() < 0.9 {
+        Vec3::x()
+    } else {
+        Vec3::y()
+    };
     a.cross(&helper).normalize()
 }
 
@@ -238,7 +250,11 @@ mod tests {
             assert!(e.values[0] >= e.values[1] && e.values[1] >= e.values[2]);
             assert_relative_eq!(e.map(|x| x), s, epsilon = 1e-12);
             assert_relative_eq!(e.vectors.determinant(), 1.0, epsilon = 1e-12);
-            assert_relative_eq!(e.vectors.transpose() * e.vectors, Mat3::identity(), epsilon = 1e-12);
+            assert_relative_eq!(
+                e.vectors.transpose() * e.vectors,
+                Mat3::identity(),
+                epsilon = 1e-12
+            );
         }
     }
 

@@ -12,12 +12,19 @@ use rayon::prelude::*;
 /// Checks that `points` is non-empty and every coordinate is finite.
 pub fn validate_points(name: &str, points: &[[f64; 3]]) -> Result<()> {
     if points.is_empty() {
-        return Err(FoldMatchError::shape(name, "expected at least one point, got 0 rows"));
+        return Err(FoldMatchError::shape(
+            name,
+            "expected at least one point, got 0 rows",
+        ));
     }
     for (row, p) in points.iter().enumerate() {
         for &value in p {
             if !value.is_finite() {
-                return Err(FoldMatchError::NonFinite { name: name.into(), row, value });
+                return Err(FoldMatchError::NonFinite {
+                    name: name.into(),
+                    row,
+                    value,
+                });
             }
         }
     }
@@ -112,7 +119,10 @@ impl VertexFaces {
                 fill[v as usize] += 1;
             }
         }
-        Self { offsets: counts, faces: out }
+        Self {
+            offsets: counts,
+            faces: out,
+        }
     }
 }
 
@@ -130,7 +140,11 @@ pub fn vertex_normals(
             acc += face_area_normal(positions, &faces[fi as usize]);
         }
         let len = acc.norm();
-        *n = if len > 0.0 { (acc / len).into() } else { [0.0; 3] };
+        *n = if len > 0.0 {
+            (acc / len).into()
+        } else {
+            [0.0; 3]
+        };
     });
 }
 
@@ -140,11 +154,24 @@ mod tests {
 
     #[test]
     fn rejects_empty_nan_and_bad_index() {
-        assert!(matches!(validate_points("x", &[]), Err(FoldMatchError::Shape { .. })));
+        assert!(matches!(
+            validate_points("x", &[]),
+            Err(FoldMatchError::Shape { .. })
+        ));
         let e = validate_points("x", &[[0.0; 3], [0.0, f64::NAN, 0.0]]).unwrap_err();
         assert!(matches!(e, FoldMatchError::NonFinite { row: 1, .. }), "{e}");
         let e = validate_faces("f", &[[0, 1, 2], [0, 1, 5]], 3).unwrap_err();
-        assert!(matches!(e, FoldMatchError::FaceIndex { face: 1, vertex: 5, .. }), "{e}");
+        assert!(
+            matches!(
+                e,
+                FoldMatchError::FaceIndex {
+                    face: 1,
+                    vertex: 5,
+                    ..
+                }
+            ),
+            "{e}"
+        );
     }
 
     #[test]
@@ -157,7 +184,13 @@ mod tests {
 
     #[test]
     fn normals_of_a_flat_square_point_up() {
-        let p = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0], [5.0; 3]];
+        let p = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [5.0; 3],
+        ];
         let f = [[0, 1, 2], [0, 2, 3]];
         let inc = VertexFaces::new(&f, 5);
         let mut n = vec![[0.0; 3]; 5];

@@ -199,11 +199,13 @@ pub fn reverse_attraction(
         out[k] = f.into();
         counts[k] += 1;
     }
-    out.par_iter_mut().zip(counts.par_iter()).for_each(|(f, &c)| {
-        if c > 0 {
-            *f = (vec3(f) * (weight / c as f64)).into();
-        }
-    });
+    out.par_iter_mut()
+        .zip(counts.par_iter())
+        .for_each(|(f, &c)| {
+            if c > 0 {
+                *f = (vec3(f) * (weight / c as f64)).into();
+            }
+        });
 }
 
 #[cfg(test)]
@@ -213,7 +215,10 @@ mod tests {
     #[test]
     fn single_pair_force_is_newtonian_far_away() {
         // κ = 0, far field: |F| → G m m / d² pointing to the attractor.
-        let p = NBodyParams { softening: 1e-6, ..Default::default() };
+        let p = NBodyParams {
+            softening: 1e-6,
+            ..Default::default()
+        };
         let f = gravitational_force(&Vec3::new(3.0, 0.0, 0.0), &[0], &[[0.0; 3]], &[0.0], &p);
         assert!((f.x + 1.67 / 9.0).abs() < 1e-9 && f.y == 0.0 && f.z == 0.0);
     }
@@ -225,8 +230,14 @@ mod tests {
         let y = Vec3::new(0.3, 0.1, -0.2);
         let shift = Vec3::new(5.0, -3.0, 1.0);
         let shifted: Vec<[f64; 3]> = target.iter().map(|t| (vec3(t) + shift).into()).collect();
-        for (num, invariant) in [(ForceNumerator::Centered, true), (ForceNumerator::Literal, false)] {
-            let p = NBodyParams { numerator: num, ..Default::default() };
+        for (num, invariant) in [
+            (ForceNumerator::Centered, true),
+            (ForceNumerator::Literal, false),
+        ] {
+            let p = NBodyParams {
+                numerator: num,
+                ..Default::default()
+            };
             let a = gravitational_force(&y, &[0, 1], &target, &kappa, &p);
             let b = gravitational_force(&(y + shift), &[0, 1], &shifted, &kappa, &p);
             assert_eq!((a - b).norm() < 1e-12, invariant, "{num:?}");
@@ -239,7 +250,10 @@ mod tests {
         let y = Vec3::new(0.05, 0.05, 0.3);
         let kappa = [0.0, 1e6, -3.0];
         let mean = gravitational_force(&y, &[0, 1, 2], &target, &kappa, &NBodyParams::default());
-        let sum_p = NBodyParams { summation: ForceSum::Sum, ..Default::default() };
+        let sum_p = NBodyParams {
+            summation: ForceSum::Sum,
+            ..Default::default()
+        };
         let sum = gravitational_force(&y, &[0, 1, 2], &target, &kappa, &sum_p);
         assert!((mean * 3.0 - sum).norm() < 1e-12);
         assert_eq!(alpha(1e6, 1.0, 0.1), 0.1);
@@ -250,8 +264,14 @@ mod tests {
     fn damping_readings() {
         let pos = [[0.0; 3]];
         let target = [[0.0; 3]];
-        for (mode, want) in [(DampingMode::Fraction, 0.9), (DampingMode::Force, 1.0 - 0.1 * 0.006)] {
-            let p = NBodyParams { damping_mode: mode, ..Default::default() };
+        for (mode, want) in [
+            (DampingMode::Fraction, 0.9),
+            (DampingMode::Force, 1.0 - 0.1 * 0.006),
+        ] {
+            let p = NBodyParams {
+                damping_mode: mode,
+                ..Default::default()
+            };
             let mut vel = [[1.0, 0.0, 0.0]];
             let mut out = [[0.0; 3]];
             // Target at the point itself: zero force, only damping acts.
@@ -265,7 +285,10 @@ mod tests {
     fn omega_report() {
         let p = NBodyParams::default();
         assert!((p.omega0_dt_squared(28) - 0.060_12).abs() < 1e-4);
-        let s = NBodyParams { summation: ForceSum::Sum, ..p };
+        let s = NBodyParams {
+            summation: ForceSum::Sum,
+            ..p
+        };
         assert!((s.omega0_dt_squared(28) - 1.683).abs() < 1e-3);
     }
 }

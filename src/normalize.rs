@@ -17,7 +17,10 @@ pub struct Frame {
 impl Frame {
     /// The identity frame (used when normalization is switched off).
     pub fn identity() -> Self {
-        Self { center: [0.0; 3], scale: 1.0 }
+        Self {
+            center: [0.0; 3],
+            scale: 1.0,
+        }
     }
 
     /// The frame that maps `target` to zero centroid and unit bounding-box diagonal. A target
@@ -35,8 +38,15 @@ impl Frame {
             }
         }
         let diag = (0..3).map(|i| (hi[i] - lo[i]).powi(2)).sum::<Real>().sqrt();
-        let scale = if diag > 0.0 && diag.is_finite() { diag } else { 1.0 };
-        Self { center: c.map(|x| x / n), scale }
+        let scale = if diag > 0.0 && diag.is_finite() {
+            diag
+        } else {
+            1.0
+        };
+        Self {
+            center: c.map(|x| x / n),
+            scale,
+        }
     }
 
     /// Maps user coordinates into the frame.
@@ -63,7 +73,12 @@ mod tests {
 
     #[test]
     fn unit_diagonal_and_round_trip() {
-        let t = [[0.0, 0.0, 0.0], [3.0, 4.0, 0.0], [3.0, 0.0, 0.0], [0.0, 4.0, 0.0]];
+        let t = [
+            [0.0, 0.0, 0.0],
+            [3.0, 4.0, 0.0],
+            [3.0, 0.0, 0.0],
+            [0.0, 4.0, 0.0],
+        ];
         let f = Frame::of_target(&t);
         assert_eq!(f.scale, 5.0);
         assert_eq!(f.center, [1.5, 2.0, 0.0]);

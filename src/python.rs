@@ -9,9 +9,14 @@
 use crate::error::FoldMatchError;
 use crate::fit::{self, FitParams, Progress};
 use crate::math::Mat3;
-use crate::{curvature, deformation, knn, metrics, nbody, regularize, rings, rotation, synthetic, wrinkle};
+use crate::{
+    curvature, deformation, knn, metrics, nbody, regularize, rings, rotation, synthetic, wrinkle,
+};
 use numpy::ndarray::{Array1, Array2, Array3};
-use numpy::{IntoPyArray, PyUntypedArrayMethods, PyArray1, PyArray2, PyArray3, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3};
+use numpy::{
+    IntoPyArray, PyArray1, PyArray2, PyArray3, PyReadonlyArray1, PyReadonlyArray2,
+    PyReadonlyArray3, PyUntypedArrayMethods,
+};
 use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -54,11 +59,17 @@ fn raise(class: &str, message: String) -> PyErr {
 
 /// Runs `work` without the GIL, in a dedicated pool when `threads` is given or after a fork,
 /// turning a panic into `InternalError`.
-fn compute<T: Send>(py: Python<'_>, threads: Option<usize>, work: impl FnOnce() -> T + Send) -> PyResult<T> {
+fn compute<T: Send>(
+    py: Python<'_>,
+    threads: Option<usize>,
+    work: impl FnOnce() -> T + Send,
+) -> PyResult<T> {
     let outcome = py.detach(|| {
         catch_unwind(AssertUnwindSafe(|| {
             if threads.is_some() || FORKED.load(Ordering::Relaxed) {
-                let pool = rayon::ThreadPoolBuilder::new().num_threads(threads.unwrap_or(0)).build();
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads.unwrap_or(0))
+                    .build();
                 match pool {
                     Ok(pool) => Ok(pool.install(work)),
                     Err(e) => Err(format!("could not start {threads:?} threads: {e}")),
@@ -77,7 +88,10 @@ fn compute<T: Send>(py: Python<'_>, threads: Option<usize>, work: impl FnOnce() 
                 .cloned()
                 .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
                 .unwrap_or_else(|| "unknown panic".into());
-            Err(raise("InternalError", format!("internal error (please report): {msg}")))
+            Err(raise(
+                "InternalError",
+                format!("internal error (please report): {msg}"),
+            ))
         }
     }
 }
@@ -86,7 +100,10 @@ fn compute<T: Send>(py: Python<'_>, threads: Option<usize>, work: impl FnOnce() 
 fn points<'a>(name: &str, a: &'a PyReadonlyArray2<'_, f64>) -> PyResult<&'a [[f64; 3]]> {
     let shape = a.shape();
     if shape[1] != 3 {
-        return Err(to_pyerr(FoldMatchError::shape(name, format!("expected shape (n, 3), got {shape:?}"))));
+        return Err(to_pyerr(FoldMatchError::shape(
+            name,
+            format!("expected shape (n, 3), got {shape:?}"),
+        )));
     }
     let flat = a
         .as_slice()
@@ -99,7 +116,10 @@ fn points<'a>(name: &str, a: &'a PyReadonlyArray2<'_, f64>) -> PyResult<&'a [[f6
 fn faces(name: &str, a: &PyReadonlyArray2<'_, i64>, n_vertices: usize) -> PyResult<Vec<[u32; 3]>> {
     let shape = a.shape();
     if shape[1] != 3 {
-        return Err(to_pyerr(FoldMatchError::shape(name, format!("expected shape (t, 3), got {shape:?}"))));
+        return Err(to_pyerr(FoldMatchError::shape(
+            name,
+            format!("expected shape (t, 3), got {shape:?}"),
+        )));
     }
     let view = a.as_array();
     let mut out = Vec::with_capacity(shape[0]);
@@ -107,7 +127,12 @@ fn faces(name: &str, a: &PyReadonlyArray2<'_, i64>, n_vertices: usize) -> PyResu
         let mut f = [0u32; 3];
         for (c, &v) in row.iter().enumerate() {
             if v < 0 || v as usize >= n_vertices {
-                return Err(to_pyerr(FoldMatchError::FaceIndex { name: name.into(), face, vertex: v, count: n_vertices }));
+                return Err(to_pyerr(FoldMatchError::FaceIndex {
+                    name: name.into(),
+                    face,
+                    vertex: v,
+                    count: n_vertices,
+                }));
             }
             f[c] = v as u32;
         }
@@ -118,7 +143,9 @@ fn faces(name: &str, a: &PyReadonlyArray2<'_, i64>, n_vertices: usize) -> PyResu
 
 fn array2(py: Python<'_>, v: Vec<[f64; 3]>) -> Bound<'_, PyArray2<f64>> {
     let n = v.len();
-    Array2::from_shape_vec((n, 3), v.into_flattened()).expect("n×3").into_pyarray(py)
+    Array2::from_shape_vec((n, 3), v.into_flattened())
+        .expect("n×3")
+        .into_pyarray(py)
 }
 
 fn mats_to_array<'py>(py: Python<'py>, m: &[Mat3]) -> Bound<'py, PyArray3<f64>> {
@@ -130,28 +157,49 @@ fn mats_to_array<'py>(py: Python<'py>, m: &[Mat3]) -> Bound<'py, PyArray3<f64>> 
             }
         }
     }
-    Array3::from_shape_vec((m.len(), 3, 3), flat).expect("n×3×3").into_pyarray(py)
+    Array3::from_shape_vec((m.len(), 3, 3), flat)
+        .expect("n×3×3")
+        .into_pyarray(py)
 }
 
 fn array_to_mats(name: &str, a: &PyReadonlyArray3<'_, f64>) -> PyResult<Vec<Mat3>> {
     let shape = a.shape();
     if shape[1] != 3 || shape[2] != 3 {
-        return Err(to_pyerr(FoldMatchError::shape(name, format!("expected shape (n, 3, 3), got {shape:?}"))));
+        return Err(to_pyerr(FoldMatchError::shape(
+            name,
+            format!("expected shape (n, 3, 3), got {shape:?}"),
+        )));
     }
     let v = a.as_array();
-    Ok((0..shape[0]).map(|i| Mat3::from_fn(|r, c| v[[i, r, c]])).collect())
+    Ok((0..shape[0])
+        .map(|i| Mat3::from_fn(|r, c| v[[i, r, c]]))
+        .collect())
 }
 
-fn csr<'a>(offsets: &'a PyReadonlyArray1<'_, i64>, members: &'a PyReadonlyArray1<'_, i64>) -> PyResult<rings::Neighborhoods> {
-    let offsets: Vec<usize> = offsets.as_array().iter().map(|&x| x.max(0) as usize).collect();
-    let members: Vec<u32> = members.as_array().iter().map(|&x| x.max(0) as u32).collect();
+fn csr<'a>(
+    offsets: &'a PyReadonlyArray1<'_, i64>,
+    members: &'a PyReadonlyArray1<'_, i64>,
+) -> PyResult<rings::Neighborhoods> {
+    let offsets: Vec<usize> = offsets
+        .as_array()
+        .iter()
+        .map(|&x| x.max(0) as usize)
+        .collect();
+    let members: Vec<u32> = members
+        .as_array()
+        .iter()
+        .map(|&x| x.max(0) as u32)
+        .collect();
     let ok = !offsets.is_empty()
         && offsets[0] == 0
         && offsets.windows(2).all(|w| w[0] <= w[1])
         && *offsets.last().unwrap() == members.len()
         && members.iter().all(|&j| (j as usize) < offsets.len() - 1);
     if !ok {
-        return Err(to_pyerr(FoldMatchError::shape("neighborhoods", "offsets/members do not form a valid CSR over the vertices")));
+        return Err(to_pyerr(FoldMatchError::shape(
+            "neighborhoods",
+            "offsets/members do not form a valid CSR over the vertices",
+        )));
     }
     Ok(rings::Neighborhoods { offsets, members })
 }
@@ -205,7 +253,10 @@ fn fit_raw<'py>(
                     .and_then(|_| info.set_item("max_displacement", p.record.max_displacement));
                 match filled.and_then(|_| cb.call1(py, (info,))) {
                     // Only an explicit `False` stops the fit (None continues).
-                    Ok(ret) => !ret.bind(py).is_instance_of::<pyo3::types::PyBool>() || ret.is_truthy(py).unwrap_or(true),
+                    Ok(ret) => {
+                        !ret.bind(py).is_instance_of::<pyo3::types::PyBool>()
+                            || ret.is_truthy(py).unwrap_or(true)
+                    }
                     Err(e) => {
                         *callback_error = Some(e);
                         false
@@ -213,7 +264,9 @@ fn fit_raw<'py>(
                 }
             })
         };
-        compute(py, threads, || fit::fit(tv, &tf, x, xf.as_deref(), &params, &mut observer))?
+        compute(py, threads, || {
+            fit::fit(tv, &tf, x, xf.as_deref(), &params, &mut observer)
+        })?
     };
     if let Some(e) = callback_error {
         return Err(e);
@@ -221,19 +274,47 @@ fn fit_raw<'py>(
     let r = result.map_err(to_pyerr)?;
     let d = PyDict::new(py);
     d.set_item("wvf_magnitude", fit::magnitudes(&r.wvf).into_pyarray(py))?;
-    d.set_item("wvf_accumulated_magnitude", fit::magnitudes(&r.wvf_accumulated).into_pyarray(py))?;
+    d.set_item(
+        "wvf_accumulated_magnitude",
+        fit::magnitudes(&r.wvf_accumulated).into_pyarray(py),
+    )?;
     d.set_item("vertices", array2(py, r.vertices))?;
     d.set_item("wvf", array2(py, r.wvf))?;
     d.set_item("wvf_accumulated", array2(py, r.wvf_accumulated))?;
     d.set_item("iterations", r.iterations)?;
     let h = &r.history;
-    d.set_item("mean_displacement", h.iter().map(|x| x.mean_displacement).collect::<Vec<_>>().into_pyarray(py))?;
-    d.set_item("max_displacement", h.iter().map(|x| x.max_displacement).collect::<Vec<_>>().into_pyarray(py))?;
-    d.set_item("degenerate_gradients", h.iter().map(|x| x.degenerate_gradients as u64).collect::<Vec<_>>().into_pyarray(py))?;
-    let snaps: Vec<(usize, Bound<'_, PyArray2<f64>>)> = r.snapshots.into_iter().map(|(i, s)| (i, array2(py, s))).collect();
+    d.set_item(
+        "mean_displacement",
+        h.iter()
+            .map(|x| x.mean_displacement)
+            .collect::<Vec<_>>()
+            .into_pyarray(py),
+    )?;
+    d.set_item(
+        "max_displacement",
+        h.iter()
+            .map(|x| x.max_displacement)
+            .collect::<Vec<_>>()
+            .into_pyarray(py),
+    )?;
+    d.set_item(
+        "degenerate_gradients",
+        h.iter()
+            .map(|x| x.degenerate_gradients as u64)
+            .collect::<Vec<_>>()
+            .into_pyarray(py),
+    )?;
+    let snaps: Vec<(usize, Bound<'_, PyArray2<f64>>)> = r
+        .snapshots
+        .into_iter()
+        .map(|(i, s)| (i, array2(py, s)))
+        .collect();
     d.set_item("snapshots", snaps)?;
     d.set_item("params_json", r.params.to_json())?;
-    d.set_item("diagnostics_json", serde_json::to_string(&r.diagnostics).expect("serializable"))?;
+    d.set_item(
+        "diagnostics_json",
+        serde_json::to_string(&r.diagnostics).expect("serializable"),
+    )?;
     Ok(d)
 }
 
@@ -251,7 +332,11 @@ fn knn_query<'py>(
     let q = self::points("queries", &queries)?;
     crate::mesh::validate_points("points", p).map_err(to_pyerr)?;
     if k == 0 || k > p.len() {
-        return Err(to_pyerr(FoldMatchError::parameter("k", k, &format!("must be in 1..={}", p.len()))));
+        return Err(to_pyerr(FoldMatchError::parameter(
+            "k",
+            k,
+            &format!("must be in 1..={}", p.len()),
+        )));
     }
     let (idx, d2) = compute(py, threads, || {
         let index = knn::PointIndex::new(p);
@@ -261,8 +346,12 @@ fn knn_query<'py>(
         (idx, d2)
     })?;
     Ok((
-        Array2::from_shape_vec((q.len(), k), idx).expect("q×k").into_pyarray(py),
-        Array2::from_shape_vec((q.len(), k), d2).expect("q×k").into_pyarray(py),
+        Array2::from_shape_vec((q.len(), k), idx)
+            .expect("q×k")
+            .into_pyarray(py),
+        Array2::from_shape_vec((q.len(), k), d2)
+            .expect("q×k")
+            .into_pyarray(py),
     ))
 }
 
@@ -282,23 +371,44 @@ fn nbody_step<'py>(
     let y = points("positions", &positions)?;
     let v = points("velocities", &velocities)?;
     let x = points("target", &target)?;
-    let kappa = curvature.as_slice().map_err(|_| to_pyerr(FoldMatchError::shape("curvature", "expected a contiguous 1-D array")))?;
+    let kappa = curvature.as_slice().map_err(|_| {
+        to_pyerr(FoldMatchError::shape(
+            "curvature",
+            "expected a contiguous 1-D array",
+        ))
+    })?;
     let nshape = neighbours.shape();
     if v.len() != y.len() || nshape[0] != y.len() || nshape[1] == 0 || kappa.len() != x.len() {
-        return Err(to_pyerr(FoldMatchError::shape("nbody_step", "positions, velocities and neighbours need M rows; curvature needs N values")));
+        return Err(to_pyerr(FoldMatchError::shape(
+            "nbody_step",
+            "positions, velocities and neighbours need M rows; curvature needs N values",
+        )));
     }
     let k = nshape[1];
     let mut nn = Vec::with_capacity(y.len() * k);
     for &j in neighbours.as_array().iter() {
         if j < 0 || j as usize >= x.len() {
-            return Err(to_pyerr(FoldMatchError::shape("neighbours", format!("index {j} out of range 0..{}", x.len()))));
+            return Err(to_pyerr(FoldMatchError::shape(
+                "neighbours",
+                format!("index {j} out of range 0..{}", x.len()),
+            )));
         }
         nn.push(j as u32);
     }
     let (vel, prop) = compute(py, None, || {
         let mut vel = v.to_vec();
         let mut prop = vec![[0.0; 3]; y.len()];
-        nbody::step(y, &mut vel, &nn, k, x, kappa, &params.nbody, None, &mut prop);
+        nbody::step(
+            y,
+            &mut vel,
+            &nn,
+            k,
+            x,
+            kappa,
+            &params.nbody,
+            None,
+            &mut prop,
+        );
         (vel, prop)
     })?;
     Ok((array2(py, vel), array2(py, prop)))
@@ -355,7 +465,10 @@ fn deformation_gradients<'py>(
     let o = points("old", &old)?;
     let n = points("new", &new)?;
     if o.len() != n.len() {
-        return Err(to_pyerr(FoldMatchError::shape("new", format!("expected {} rows like old, got {}", o.len(), n.len()))));
+        return Err(to_pyerr(FoldMatchError::shape(
+            "new",
+            format!("expected {} rows like old, got {}", o.len(), n.len()),
+        )));
     }
     let f = self::faces("faces", &faces, o.len())?;
     let (h, deg) = compute(py, None, || {
@@ -367,10 +480,23 @@ fn deformation_gradients<'py>(
         crate::mesh::vertex_normals(o, &clean, &inc, &mut no);
         crate::mesh::vertex_normals(n, &clean, &inc, &mut nn);
         (0..o.len())
-            .map(|k| deformation::deformation_gradient(k, nb.of(k), o, n, &no[k], &nn[k], normal_completion))
+            .map(|k| {
+                deformation::deformation_gradient(
+                    k,
+                    nb.of(k),
+                    o,
+                    n,
+                    &no[k],
+                    &nn[k],
+                    normal_completion,
+                )
+            })
             .unzip::<_, _, Vec<_>, Vec<_>>()
     })?;
-    Ok((mats_to_array(py, &h), Array1::from_vec(deg).into_pyarray(py)))
+    Ok((
+        mats_to_array(py, &h),
+        Array1::from_vec(deg).into_pyarray(py),
+    ))
 }
 
 /// Regularization (Eq. 5): `(rotations, stretches)`, each (M, 3, 3).
@@ -386,10 +512,19 @@ fn regularize_gradients<'py>(
     let h = array_to_mats("gradients", &gradients)?;
     let nb = csr(&offsets, &members)?;
     if nb.len() != h.len() {
-        return Err(to_pyerr(FoldMatchError::shape("offsets", format!("expected {} rows, got {}", h.len(), nb.len()))));
+        return Err(to_pyerr(FoldMatchError::shape(
+            "offsets",
+            format!("expected {} rows, got {}", h.len(), nb.len()),
+        )));
     }
-    let mode: regularize::Regularization = serde_json::from_value(serde_json::Value::String(mode.into()))
-        .map_err(|_| to_pyerr(FoldMatchError::parameter("mode", mode, "one of affine_invariant, log_euclidean, none")))?;
+    let mode: regularize::Regularization =
+        serde_json::from_value(serde_json::Value::String(mode.into())).map_err(|_| {
+            to_pyerr(FoldMatchError::parameter(
+                "mode",
+                mode,
+                "one of affine_invariant, log_euclidean, none",
+            ))
+        })?;
     let (r, u) = compute(py, None, || {
         let mut buf = regularize::RegularizeBuffers::new(h.len());
         let (mut r, mut u) = (vec![Mat3::zeros(); h.len()], vec![Mat3::zeros(); h.len()]);
@@ -406,10 +541,13 @@ fn polar_decomposition<'py>(
     matrices: PyReadonlyArray3<'py, f64>,
 ) -> PyResult<(Bound<'py, PyArray3<f64>>, Bound<'py, PyArray3<f64>>)> {
     let h = array_to_mats("matrices", &matrices)?;
-    let (r, u): (Vec<Mat3>, Vec<Mat3>) = h.iter().map(|m| {
-        let p = crate::math::polar(m);
-        (p.rotation, p.stretch)
-    }).unzip();
+    let (r, u): (Vec<Mat3>, Vec<Mat3>) = h
+        .iter()
+        .map(|m| {
+            let p = crate::math::polar(m);
+            (p.rotation, p.stretch)
+        })
+        .unzip();
     Ok((mats_to_array(py, &r), mats_to_array(py, &u)))
 }
 
@@ -422,10 +560,13 @@ fn wrinkle_field<'py>(
     psi: f64,
 ) -> PyResult<(Bound<'py, PyArray3<f64>>, Bound<'py, PyArray2<f64>>)> {
     let u = array_to_mats("stretches", &stretches)?;
-    let (uh, w): (Vec<Mat3>, Vec<[f64; 3]>) = u.iter().map(|m| {
-        let s = wrinkle::modified_stretch(m, psi);
-        (s.stretch, <[f64; 3]>::from(s.wrinkle))
-    }).unzip();
+    let (uh, w): (Vec<Mat3>, Vec<[f64; 3]>) = u
+        .iter()
+        .map(|m| {
+            let s = wrinkle::modified_stretch(m, psi);
+            (s.stretch, <[f64; 3]>::from(s.wrinkle))
+        })
+        .unzip();
     Ok((mats_to_array(py, &uh), array2(py, w)))
 }
 
@@ -439,9 +580,16 @@ fn solve_rotations<'py>(
     let h = array_to_mats("gradients", &gradients)?;
     let u = array_to_mats("modified_stretches", &modified_stretches)?;
     if h.len() != u.len() {
-        return Err(to_pyerr(FoldMatchError::shape("modified_stretches", "needs as many matrices as gradients")));
+        return Err(to_pyerr(FoldMatchError::shape(
+            "modified_stretches",
+            "needs as many matrices as gradients",
+        )));
     }
-    let r: Vec<Mat3> = h.iter().zip(&u).map(|(h, u)| rotation::solve_rotation(h, u)).collect();
+    let r: Vec<Mat3> = h
+        .iter()
+        .zip(&u)
+        .map(|(h, u)| rotation::solve_rotation(h, u))
+        .collect();
     Ok(mats_to_array(py, &r))
 }
 
@@ -460,20 +608,28 @@ fn foldmatch_update<'py>(
     let o = points("old", &old)?;
     let n = points("proposed", &proposed)?;
     if o.len() != n.len() {
-        return Err(to_pyerr(FoldMatchError::shape("proposed", "needs as many rows as old")));
+        return Err(to_pyerr(FoldMatchError::shape(
+            "proposed",
+            "needs as many rows as old",
+        )));
     }
     let f = self::faces("faces", &faces, o.len())?;
     let (next, wvf) = compute(py, None, || {
         let clean = crate::mesh::clean_faces(&f).faces;
         let inc = crate::mesh::VertexFaces::new(&clean, o.len());
         let nb = rings::n_rings(&clean, o.len(), params.rings);
-        let topo = fit::TemplateTopology { faces: &clean, incidence: &inc, rings: &nb };
+        let topo = fit::TemplateTopology {
+            faces: &clean,
+            incidence: &inc,
+            rings: &nb,
+        };
         let mut ws = fit::Workspace::new(o.len());
         fit::deformation_model(o, n, &topo, &params, &mut ws);
         let next: Vec<[f64; 3]> = (0..o.len())
             .map(|v| {
                 let (co, cn) = rotation::ring_centroids(nb.of(v), o, n);
-                rotation::transform_vertex(&ws.rotation[v], &crate::math::vec3(&o[v]), &co, &cn).into()
+                rotation::transform_vertex(&ws.rotation[v], &crate::math::vec3(&o[v]), &co, &cn)
+                    .into()
             })
             .collect();
         (next, ws.wvf)
@@ -501,17 +657,35 @@ fn folded_sheet<'py>(
     seed: u64,
 ) -> PyResult<Bound<'py, PyDict>> {
     if nx < 2 || ny < 2 {
-        return Err(to_pyerr(FoldMatchError::parameter("nx/ny", format!("{nx}/{ny}"), "need at least 2 vertices per side")));
+        return Err(to_pyerr(FoldMatchError::parameter(
+            "nx/ny",
+            format!("{nx}/{ny}"),
+            "need at least 2 vertices per side",
+        )));
     }
     let spec = synthetic::SheetSpec {
-        nx, ny, width, height, fold_amplitude, folds, rotation_degrees,
-        offset: [offset.0, offset.1, offset.2], scan_points, noise, seed,
+        nx,
+        ny,
+        width,
+        height,
+        fold_amplitude,
+        folds,
+        rotation_degrees,
+        offset: [offset.0, offset.1, offset.2],
+        scan_points,
+        noise,
+        seed,
     };
     let c = synthetic::folded_sheet(&spec);
     let d = PyDict::new(py);
     d.set_item("template_vertices", array2(py, c.template_vertices))?;
     let faces: Vec<i64> = c.faces.iter().flat_map(|f| f.map(i64::from)).collect();
-    d.set_item("faces", Array2::from_shape_vec((c.faces.len(), 3), faces).expect("t×3").into_pyarray(py))?;
+    d.set_item(
+        "faces",
+        Array2::from_shape_vec((c.faces.len(), 3), faces)
+            .expect("t×3")
+            .into_pyarray(py),
+    )?;
     d.set_item("ground_truth", array2(py, c.ground_truth))?;
     d.set_item("scan", array2(py, c.scan))?;
     Ok(d)
@@ -539,8 +713,18 @@ fn evaluate<'py>(
         None => None,
     };
     let f = faces("template_faces", &template_faces, tv.len())?;
-    let params = metrics::MetricsParams { tau_s, tau_e, ..Default::default() };
-    let input = metrics::MetricsInput { template_vertices: tv, faces: &f, fitted_vertices: fv, target: x, ground_truth: gt };
+    let params = metrics::MetricsParams {
+        tau_s,
+        tau_e,
+        ..Default::default()
+    };
+    let input = metrics::MetricsInput {
+        template_vertices: tv,
+        faces: &f,
+        fitted_vertices: fv,
+        target: x,
+        ground_truth: gt,
+    };
     let m = compute(py, None, || metrics::evaluate(&input, &params))?.map_err(to_pyerr)?;
     let d = PyDict::new(py);
     d.set_item("f_H", m.f_h)?;
@@ -573,6 +757,15 @@ fn _mark_forked() {
     FORKED.store(true, Ordering::Relaxed);
 }
 
+/// Runs the `foldmatch` command line program (the same Rust code as the standalone binary)
+/// with `argv` (`argv[0]` is the program name) and returns its exit code; used by
+/// `python -m foldmatch_rs` and the `foldmatch` console script. The GIL is released while it
+/// runs; it installs a Ctrl-C handler for the process (see `cli::run`).
+#[pyfunction]
+fn run_cli(py: Python<'_>, argv: Vec<String>) -> i32 {
+    py.detach(|| crate::cli::run(argv))
+}
+
 /// The compiled core of `foldmatch_rs`.
 #[pymodule]
 fn _foldmatch_rs(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -591,6 +784,7 @@ fn _foldmatch_rs(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(folded_sheet, m)?)?;
     m.add_function(wrap_pyfunction!(evaluate, m)?)?;
     m.add_function(wrap_pyfunction!(_mark_forked, m)?)?;
+    m.add_function(wrap_pyfunction!(run_cli, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -39,7 +39,10 @@ pub struct RegularizeBuffers {
 impl RegularizeBuffers {
     /// Buffers for `m` vertices.
     pub fn new(m: usize) -> Self {
-        Self { rotation: vec![Mat3::identity(); m], stretch: vec![Mat3::identity(); m] }
+        Self {
+            rotation: vec![Mat3::identity(); m],
+            stretch: vec![Mat3::identity(); m],
+        }
     }
 }
 
@@ -114,11 +117,15 @@ mod tests {
     use approx::assert_relative_eq;
 
     fn all_ring(m: usize) -> Neighborhoods {
-        Neighborhoods::from_rows((0..m).map(|k| {
-            let mut r = vec![k as u32];
-            r.extend((0..m as u32).filter(|&j| j != k as u32));
-            r
-        }).collect())
+        Neighborhoods::from_rows(
+            (0..m)
+                .map(|k| {
+                    let mut r = vec![k as u32];
+                    r.extend((0..m as u32).filter(|&j| j != k as u32));
+                    r
+                })
+                .collect(),
+        )
     }
 
     #[test]
@@ -126,7 +133,11 @@ mod tests {
         let r = *nalgebra::Rotation3::from_euler_angles(0.2, 0.4, -0.9).matrix();
         let u = Mat3::new(1.3, 0.1, 0.0, 0.1, 0.8, 0.05, 0.0, 0.05, 1.0);
         let h = vec![r * u; 5];
-        for mode in [Regularization::AffineInvariant, Regularization::LogEuclidean, Regularization::None] {
+        for mode in [
+            Regularization::AffineInvariant,
+            Regularization::LogEuclidean,
+            Regularization::None,
+        ] {
             let mut buf = RegularizeBuffers::new(5);
             let (mut ro, mut uo) = (vec![Mat3::zeros(); 5], vec![Mat3::zeros(); 5]);
             regularize(&h, &all_ring(5), mode, &mut buf, &mut ro, &mut uo);
@@ -140,8 +151,14 @@ mod tests {
     #[test]
     fn two_commuting_stretches_average_geometrically() {
         // diag(1,1,1) and diag(4,1,1): both means give the geometric mean diag(2,1,1).
-        let h = vec![Mat3::identity(), Mat3::from_diagonal(&nalgebra::Vector3::new(4.0, 1.0, 1.0))];
-        for mode in [Regularization::AffineInvariant, Regularization::LogEuclidean] {
+        let h = vec![
+            Mat3::identity(),
+            Mat3::from_diagonal(&nalgebra::Vector3::new(4.0, 1.0, 1.0)),
+        ];
+        for mode in [
+            Regularization::AffineInvariant,
+            Regularization::LogEuclidean,
+        ] {
             let mut buf = RegularizeBuffers::new(2);
             let (mut ro, mut uo) = (vec![Mat3::zeros(); 2], vec![Mat3::zeros(); 2]);
             regularize(&h, &all_ring(2), mode, &mut buf, &mut ro, &mut uo);

@@ -119,7 +119,10 @@ mod tests {
                         }
                     }
                 }
-                (0..n).filter(|&v| dist[v] <= rings).map(|v| v as u32).collect()
+                (0..n)
+                    .filter(|&v| dist[v] <= rings)
+                    .map(|v| v as u32)
+                    .collect()
             })
             .collect()
     }

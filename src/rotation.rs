@@ -34,7 +34,13 @@ pub fn transform_vertex(rotation: &Mat3, y: &Vec3, c_old: &Vec3, c_new: &Vec3) -
 }
 
 /// Kabsch rotation of the neighborhood: the rotation best mapping `old − Ȳ` onto `new − Ȳ'`.
-pub fn kabsch(ring: &[u32], old: &[[f64; 3]], new: &[[f64; 3]], c_old: &Vec3, c_new: &Vec3) -> Mat3 {
+pub fn kabsch(
+    ring: &[u32],
+    old: &[[f64; 3]],
+    new: &[[f64; 3]],
+    c_old: &Vec3,
+    c_new: &Vec3,
+) -> Mat3 {
     let mut cov = Mat3::zeros();
     for &j in ring {
         cov += (vec3(&new[j as usize]) - c_new) * (vec3(&old[j as usize]) - c_old).transpose();
@@ -58,7 +64,13 @@ mod tests {
 
     #[test]
     fn kabsch_recovers_rigid_motion() {
-        let old = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 2.0, 0.0], [0.0, 0.0, 3.0], [1.0, 1.0, 1.0]];
+        let old = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 2.0, 0.0],
+            [0.0, 0.0, 3.0],
+            [1.0, 1.0, 1.0],
+        ];
         let r = *nalgebra::Rotation3::from_euler_angles(0.5, 0.2, -1.3).matrix();
         let t = Vec3::new(3.0, -2.0, 0.5);
         let new: Vec<[f64; 3]> = old.iter().map(|p| (r * vec3(p) + t).into()).collect();
@@ -66,6 +78,10 @@ mod tests {
         let (co, cn) = ring_centroids(&ring, &old, &new);
         let rk = kabsch(&ring, &old, &new, &co, &cn);
         assert_relative_eq!(rk, r, epsilon = 1e-10);
-        assert_relative_eq!(transform_vertex(&rk, &vec3(&old[4]), &co, &cn), vec3(&new[4]), epsilon = 1e-10);
+        assert_relative_eq!(
+            transform_vertex(&rk, &vec3(&old[4]), &co, &cn),
+            vec3(&new[4]),
+            epsilon = 1e-10
+        );
     }
 }

@@ -133,7 +133,11 @@ pub fn folded_sheet(spec: &SheetSpec) -> Case {
             let z = spec.fold_amplitude * envelope * (two_pi * spec.folds * u).sin()
                 + 0.5 * spec.fold_amplitude * (std::f64::consts::PI * u).sin();
             // Folding shortens the sheet along x a little (cloth is nearly inextensible).
-            let x = p[0] * (1.0 - 0.5 * (spec.fold_amplitude * two_pi * spec.folds / spec.width).powi(2) * 0.25);
+            let x = p[0]
+                * (1.0
+                    - 0.5
+                        * (spec.fold_amplitude * two_pi * spec.folds / spec.width).powi(2)
+                        * 0.25);
             (rot * Vec3::new(x, p[1], z) + offset).into()
         })
         .collect();
@@ -151,12 +155,22 @@ pub fn folded_sheet(spec: &SheetSpec) -> Case {
             }
         }
     }
-    Case { template_vertices: template, faces, ground_truth, scan }
+    Case {
+        template_vertices: template,
+        faces,
+        ground_truth,
+        scan,
+    }
 }
 
 /// `count` points uniformly distributed over the surface of a triangle mesh (area-weighted face
 /// choice, uniform barycentric coordinates).
-pub fn sample_surface(vertices: &[[f64; 3]], faces: &[[u32; 3]], count: usize, rng: &mut SplitMix64) -> Vec<[f64; 3]> {
+pub fn sample_surface(
+    vertices: &[[f64; 3]],
+    faces: &[[u32; 3]],
+    count: usize,
+    rng: &mut SplitMix64,
+) -> Vec<[f64; 3]> {
     let mut cumulative = Vec::with_capacity(faces.len());
     let mut total = 0.0;
     for f in faces {
@@ -166,14 +180,20 @@ pub fn sample_surface(vertices: &[[f64; 3]], faces: &[[u32; 3]], count: usize, r
     (0..count)
         .map(|_| {
             let target = rng.uniform() * total;
-            let fi = cumulative.partition_point(|&c| c < target).min(faces.len() - 1);
+            let fi = cumulative
+                .partition_point(|&c| c < target)
+                .min(faces.len() - 1);
             let f = faces[fi];
             let (mut a, mut b) = (rng.uniform(), rng.uniform());
             if a + b > 1.0 {
                 a = 1.0 - a;
                 b = 1.0 - b;
             }
-            let (p0, p1, p2) = (vec3(&vertices[f[0] as usize]), vec3(&vertices[f[1] as usize]), vec3(&vertices[f[2] as usize]));
+            let (p0, p1, p2) = (
+                vec3(&vertices[f[0] as usize]),
+                vec3(&vertices[f[1] as usize]),
+                vec3(&vertices[f[2] as usize]),
+            );
             (p0 + a * (p1 - p0) + b * (p2 - p0)).into()
         })
         .collect()
@@ -185,7 +205,11 @@ mod tests {
 
     #[test]
     fn sheet_and_scan_are_deterministic_and_sized() {
-        let spec = SheetSpec { scan_points: 500, noise: 0.001, ..Default::default() };
+        let spec = SheetSpec {
+            scan_points: 500,
+            noise: 0.001,
+            ..Default::default()
+        };
         let a = folded_sheet(&spec);
         let b = folded_sheet(&spec);
         assert_eq!(a.scan, b.scan);

@@ -22,7 +22,11 @@ pub struct ModifiedStretch {
 /// Applies ψ to the stretch tensor `u` (symmetric) and returns `Û` and the wrinkle vector.
 pub fn modified_stretch(u: &Mat3, psi: f64) -> ModifiedStretch {
     let e = sym_eigen3(u);
-    let raw = [e.values[0] + psi, e.values[1] - psi / 2.0, e.values[2] - psi / 2.0];
+    let raw = [
+        e.values[0] + psi,
+        e.values[1] - psi / 2.0,
+        e.values[2] - psi / 2.0,
+    ];
     let s = ((raw[0] * raw[0] + raw[1] * raw[1] + raw[2] * raw[2]) / 3.0).sqrt();
     let s = if s > 0.0 { s } else { 1.0 };
     let mut stretch = Mat3::zeros();
@@ -36,7 +40,10 @@ pub fn modified_stretch(u: &Mat3, psi: f64) -> ModifiedStretch {
             e1 = -e1;
         }
     }
-    ModifiedStretch { stretch, wrinkle: (raw[0] / s) * e1 }
+    ModifiedStretch {
+        stretch,
+        wrinkle: (raw[0] / s) * e1,
+    }
 }
 
 #[cfg(test)]
@@ -50,7 +57,11 @@ mod tests {
         let s = ((1.05f64.powi(2) + 2.0 * 0.975f64.powi(2)) / 3.0).sqrt();
         assert_relative_eq!(m.wrinkle.norm(), 1.05 / s, epsilon = 1e-12);
         // Û has unit RMS eigenvalue by construction.
-        assert_relative_eq!((m.stretch.transpose() * m.stretch).trace(), 3.0, epsilon = 1e-12);
+        assert_relative_eq!(
+            (m.stretch.transpose() * m.stretch).trace(),
+            3.0,
+            epsilon = 1e-12
+        );
     }
 
     #[test]

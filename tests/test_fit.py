@@ -3,10 +3,9 @@ bad-input errors (issue: FoldMatch core)."""
 
 from __future__ import annotations
 
+import foldmatch_rs as fm
 import numpy as np
 import pytest
-
-import foldmatch_rs as fm
 
 N = 41  # grid side of the generated sheet
 

@@ -17,10 +17,9 @@ Definitions (all in the user's units; Y template, Ŷ fitted, X target, G ground 
 
 import math
 
+import foldmatch_rs
 import numpy as np
 import pytest
-
-import foldmatch_rs
 
 TAU_S = 0.02
 TAU_E = 2.0

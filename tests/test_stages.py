@@ -5,11 +5,10 @@ from __future__ import annotations
 
 import json
 
+import foldmatch_rs as fm
 import numpy as np
 import pytest
 import reference
-
-import foldmatch_rs as fm
 
 
 def random_rotation(rng):

@@ -1,0 +1,487 @@
+//! Criterion benchmarks of every stage of one FoldMatch iteration, and of one whole iteration,
+//! on the paper-sized generated case (a 115×115 sheet = 13,225 template vertices, 14,400 scan
+//! points; K = 28, 2-ring neighborhoods of ≈ 19 vertices).
+//!
+//! ```sh
+//! CARGO_TARGET_DIR=target/bench cargo bench --bench stages            # all, a few minutes
+//! CARGO_TARGET_DIR=target/bench cargo bench --bench stages -- regularize   # one group
+//! ```
+//!
+//! The state is built once: the template after [`WARM_UP`] iterations of the paper preset (so
+//! the rings are curved and the gradients are not the identity, as in the middle of a fit), the
+//! motion proposed by one N-body step from there, normals, rings, raw and regularized
+//! gradients. Every benchmark then times one stage on that state with all cores (rayon's
+//! global pool) unless its name says otherwise. End-to-end figures (wall time, peak memory,
+//! peers) are `bench/perf.py`'s; see docs/performance.md.
+
+use criterion::{criterion_group, criterion_main, BatchSize, Criterion, SamplingMode};
+use foldmatch::curvature::gaussian_curvature_points;
+use foldmatch::deformation::deformation_gradient;
+use foldmatch::fit::{deformation_model, fit_simple, FitParams, TemplateTopology, Workspace};
+use foldmatch::knn::{neighborhood_size, NeighborCache, PointIndex};
+use foldmatch::math::{polar, sym_eigen3, vec3, Mat3};
+use foldmatch::mesh::{vertex_normals, VertexFaces};
+use foldmatch::nbody;
+use foldmatch::normalize::Frame;
+use foldmatch::regularize::{regularize, RegularizeBuffers};
+use foldmatch::rings::{n_rings, Neighborhoods};
+use foldmatch::rotation::{ring_centroids, solve_rotation, transform_vertex};
+use foldmatch::synthetic::{folded_sheet, SheetSpec};
+use foldmatch::wrinkle::modified_stretch;
+use rayon::prelude::*;
+use std::hint::black_box;
+use std::time::Duration;
+
+/// Side of the generated sheet (115² = 13,225 vertices, the paper's template size).
+const SIDE: usize = 115;
+/// Scan points (the paper's target size).
+const SCAN_POINTS: usize = 14_400;
+/// Iterations of the paper preset run before the state is taken.
+const WARM_UP: usize = 10;
+
+/// Everything one iteration reads, in the normalized frame.
+struct State {
+    params: FitParams,
+    scan: Vec<[f64; 3]>,
+    kappa: Vec<f64>,
+    index: PointIndex,
+    k: usize,
+    faces: Vec<[u32; 3]>,
+    incidence: VertexFaces,
+    rings: Neighborhoods,
+    /// Positions Y at the start of the iteration.
+    pos: Vec<[f64; 3]>,
+    /// Velocities at the start of the iteration.
+    vel: Vec<[f64; 3]>,
+    /// k-NN of every vertex (M × K).
+    nn_idx: Vec<u32>,
+    /// Positions proposed by the N-body step.
+    proposed: Vec<[f64; 3]>,
+    normals_old: Vec<[f64; 3]>,
+    normals_new: Vec<[f64; 3]>,
+    /// Raw (Eq. 4) and regularized (Eq. 5) gradients, the latter as R̄ and Ū.
+    raw: Vec<Mat3>,
+    reg_rotation: Vec<Mat3>,
+    reg_stretch: Vec<Mat3>,
+    /// ψ-modified stretches Û (Eq. 6).
+    stretch_hat: Vec<Mat3>,
+}
+
+fn setup() -> State {
+    let spec = SheetSpec {
+        nx: SIDE,
+        ny: SIDE,
+        scan_points: SCAN_POINTS,
+        noise: 0.001,
+        ..Default::default()
+    };
+    let case = folded_sheet(&spec);
+    let params = FitParams::paper();
+    let warm_params = FitParams {
+        iterations: WARM_UP,
+        ..params.clone()
+    };
+    let warm = fit_simple(
+        &case.template_vertices,
+        &case.faces,
+        &case.scan,
+        None,
+        &warm_params,
+    )
+    .expect("warm-up fit");
+
+    let frame = Frame::of_target(&case.scan);
+    let scan = frame.forward(&case.scan);
+    let pos = frame.forward(&warm.vertices);
+    let m = pos.len();
+    let index = PointIndex::new(&scan);
+    let k = neighborhood_size(params.rho, scan.len(), params.k_min, params.k_max);
+    let kappa = gaussian_curvature_points(&scan, &index);
+    let faces = case.faces;
+    let incidence = VertexFaces::new(&faces, m);
+    let rings = n_rings(&faces, m, params.rings);
+
+    let mut nn_idx = vec![0u32; m * k];
+    let mut nn_d2 = vec![0.0; m * k];
+    index.nearest_all(&pos, k, &mut nn_idx, &mut nn_d2);
+    // One step from rest gives the first motion; a second one, from the synchronized velocity,
+    // the motion of an iteration in progress.
+    let mut vel = vec![[0.0; 3]; m];
+    let mut proposed = vec![[0.0; 3]; m];
+    nbody::step(
+        &pos,
+        &mut vel,
+        &nn_idx,
+        k,
+        &scan,
+        &kappa,
+        &params.nbody,
+        None,
+        &mut proposed,
+    );
+    let start_vel = vel.clone();
+    nbody::step(
+        &pos,
+        &mut vel,
+        &nn_idx,
+        k,
+        &scan,
+        &kappa,
+        &params.nbody,
+        None,
+        &mut proposed,
+    );
+    let vel = start_vel;
+
+    let mut normals_old = vec![[0.0; 3]; m];
+    let mut normals_new = vec![[0.0; 3]; m];
+    vertex_normals(&pos, &faces, &incidence, &mut normals_old);
+    vertex_normals(&proposed, &faces, &incidence, &mut normals_new);
+    let raw: Vec<Mat3> = (0..m)
+        .into_par_iter()
+        .map(|v| {
+            deformation_gradient(
+                v,
+                rings.of(v),
+                &pos,
+                &proposed,
+                &normals_old[v],
+                &normals_new[v],
+                params.normal_completion,
+            )
+            .0
+        })
+        .collect();
+    let mut buffers = RegularizeBuffers::new(m);
+    let mut reg_rotation = vec![Mat3::identity(); m];
+    let mut reg_stretch = vec![Mat3::identity(); m];
+    regularize(
+        &raw,
+        &rings,
+        params.regularization,
+        &mut buffers,
+        &mut reg_rotation,
+        &mut reg_stretch,
+    );
+    let stretch_hat = reg_stretch
+        .par_iter()
+        .map(|u| modified_stretch(u, params.psi).stretch)
+        .collect();
+
+    State {
+        params,
+        scan,
+        kappa,
+        index,
+        k,
+        faces,
+        incidence,
+        rings,
+        pos,
+        vel,
+        nn_idx,
+        proposed,
+        normals_old,
+        normals_new,
+        raw,
+        reg_rotation,
+        reg_stretch,
+        stretch_hat,
+    }
+}
+
+/// Buffers of one whole iteration, allocated once (as the fit driver does).
+struct IterationBuffers {
+    pos: Vec<[f64; 3]>,
+    vel: Vec<[f64; 3]>,
+    nn_idx: Vec<u32>,
+    nn_d2: Vec<f64>,
+    /// The fit's k-NN candidate cache, primed at the state's positions.
+    cache: NeighborCache,
+    proposed: Vec<[f64; 3]>,
+    next: Vec<[f64; 3]>,
+    ws: Workspace,
+}
+
+impl IterationBuffers {
+    fn new(s: &State) -> Self {
+        let m = s.pos.len();
+        let (mut nn_idx, mut nn_d2) = (vec![0; m * s.k], vec![0.0; m * s.k]);
+        let mut cache = NeighborCache::new(m, s.k, s.scan.len());
+        cache.query(&s.index, &s.pos, &mut nn_idx, &mut nn_d2);
+        Self {
+            pos: s.pos.clone(),
+            vel: s.vel.clone(),
+            nn_idx,
+            nn_d2,
+            cache,
+            proposed: vec![[0.0; 3]; m],
+            next: vec![[0.0; 3]; m],
+            ws: Workspace::new(m),
+        }
+    }
+}
+
+/// One iteration of the paper preset (the FoldMatch phase): k-NN (through the fit's candidate
+/// cache, as `fit` does by default), N-body step, Eq. 4–8, per-vertex update. Starts from the same state every time (positions and velocities are
+/// restored first; that copy is two M×3 memcpys, negligible).
+fn one_iteration(s: &State, b: &mut IterationBuffers) {
+    b.pos.copy_from_slice(&s.pos);
+    b.vel.copy_from_slice(&s.vel);
+    b.cache.query(&s.index, &b.pos, &mut b.nn_idx, &mut b.nn_d2);
+    nbody::step(
+        &b.pos,
+        &mut b.vel,
+        &b.nn_idx,
+        s.k,
+        &s.scan,
+        &s.kappa,
+        &s.params.nbody,
+        None,
+        &mut b.proposed,
+    );
+    let topo = TemplateTopology {
+        faces: &s.faces,
+        incidence: &s.incidence,
+        rings: &s.rings,
+    };
+    deformation_model(&b.pos, &b.proposed, &topo, &s.params, &mut b.ws);
+    let (rot, old, new) = (&b.ws.rotation, &b.pos, &b.proposed);
+    b.next.par_iter_mut().enumerate().for_each(|(v, out)| {
+        let (c_old, c_new) = ring_centroids(s.rings.of(v), old, new);
+        *out = transform_vertex(&rot[v], &vec3(&old[v]), &c_old, &c_new).into();
+    });
+    black_box(&b.next);
+}
+
+fn configure(c: &mut Criterion) -> criterion::BenchmarkGroup<'_, criterion::measurement::WallTime> {
+    let mut g = c.benchmark_group("paper_sized");
+    g.sample_size(10)
+        .warm_up_time(Duration::from_millis(500))
+        .measurement_time(Duration::from_secs(2));
+    g.sampling_mode(SamplingMode::Flat);
+    g
+}
+
+fn bench_stages(c: &mut Criterion) {
+    let s = setup();
+    let m = s.pos.len();
+    eprintln!(
+        "paper-sized state: M = {m}, N = {}, K = {}, mean ring = {:.1}, threads = {}",
+        s.scan.len(),
+        s.k,
+        s.rings.members.len() as f64 / m as f64,
+        rayon::current_num_threads()
+    );
+    let mut g = configure(c);
+
+    // Target neighborhoods Γᵏ_X (every iteration) and the scan's k-d tree (once per fit).
+    g.bench_function("knn/nearest_all", |b| {
+        let (mut idx, mut d2) = (vec![0u32; m * s.k], vec![0.0; m * s.k]);
+        b.iter(|| {
+            s.index
+                .nearest_all(black_box(&s.pos), s.k, &mut idx, &mut d2)
+        });
+    });
+    g.bench_function("knn/neighbor_cache", |b| {
+        // The fit's default path: candidates cached at `pos`, queried at the moved positions.
+        let (mut idx, mut d2) = (vec![0u32; m * s.k], vec![0.0; m * s.k]);
+        let mut cache = NeighborCache::new(m, s.k, s.scan.len());
+        cache.query(&s.index, &s.pos, &mut idx, &mut d2);
+        b.iter(|| cache.query(&s.index, black_box(&s.proposed), &mut idx, &mut d2));
+    });
+    g.bench_function("knn/build_scan_tree", |b| {
+        b.iter(|| PointIndex::new(black_box(&s.scan)))
+    });
+
+    // Two-way attraction (default preset): template tree, nearest vertex of every scan point,
+    // reverse forces.
+    g.bench_function("two_way/reverse_attraction", |b| {
+        let mut nearest = vec![0u32; s.scan.len()];
+        let mut counts = vec![0u32; m];
+        let mut force = vec![[0.0; 3]; m];
+        b.iter(|| {
+            let template_index = PointIndex::new(&s.pos);
+            nearest
+                .par_iter_mut()
+                .zip(s.scan.par_iter())
+                .for_each(|(n, x)| *n = template_index.nearest_one(x).0);
+            nbody::reverse_attraction(
+                &s.pos,
+                &s.scan,
+                &s.kappa,
+                &nearest,
+                1.0,
+                &s.params.nbody,
+                &mut counts,
+                &mut force,
+            );
+        });
+    });
+
+    // Force and integration, Eq. 2–3.
+    g.bench_function("force/nbody_step", |b| {
+        let mut proposed = vec![[0.0; 3]; m];
+        b.iter_batched_ref(
+            || s.vel.clone(),
+            |vel| {
+                nbody::step(
+                    &s.pos,
+                    vel,
+                    &s.nn_idx,
+                    s.k,
+                    &s.scan,
+                    &s.kappa,
+                    &s.params.nbody,
+                    None,
+                    &mut proposed,
+                )
+            },
+            BatchSize::LargeInput,
+        );
+    });
+
+    // Deformation gradients, Eq. 4 (normals of both states, then one 3×3 solve per vertex).
+    g.bench_function("gradient/vertex_normals_x2", |b| {
+        let mut n = vec![[0.0; 3]; m];
+        b.iter(|| {
+            vertex_normals(&s.pos, &s.faces, &s.incidence, &mut n);
+            vertex_normals(&s.proposed, &s.faces, &s.incidence, &mut n);
+        });
+    });
+    g.bench_function("gradient/deformation_gradient", |b| {
+        let mut out = vec![Mat3::identity(); m];
+        let c = s.params.normal_completion;
+        b.iter(|| {
+            out.par_iter_mut().enumerate().for_each(|(v, h)| {
+                *h = deformation_gradient(
+                    v,
+                    s.rings.of(v),
+                    &s.pos,
+                    &s.proposed,
+                    &s.normals_old[v],
+                    &s.normals_new[v],
+                    c,
+                )
+                .0;
+            });
+        });
+    });
+
+    // Regularization, Eq. 5: the polar decompositions alone, then the whole stage.
+    g.bench_function("regularize/polar", |b| {
+        let mut out = vec![(Mat3::identity(), Mat3::identity()); m];
+        b.iter(|| {
+            out.par_iter_mut().zip(s.raw.par_iter()).for_each(|(o, h)| {
+                let p = polar(h);
+                *o = (p.rotation, p.stretch);
+            });
+        });
+    });
+    g.bench_function("regularize/full", |b| {
+        let mut buffers = RegularizeBuffers::new(m);
+        let (mut r, mut u) = (vec![Mat3::identity(); m], vec![Mat3::identity(); m]);
+        b.iter(|| {
+            regularize(
+                &s.raw,
+                &s.rings,
+                s.params.regularization,
+                &mut buffers,
+                &mut r,
+                &mut u,
+            )
+        });
+    });
+
+    // ψ-modified stretch and wrinkle vectors (Eq. 6–7), rotation solve (Eq. 8).
+    g.bench_function("wrinkle/modified_stretch", |b| {
+        let mut out = vec![Mat3::identity(); m];
+        b.iter(|| {
+            out.par_iter_mut()
+                .zip(s.reg_stretch.par_iter())
+                .for_each(|(o, u)| *o = modified_stretch(u, s.params.psi).stretch);
+        });
+    });
+    g.bench_function("rotation/solve_rotation", |b| {
+        let mut out = vec![Mat3::identity(); m];
+        b.iter(|| {
+            out.par_iter_mut().enumerate().for_each(|(v, o)| {
+                *o = solve_rotation(&(s.reg_rotation[v] * s.reg_stretch[v]), &s.stretch_hat[v]);
+            });
+        });
+    });
+
+    // Per-vertex update: ring centroids and Y_k ← R_k* (Y_k − c) + c'.
+    g.bench_function("update/transform", |b| {
+        let mut out = vec![[0.0; 3]; m];
+        b.iter(|| {
+            out.par_iter_mut().enumerate().for_each(|(v, o)| {
+                let (c_old, c_new) = ring_centroids(s.rings.of(v), &s.pos, &s.proposed);
+                *o = transform_vertex(&s.reg_rotation[v], &vec3(&s.pos[v]), &c_old, &c_new).into();
+            });
+        });
+    });
+
+    // The whole deformation model (Eq. 4–8) and one whole iteration.
+    g.bench_function("model/deformation_model", |b| {
+        let mut ws = Workspace::new(m);
+        let topo = TemplateTopology {
+            faces: &s.faces,
+            incidence: &s.incidence,
+            rings: &s.rings,
+        };
+        b.iter(|| deformation_model(&s.pos, &s.proposed, &topo, &s.params, &mut ws));
+    });
+    g.bench_function("iteration/all_threads", |b| {
+        let mut buffers = IterationBuffers::new(&s);
+        b.iter(|| one_iteration(&s, &mut buffers));
+    });
+    for threads in [1, 2] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("thread pool");
+        g.bench_function(format!("iteration/threads_{threads}"), |b| {
+            let mut buffers = IterationBuffers::new(&s);
+            b.iter(|| pool.install(|| one_iteration(&s, &mut buffers)));
+        });
+    }
+
+    // Per-fit setup: template rings and the point-cloud curvature of the scan.
+    g.bench_function("setup/n_rings", |b| {
+        b.iter(|| n_rings(black_box(&s.faces), m, s.params.rings))
+    });
+    g.bench_function("setup/curvature_points", |b| {
+        b.iter(|| gaussian_curvature_points(&s.scan, &s.index))
+    });
+    g.finish();
+
+    // The 3×3 kernels every stage is built on, per call, over the regularized stretches and
+    // raw gradients of the state (sequential, one core).
+    let mut g = c.benchmark_group("kernels");
+    g.sample_size(20)
+        .warm_up_time(Duration::from_millis(300))
+        .measurement_time(Duration::from_secs(1));
+    let sample = 4096.min(m);
+    g.throughput(criterion::Throughput::Elements(sample as u64));
+    g.bench_function("sym_eigen3", |b| {
+        b.iter(|| {
+            s.reg_stretch[..sample]
+                .iter()
+                .map(|u| sym_eigen3(black_box(u)).values[0])
+                .sum::<f64>()
+        })
+    });
+    g.bench_function("polar", |b| {
+        b.iter(|| {
+            s.raw[..sample]
+                .iter()
+                .map(|h| polar(black_box(h)).stretch[(0, 0)])
+                .sum::<f64>()
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bench_stages);
+criterion_main!(benches);

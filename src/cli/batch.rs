@@ -1,0 +1,480 @@
+//! `foldmatch batch` (every scan of a folder, in parallel) and `foldmatch sequence` (the frames
+//! of a folder in order, each warm-started from the previous fit).
+//!
+//! Both keep `OUT_DIR/report.json` valid at all times: it is written (atomically) before the
+//! first file, rewritten as files finish (at most once a second), and written a last time at the
+//! end, so an interrupted or killed run still leaves a report of what was done.
+
+use super::args::{BatchCmd, ParamArgs, SequenceCmd};
+use super::files::{find_scans, output_paths, Found};
+use super::interrupt;
+use super::job::{read_named, Job, Runner, Template};
+use super::report::{write_json, FileReport, RunReport, RunState, Status, Summary};
+use super::ui::Ui;
+use super::{exit_code, Context};
+use crate::fit::FitParams;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
+
+/// Minimum time between two rewrites of the report while the run goes on.
+const REPORT_INTERVAL: Duration = Duration::from_secs(1);
+
+/// What `batch` and `sequence` share before the first fit.
+struct Setup {
+    params: FitParams,
+    template: Template,
+    found: Vec<Found>,
+    outputs: Vec<PathBuf>,
+    out_dir: PathBuf,
+    report_path: PathBuf,
+    previous: HashMap<String, FileReport>,
+}
+
+#[allow(clippy::too_many_arguments)]
+fn setup(
+    ui: &Ui,
+    params: &ParamArgs,
+    template: &Path,
+    input_dir: &Path,
+    out_dir: &Path,
+    recursive: bool,
+    glob: Option<&str>,
+    extension: &str,
+    resume: bool,
+) -> Result<Setup, String> {
+    let params = params.to_params()?;
+    ui.detail(format_args!("parameters: {}", params.to_json()));
+    let template = Template::load(template, &params)?;
+    if !input_dir.is_dir() {
+        return Err(match std::fs::metadata(input_dir) {
+            Err(e) => format!("{}: {e}", input_dir.display()),
+            Ok(_) => format!("{}: not a folder", input_dir.display()),
+        });
+    }
+    if let (Ok(a), Ok(b)) = (input_dir.canonicalize(), out_dir.canonicalize()) {
+        if a == b {
+            return Err(format!(
+                "the output folder {} is the input folder: choose another -o",
+                out_dir.display()
+            ));
+        }
+    }
+    let found = find_scans(input_dir, recursive, glob, Some(out_dir))?;
+    if found.is_empty() {
+        let filter = glob.map(|g| format!(" matching {g:?}")).unwrap_or_default();
+        return Err(format!(
+            "{}: no .ply or .obj files{filter}",
+            input_dir.display()
+        ));
+    }
+    std::fs::create_dir_all(out_dir).map_err(|e| format!("{}: {e}", out_dir.display()))?;
+    let outputs = output_paths(&found, out_dir, extension);
+    let report_path = out_dir.join("report.json");
+    let mut previous = HashMap::new();
+    if resume {
+        if report_path.exists() {
+            match RunReport::load(&report_path) {
+                Ok(old) => {
+                    if old.params != serde_json::to_value(&params).unwrap_or_default() {
+                        ui.warn("--resume: the parameters differ from the earlier run's; its finished files are kept");
+                    }
+                    previous = old.files.into_iter().map(|f| (f.name.clone(), f)).collect();
+                }
+                Err(e) => ui.warn(format_args!("--resume: {e}; starting over")),
+            }
+        } else {
+            ui.info(format_args!(
+                "--resume: no {} yet; fitting every file",
+                report_path.display()
+            ));
+        }
+    }
+    Ok(Setup {
+        params,
+        template,
+        found,
+        outputs,
+        out_dir: out_dir.to_path_buf(),
+        report_path,
+        previous,
+    })
+}
+
+impl Setup {
+    /// The entry carried over from the earlier run when `--resume` may skip the file.
+    fn resumable(&self, i: usize) -> Option<FileReport> {
+        let old = self.previous.get(&self.found[i].name)?;
+        if !old.status.is_done() || !self.outputs[i].is_file() {
+            return None;
+        }
+        let mut entry = old.clone();
+        entry.status = Status::Skipped;
+        entry.scan = self.found[i].path.display().to_string();
+        entry.output = self.outputs[i].display().to_string();
+        Some(entry)
+    }
+
+    fn gt_for(&self, gt_dir: Option<&Path>, i: usize) -> Option<PathBuf> {
+        let p = gt_dir?.join(&self.found[i].name);
+        p.is_file().then_some(p)
+    }
+
+    fn report(&self, command: &str, input_dir: &Path, files: Vec<FileReport>) -> RunReport {
+        RunReport {
+            foldmatch_version: env!("CARGO_PKG_VERSION").into(),
+            command: command.into(),
+            template: self.template.path.display().to_string(),
+            input_dir: input_dir.display().to_string(),
+            output_dir: self.out_dir.display().to_string(),
+            state: RunState::Running,
+            seconds: 0.0,
+            summary: Summary::of(&files),
+            params: serde_json::to_value(&self.params).unwrap_or_default(),
+            files,
+        }
+    }
+}
+
+/// The report shared by the workers.
+struct Shared {
+    report: RunReport,
+    path: PathBuf,
+    started: Instant,
+    last_write: Instant,
+    write_error: Option<String>,
+}
+
+impl Shared {
+    fn write(&mut self, state: RunState) {
+        self.report.state = state;
+        self.report.seconds = self.started.elapsed().as_secs_f64();
+        self.report.summary = Summary::of(&self.report.files);
+        self.last_write = Instant::now();
+        if let Err(e) = write_json(&self.path, &self.report) {
+            self.write_error = Some(e);
+        }
+    }
+
+    fn record(&mut self, i: usize, entry: FileReport) {
+        self.report.files[i] = entry;
+        if self.last_write.elapsed() >= REPORT_INTERVAL {
+            self.write(RunState::Running);
+        }
+    }
+}
+
+/// One log line per finished file.
+fn log_file(ui: &Ui, done: usize, total: usize, entry: &FileReport) {
+    let width = total.to_string().len();
+    let head = format!("[{done:>width$}/{total}]");
+    match entry.status {
+        Status::Ok => {
+            let distance = entry
+                .metrics
+                .as_ref()
+                .and_then(|m| m.get("scan_to_fit_mean"))
+                .and_then(|d| d.as_f64())
+                .map(|d| format!(", scan-to-fit {d:.4}"))
+                .unwrap_or_default();
+            ui.info(format_args!(
+                "{head} ok      {} -> {} ({} it, {:.2} s{distance})",
+                entry.name,
+                entry.output,
+                entry.iterations.unwrap_or(0),
+                entry.seconds.unwrap_or(0.0)
+            ))
+        }
+        Status::Error => ui.error(format_args!(
+            "{head} {}: {}",
+            entry.name,
+            entry.error.as_deref().unwrap_or("?")
+        )),
+        Status::Skipped => ui.detail(format_args!(
+            "{head} skipped {} (done by an earlier run)",
+            entry.name
+        )),
+        Status::Interrupted => ui.info(format_args!("{head} stopped {} (interrupted)", entry.name)),
+        Status::Pending => {}
+    }
+}
+
+/// Exit code and summary line of a finished run.
+fn finish(ui: &Ui, mut shared: Shared, what: &str) -> i32 {
+    let interrupted = interrupt::requested();
+    shared.write(if interrupted {
+        RunState::Interrupted
+    } else {
+        RunState::Complete
+    });
+    let s = &shared.report.summary;
+    let failed: Vec<&str> = shared
+        .report
+        .files
+        .iter()
+        .filter(|f| f.status == Status::Error)
+        .map(|f| f.name.as_str())
+        .collect();
+    ui.info(format_args!(
+        "{what}: {} ok, {} failed, {} skipped{}{} in {:.1} s; report: {}",
+        s.ok,
+        s.error,
+        s.skipped,
+        if s.interrupted + s.pending > 0 {
+            format!(", {} not done", s.interrupted + s.pending)
+        } else {
+            String::new()
+        },
+        if interrupted { " (interrupted)" } else { "" },
+        shared.report.seconds,
+        shared.path.display()
+    ));
+    if !failed.is_empty() {
+        ui.error(format_args!(
+            "{} of {} files failed: {}",
+            failed.len(),
+            s.total,
+            failed.join(", ")
+        ));
+    }
+    if let Some(e) = &shared.write_error {
+        ui.error(format_args!("cannot write the report: {e}"));
+    }
+    if interrupted {
+        exit_code::INTERRUPTED
+    } else if shared.write_error.is_some() {
+        exit_code::FATAL
+    } else if !failed.is_empty() {
+        exit_code::PARTIAL
+    } else {
+        exit_code::OK
+    }
+}
+
+/// `foldmatch batch`.
+pub fn batch(cmd: &BatchCmd, ctx: &Context) -> i32 {
+    let ui = &ctx.ui;
+    let setup = match setup(
+        ui,
+        &cmd.params,
+        &cmd.template,
+        &cmd.scan_dir,
+        &cmd.output,
+        cmd.recursive,
+        cmd.glob.as_deref(),
+        cmd.format.extension(),
+        cmd.resume,
+    ) {
+        Ok(s) => s,
+        Err(e) => {
+            ui.error(e);
+            return exit_code::FATAL;
+        }
+    };
+    let n = setup.found.len();
+    let mut files = Vec::with_capacity(n);
+    let mut todo = Vec::new();
+    for i in 0..n {
+        match setup.resumable(i) {
+            Some(entry) => files.push(entry),
+            None => {
+                files.push(FileReport::pending(
+                    &setup.found[i].name,
+                    &setup.found[i].path,
+                    &setup.outputs[i],
+                ));
+                todo.push(i);
+            }
+        }
+    }
+    let jobs = cmd
+        .jobs
+        .map(usize::from)
+        .unwrap_or_else(default_jobs)
+        .min(todo.len())
+        .max(1);
+    ui.info(format_args!(
+        "batch: {n} scans in {}, {} to fit, {jobs} at a time -> {}",
+        cmd.scan_dir.display(),
+        todo.len(),
+        setup.out_dir.display()
+    ));
+    let now = Instant::now();
+    let mut shared = Shared {
+        report: setup.report("batch", &cmd.scan_dir, files),
+        path: setup.report_path.clone(),
+        started: now,
+        last_write: now,
+        write_error: None,
+    };
+    shared.write(RunState::Running);
+    if let Some(e) = shared.write_error.take() {
+        ui.error(format_args!("cannot write the report: {e}"));
+        return exit_code::FATAL;
+    }
+    let done = AtomicUsize::new(0);
+    for entry in shared
+        .report
+        .files
+        .iter()
+        .filter(|e| e.status == Status::Skipped)
+    {
+        log_file(ui, done.fetch_add(1, Ordering::Relaxed) + 1, n, entry);
+    }
+    let shared = Mutex::new(shared);
+    let files_bar = ui.files_bar(n);
+    files_bar.set(done.load(Ordering::Relaxed));
+    let runner = Runner {
+        template: &setup.template,
+        params: &setup.params,
+        ui,
+        pool: &ctx.pool,
+    };
+    let next = AtomicUsize::new(0);
+    std::thread::scope(|scope| {
+        for _ in 0..jobs {
+            scope.spawn(|| loop {
+                if interrupt::requested() {
+                    break;
+                }
+                let k = next.fetch_add(1, Ordering::SeqCst);
+                let Some(&i) = todo.get(k) else { break };
+                let job = Job {
+                    name: setup.found[i].name.clone(),
+                    scan: setup.found[i].path.clone(),
+                    output: setup.outputs[i].clone(),
+                    gt: setup.gt_for(cmd.gt_dir.as_deref(), i),
+                    start: None,
+                    ascii: cmd.ascii,
+                };
+                let outcome = runner.run(&job);
+                let finished = done.fetch_add(1, Ordering::SeqCst) + 1;
+                log_file(ui, finished, n, &outcome.report);
+                files_bar.inc();
+                files_bar.message(&job.name);
+                shared
+                    .lock()
+                    .unwrap_or_else(|p| p.into_inner())
+                    .record(i, outcome.report);
+            });
+        }
+    });
+    files_bar.finish();
+    finish(
+        ui,
+        shared.into_inner().unwrap_or_else(|p| p.into_inner()),
+        "batch",
+    )
+}
+
+/// Default `--jobs`: one file per core, at most 4 (each fit is itself parallel).
+fn default_jobs() -> usize {
+    std::thread::available_parallelism()
+        .map(|n| n.get())
+        .unwrap_or(1)
+        .min(4)
+}
+
+/// `foldmatch sequence`.
+pub fn sequence(cmd: &SequenceCmd, ctx: &Context) -> i32 {
+    let ui = &ctx.ui;
+    let setup = match setup(
+        ui,
+        &cmd.params,
+        &cmd.template,
+        &cmd.frame_dir,
+        &cmd.output,
+        false,
+        cmd.glob.as_deref(),
+        cmd.format.extension(),
+        cmd.resume,
+    ) {
+        Ok(s) => s,
+        Err(e) => {
+            ui.error(e);
+            return exit_code::FATAL;
+        }
+    };
+    let n = setup.found.len();
+    ui.info(format_args!(
+        "sequence: {n} frames in {} ({} … {}) -> {}",
+        cmd.frame_dir.display(),
+        setup.found[0].name,
+        setup.found[n - 1].name,
+        setup.out_dir.display()
+    ));
+    let files = (0..n)
+        .map(|i| {
+            FileReport::pending(
+                &setup.found[i].name,
+                &setup.found[i].path,
+                &setup.outputs[i],
+            )
+        })
+        .collect();
+    let now = Instant::now();
+    let mut shared = Shared {
+        report: setup.report("sequence", &cmd.frame_dir, files),
+        path: setup.report_path.clone(),
+        started: now,
+        last_write: now,
+        write_error: None,
+    };
+    shared.write(RunState::Running);
+    if let Some(e) = shared.write_error.take() {
+        ui.error(format_args!("cannot write the report: {e}"));
+        return exit_code::FATAL;
+    }
+    let runner = Runner {
+        template: &setup.template,
+        params: &setup.params,
+        ui,
+        pool: &ctx.pool,
+    };
+    let files_bar = ui.files_bar(n);
+    // The last successful fit and the frame it belongs to.
+    let mut warm: Option<(Vec<[f64; 3]>, String)> = None;
+    for i in 0..n {
+        if interrupt::requested() {
+            break;
+        }
+        let name = setup.found[i].name.clone();
+        if let Some(mut entry) = setup.resumable(i) {
+            match read_named("resumed frame", &setup.outputs[i]) {
+                Ok(mesh) if mesh.vertices.len() == setup.template.vertices.len() => {
+                    entry.warm_start = warm.as_ref().map(|w| w.1.clone());
+                    log_file(ui, i + 1, n, &entry);
+                    shared.record(i, entry);
+                    warm = Some((mesh.vertices, name));
+                    files_bar.inc();
+                    continue;
+                }
+                Ok(_) => ui.warn(format_args!(
+                    "{}: vertex count differs from the template; fitting it again",
+                    setup.outputs[i].display()
+                )),
+                Err(e) => ui.warn(format_args!("{e}; fitting it again")),
+            }
+        }
+        let job = Job {
+            name: name.clone(),
+            scan: setup.found[i].path.clone(),
+            output: setup.outputs[i].clone(),
+            gt: setup.gt_for(cmd.gt_dir.as_deref(), i),
+            start: warm.as_ref().map(|w| w.0.as_slice()),
+            ascii: cmd.ascii,
+        };
+        let mut outcome = runner.run(&job);
+        outcome.report.warm_start = warm.as_ref().map(|w| w.1.clone());
+        log_file(ui, i + 1, n, &outcome.report);
+        shared.record(i, outcome.report);
+        if let Some(fitted) = outcome.fitted {
+            warm = Some((fitted, name));
+        }
+        files_bar.inc();
+    }
+    files_bar.finish();
+    finish(ui, shared, "sequence")
+}

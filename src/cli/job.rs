@@ -1,0 +1,330 @@
+//! One file: read the scan, fit, write the output atomically, measure. Shared by `fit`,
+//! `batch`, `sequence` and `demo`, so every command writes the same files and reports.
+
+use super::interrupt;
+use super::report::{FileReport, Status};
+use super::ui::{Ui, Verbosity};
+use crate::error::FoldMatchError;
+use crate::fit::{
+    deformation_model, fit, magnitudes, FitParams, Progress, TemplateTopology, Workspace,
+};
+use crate::io::{colormap_viridis, read_mesh, write_mesh, MeshData, VertexProperty};
+use crate::mesh::{clean_faces, VertexFaces};
+use crate::metrics::{evaluate, Metrics, MetricsInput, MetricsParams};
+use crate::normalize::Frame;
+use crate::rings::{n_rings, Neighborhoods};
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// The template mesh, read once per run, with what the wrinkle-field of a total motion needs.
+pub struct Template {
+    /// Where it was read from.
+    pub path: PathBuf,
+    /// Vertices.
+    pub vertices: Vec<[f64; 3]>,
+    /// Faces (as read).
+    pub faces: Vec<[u32; 3]>,
+    clean: Vec<[u32; 3]>,
+    incidence: VertexFaces,
+    rings: Neighborhoods,
+}
+
+impl Template {
+    /// Reads the template; it must be a triangle mesh with finite coordinates.
+    pub fn load(path: &Path, params: &FitParams) -> Result<Self, String> {
+        let mesh = read_mesh(path).map_err(|e| format!("template: {e}"))?;
+        Self::new(path, mesh.vertices, mesh.faces, params)
+    }
+
+    /// A template from memory (`demo`); `path` names it in messages.
+    pub fn new(
+        path: &Path,
+        vertices: Vec<[f64; 3]>,
+        faces: Vec<[u32; 3]>,
+        params: &FitParams,
+    ) -> Result<Self, String> {
+        let name = path.display();
+        if vertices.is_empty() {
+            return Err(format!("template {name}: no vertices"));
+        }
+        if faces.is_empty() {
+            return Err(format!(
+                "template {name}: no faces (a point cloud); the template must be a triangle mesh"
+            ));
+        }
+        crate::mesh::validate_points("template", &vertices)
+            .map_err(|e| format!("template {name}: {e}"))?;
+        crate::mesh::validate_faces("template faces", &faces, vertices.len())
+            .map_err(|e| format!("template {name}: {e}"))?;
+        let m = vertices.len();
+        let clean = clean_faces(&faces).faces;
+        let incidence = VertexFaces::new(&clean, m);
+        let rings = n_rings(&clean, m, params.rings);
+        Ok(Self {
+            path: path.to_path_buf(),
+            vertices,
+            faces,
+            clean,
+            incidence,
+            rings,
+        })
+    }
+
+    /// The accumulated wrinkle-vector field of the motion template → `fitted` (SPEC §2.8),
+    /// computed in the scan's normalized frame as the fit does.
+    pub fn wrinkle_field(
+        &self,
+        fitted: &[[f64; 3]],
+        scan: &[[f64; 3]],
+        params: &FitParams,
+    ) -> Vec<[f64; 3]> {
+        let frame = if params.normalize {
+            Frame::of_target(scan)
+        } else {
+            Frame::identity()
+        };
+        let (old, new) = (frame.forward(&self.vertices), frame.forward(fitted));
+        let topo = TemplateTopology {
+            faces: &self.clean,
+            incidence: &self.incidence,
+            rings: &self.rings,
+        };
+        let mut ws = Workspace::new(self.vertices.len());
+        deformation_model(&old, &new, &topo, params, &mut ws);
+        ws.wvf
+    }
+}
+
+/// One file to fit.
+pub struct Job<'a> {
+    /// Short name for logs and the report (relative path).
+    pub name: String,
+    /// The scan.
+    pub scan: PathBuf,
+    /// Where the fitted mesh goes (.ply / .obj).
+    pub output: PathBuf,
+    /// Ground truth for f_R.
+    pub gt: Option<PathBuf>,
+    /// Start from these vertices instead of the template's (`sequence`).
+    pub start: Option<&'a [[f64; 3]]>,
+    /// Write ASCII PLY.
+    pub ascii: bool,
+}
+
+/// What came of a [`Job`].
+pub struct Outcome {
+    /// The file's report entry.
+    pub report: FileReport,
+    /// The fitted vertices, when the fit succeeded.
+    pub fitted: Option<Vec<[f64; 3]>>,
+    /// Metrics, when computed.
+    pub metrics: Option<Metrics>,
+}
+
+/// The context every job shares.
+pub struct Runner<'a> {
+    /// The template.
+    pub template: &'a Template,
+    /// Fit parameters.
+    pub params: &'a FitParams,
+    /// Output.
+    pub ui: &'a Ui,
+    /// The thread pool the fit runs in.
+    pub pool: &'a rayon::ThreadPool,
+}
+
+impl Runner<'_> {
+    /// Runs `job`; never panics (a panic becomes an error entry) and never fails: problems
+    /// are recorded in the returned report.
+    pub fn run(&self, job: &Job<'_>) -> Outcome {
+        let started = Instant::now();
+        let mut report = FileReport::pending(&job.name, &job.scan, &job.output);
+        report.ground_truth = job.gt.as_ref().map(|p| p.display().to_string());
+        let result = catch_unwind(AssertUnwindSafe(|| self.work(job, &mut report)));
+        let (fitted, metrics) = match result {
+            Ok(Ok(done)) => done,
+            Ok(Err(message)) => {
+                report.status = if message == INTERRUPTED {
+                    Status::Interrupted
+                } else {
+                    Status::Error
+                };
+                report.error = Some(message);
+                (None, None)
+            }
+            Err(panic) => {
+                let what = panic
+                    .downcast_ref::<&str>()
+                    .map(|s| s.to_string())
+                    .or_else(|| panic.downcast_ref::<String>().cloned())
+                    .unwrap_or_else(|| "unknown panic".into());
+                report.status = Status::Error;
+                report.error = Some(format!("{}: internal error: {what}", job.scan.display()));
+                (None, None)
+            }
+        };
+        report.total_seconds = Some(started.elapsed().as_secs_f64());
+        Outcome {
+            report,
+            fitted,
+            metrics,
+        }
+    }
+
+    #[allow(clippy::type_complexity)]
+    fn work(
+        &self,
+        job: &Job<'_>,
+        report: &mut FileReport,
+    ) -> Result<(Option<Vec<[f64; 3]>>, Option<Metrics>), String> {
+        let template = self.template;
+        let named = |e: FoldMatchError| name_file(&job.scan, e);
+        let scan = read_mesh(&job.scan).map_err(named)?;
+        let gt = match &job.gt {
+            None => None,
+            Some(path) => {
+                let g = read_mesh(path).map_err(|e| format!("ground truth: {e}"))?;
+                if g.vertices.len() != template.vertices.len() {
+                    return Err(format!(
+                        "ground truth {}: {} vertices, but the template {} has {}",
+                        path.display(),
+                        g.vertices.len(),
+                        template.path.display(),
+                        template.vertices.len()
+                    ));
+                }
+                Some(g.vertices)
+            }
+        };
+        if interrupt::requested() {
+            return Err(INTERRUPTED.into());
+        }
+        let start = job.start.unwrap_or(&template.vertices);
+        let bar = self.ui.iterations_bar(&job.name, self.params.iterations);
+        let every = (self.params.iterations / 10).max(1);
+        let plain_detail = !self.ui.has_bars() && self.ui.verbosity() >= Verbosity::Verbose;
+        let ui = self.ui;
+        let name = job.name.as_str();
+        let mut next_log = every;
+        let mut observer = |p: &Progress| {
+            bar.set(p.iteration);
+            if plain_detail && (p.iteration >= next_log || p.iteration == p.iterations) {
+                next_log = p.iteration + every;
+                ui.detail(format_args!(
+                    "  {name}: iteration {}/{}, mean displacement {:.3e}",
+                    p.iteration, p.iterations, p.record.mean_displacement
+                ));
+            }
+            !interrupt::requested()
+        };
+        let target_faces = (!scan.faces.is_empty()).then_some(scan.faces.as_slice());
+        let fit_started = Instant::now();
+        let result = self
+            .pool
+            .install(|| {
+                fit(
+                    start,
+                    &template.faces,
+                    &scan.vertices,
+                    target_faces,
+                    self.params,
+                    &mut observer,
+                )
+            })
+            .map_err(named)?;
+        bar.finish();
+        report.seconds = Some(fit_started.elapsed().as_secs_f64());
+        report.iterations = Some(result.iterations);
+        report.diagnostics = serde_json::to_value(&result.diagnostics).ok();
+        if result.diagnostics.stopped_by_callback {
+            return Err(INTERRUPTED.into());
+        }
+        let field = if job.start.is_some() {
+            self.pool
+                .install(|| template.wrinkle_field(&result.vertices, &scan.vertices, self.params))
+        } else {
+            result.wvf_accumulated
+        };
+        let fitted = result.vertices;
+        let (mesh, extra) = output_mesh(&fitted, &template.faces, &field);
+        if let Some(dir) = job.output.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+        }
+        write_mesh(&job.output, &mesh, &extra, job.ascii).map_err(|e| e.to_string())?;
+        let metrics = self.pool.install(|| {
+            evaluate(
+                &MetricsInput {
+                    template_vertices: &template.vertices,
+                    faces: &template.faces,
+                    fitted_vertices: &fitted,
+                    target: &scan.vertices,
+                    ground_truth: gt.as_deref(),
+                },
+                &MetricsParams::default(),
+            )
+        });
+        let metrics = match metrics {
+            Ok(m) => Some(m),
+            Err(e) => {
+                self.ui
+                    .warn(format_args!("{}: metrics not computed: {e}", job.name));
+                None
+            }
+        };
+        report.metrics = metrics.as_ref().and_then(|m| serde_json::to_value(m).ok());
+        report.status = Status::Ok;
+        Ok((Some(fitted), metrics))
+    }
+}
+
+/// The error text of an interrupted job.
+pub const INTERRUPTED: &str = "interrupted";
+
+/// Prefixes an error with the file's path unless it already names it.
+pub fn name_file(path: &Path, err: FoldMatchError) -> String {
+    let text = err.to_string();
+    let shown = path.display().to_string();
+    if text.contains(&shown) {
+        text
+    } else {
+        format!("{shown}: {text}")
+    }
+}
+
+/// The fitted mesh with the wrinkle-vector field: vertex properties `wvf_x`, `wvf_y`, `wvf_z`,
+/// `wvf_magnitude`, and the magnitude as viridis colors (2nd–98th percentile range).
+pub fn output_mesh(
+    fitted: &[[f64; 3]],
+    faces: &[[u32; 3]],
+    field: &[[f64; 3]],
+) -> (MeshData, Vec<VertexProperty>) {
+    let magnitude = magnitudes(field);
+    let (lo, hi) = color_range(&magnitude);
+    let mut mesh = MeshData::new(fitted.to_vec(), faces.to_vec());
+    mesh.colors = Some(colormap_viridis(&magnitude, lo, hi));
+    let column = |i: usize| field.iter().map(|v| v[i]).collect();
+    let extra = vec![
+        VertexProperty::new("wvf_x", column(0)),
+        VertexProperty::new("wvf_y", column(1)),
+        VertexProperty::new("wvf_z", column(2)),
+        VertexProperty::new("wvf_magnitude", magnitude),
+    ];
+    (mesh, extra)
+}
+
+/// The 2nd and 98th percentiles of the finite values (robust to a few extreme vertices).
+fn color_range(values: &[f64]) -> (f64, f64) {
+    let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
+    if v.is_empty() {
+        return (0.0, 1.0);
+    }
+    v.sort_by(f64::total_cmp);
+    let at = |q: f64| v[((v.len() - 1) as f64 * q).round() as usize];
+    (at(0.02), at(0.98))
+}
+
+/// Reads a mesh for `what` (ground truth, fitted mesh, ...), naming it in the error.
+pub fn read_named(what: &str, path: &Path) -> Result<MeshData, String> {
+    read_mesh(path).map_err(|e| format!("{what}: {e}"))
+}

@@ -1,0 +1,188 @@
+//! The JSON reports: one object per fitted file ([`FileReport`]), gathered by `batch` and
+//! `sequence` into a [`RunReport`] (written atomically, and rewritten as files finish so that an
+//! interrupted run still leaves a valid report), or written alone by `fit --report`
+//! ([`FitReport`]).
+
+use crate::io::write_atomically;
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+use std::io::Write;
+use std::path::Path;
+
+/// What became of one file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Status {
+    /// Fitted and written.
+    Ok,
+    /// Failed; `error` says why. Nothing was written for it.
+    Error,
+    /// Done by an earlier run (`--resume`); its figures are copied from that run's report.
+    Skipped,
+    /// Stopped by Ctrl-C before it finished; nothing was written for it.
+    Interrupted,
+    /// Not started (the run was interrupted first).
+    Pending,
+}
+
+impl Status {
+    /// Whether the file's output is complete (`ok` or `skipped`).
+    pub fn is_done(self) -> bool {
+        matches!(self, Self::Ok | Self::Skipped)
+    }
+}
+
+/// One file's entry.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct FileReport {
+    /// The scan's path relative to the scanned folder (`batch`, `sequence`), or as given (`fit`).
+    pub name: String,
+    /// The scan's path.
+    pub scan: String,
+    /// The output's path.
+    pub output: String,
+    /// What became of it.
+    pub status: Status,
+    /// Why it failed, naming the file.
+    pub error: Option<String>,
+    /// Iterations run.
+    pub iterations: Option<usize>,
+    /// Wall time of the fit itself, in seconds.
+    pub seconds: Option<f64>,
+    /// Wall time of the whole file (reading, fit, writing, metrics), in seconds.
+    pub total_seconds: Option<f64>,
+    /// [`crate::metrics::Metrics`] of the template, the fit and the scan (user's frame).
+    pub metrics: Option<Value>,
+    /// [`crate::fit::Diagnostics`] of the fit.
+    pub diagnostics: Option<Value>,
+    /// Ground-truth file used for f_R, if any.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ground_truth: Option<String>,
+    /// `sequence`: the frame whose fit this one started from (none: the template).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub warm_start: Option<String>,
+}
+
+impl FileReport {
+    /// A file not started yet.
+    pub fn pending(name: &str, scan: &Path, output: &Path) -> Self {
+        Self {
+            name: name.to_string(),
+            scan: scan.display().to_string(),
+            output: output.display().to_string(),
+            status: Status::Pending,
+            error: None,
+            iterations: None,
+            seconds: None,
+            total_seconds: None,
+            metrics: None,
+            diagnostics: None,
+            ground_truth: None,
+            warm_start: None,
+        }
+    }
+}
+
+/// Counts of the statuses.
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+pub struct Summary {
+    /// Files in the run.
+    pub total: usize,
+    /// Fitted by this run.
+    pub ok: usize,
+    /// Failed.
+    pub error: usize,
+    /// Done by an earlier run.
+    pub skipped: usize,
+    /// Stopped by Ctrl-C.
+    pub interrupted: usize,
+    /// Not started.
+    pub pending: usize,
+}
+
+impl Summary {
+    /// Counts `files`.
+    pub fn of(files: &[FileReport]) -> Self {
+        let count = |s: Status| files.iter().filter(|f| f.status == s).count();
+        Self {
+            total: files.len(),
+            ok: count(Status::Ok),
+            error: count(Status::Error),
+            skipped: count(Status::Skipped),
+            interrupted: count(Status::Interrupted),
+            pending: count(Status::Pending),
+        }
+    }
+}
+
+/// Where a run stands.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RunState {
+    /// Still working (the report is rewritten as files finish).
+    Running,
+    /// Every file was attempted.
+    Complete,
+    /// Stopped by Ctrl-C.
+    Interrupted,
+}
+
+/// The report of `batch` and `sequence`: `OUT_DIR/report.json`.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct RunReport {
+    /// Version of the program that wrote it.
+    pub foldmatch_version: String,
+    /// `batch` or `sequence`.
+    pub command: String,
+    /// The template's path.
+    pub template: String,
+    /// The folder of scans or frames.
+    pub input_dir: String,
+    /// The output folder.
+    pub output_dir: String,
+    /// Where the run stands.
+    pub state: RunState,
+    /// Wall time so far, in seconds.
+    pub seconds: f64,
+    /// Counts of the statuses.
+    pub summary: Summary,
+    /// The [`crate::fit::FitParams`] used (every key).
+    pub params: Value,
+    /// One entry per file, in processing order (natural order of the relative paths).
+    pub files: Vec<FileReport>,
+}
+
+impl RunReport {
+    /// Reads an earlier report (for `--resume`).
+    pub fn load(path: &Path) -> Result<Self, String> {
+        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        serde_json::from_str(&text)
+            .map_err(|e| format!("{}: not a foldmatch report: {e}", path.display()))
+    }
+}
+
+/// The report of `fit --report`: one file's entry with the run's context.
+#[derive(Clone, Debug, Serialize)]
+pub struct FitReport<'a> {
+    /// Version of the program that wrote it.
+    pub foldmatch_version: &'a str,
+    /// `fit`.
+    pub command: &'a str,
+    /// The template's path.
+    pub template: String,
+    /// The file's entry.
+    #[serde(flatten)]
+    pub file: &'a FileReport,
+    /// The [`crate::fit::FitParams`] used.
+    pub params: Value,
+}
+
+/// Writes `value` as pretty JSON to `path`, atomically (temporary file + rename).
+pub fn write_json(path: &Path, value: &impl Serialize) -> Result<(), String> {
+    let text = serde_json::to_vec_pretty(value).map_err(|e| format!("{}: {e}", path.display()))?;
+    write_atomically(path, |w| {
+        w.write_all(&text)?;
+        w.write_all(b"\n")
+    })
+    .map_err(|e| e.to_string())
+}
