@@ -43,8 +43,8 @@ from harness import log
 
 REPO = HERE.parent
 GROUPS = ["small", "paper", "real", "samples", "figures"]
-QUICK_METHODS = ["foldmatch", "foldmatch_paper", "nrga", "cpd_pycpd", "cpd_rustcpd", "cpd_probreg", "bcpd_probreg",
-                 "nricp_amberg", "nricp_sumner"]
+QUICK_METHODS = ["foldmatch", "foldmatch_paper", "nrga", "cpd_pycpd", "cpd_rustcpd",
+                 "cpd_probreg", "bcpd_probreg", "nricp_amberg", "nricp_sumner"]
 GROUP_TITLES = {
     "quick": "CI case (17 × 17 sheet, 400 noisy points)",
     "small": "Generated cases, small (≈1.6K template vertices, 2K scan points; "

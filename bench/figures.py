@@ -102,7 +102,9 @@ def rings(target: np.ndarray, target_faces: np.ndarray | None,
           title: str, up: int = 1, azim: float = -90) -> pathlib.Path:
     """The target and the fitted mesh colored by the accumulated WVF magnitude per ring."""
     r, c, elev = _front(target, up)
-    tf = lambda p: (p - c) @ r.T
+    def tf(p: np.ndarray) -> np.ndarray:
+        return (p - c) @ r.T
+
     allm = np.concatenate([m for _, _, m in fits.values()])
     lo, hi = np.percentile(allm, [2, 98])
     n = len(fits) + 1
@@ -133,7 +135,9 @@ def overlay(case: Any, fits: dict[str, np.ndarray], stats: dict[str, dict], path
     of all shown fits' errors)."""
     tgt = case.target
     r, c, elev = _front(tgt, up)
-    tf = lambda p: (p - c) @ r.T
+    def tf(p: np.ndarray) -> np.ndarray:
+        return (p - c) @ r.T
+
     diag = float(np.linalg.norm(tgt.max(0) - tgt.min(0)))
     both = np.concatenate([tf(tgt), tf(case.template_vertices)])
     n = len(fits) + 2

@@ -114,6 +114,26 @@ def method_status(methods: Iterable[str]) -> dict[str, str | None]:
     return status
 
 
+def case_digest(case: cases_mod.Case) -> str:
+    h = hashlib.sha1()
+    for a in (case.template_vertices, case.faces, case.target, case.target_faces,
+              case.ground_truth):
+        if a is not None:
+            h.update(np.ascontiguousarray(a).tobytes())
+    return h.hexdigest()[:12]
+
+
+def extension_stamp() -> str:
+    try:
+        import foldmatch_rs
+
+        so = next(pathlib.Path(foldmatch_rs.__file__).parent.glob("_foldmatch_rs*"))
+        st = so.stat()
+        return f"{st.st_size}-{int(st.st_mtime)}"
+    except (StopIteration, OSError, ImportError):
+        return "?"
+
+
 def _key(params: dict[str, Any], trace: bool) -> str:
     return hashlib.sha1(json.dumps([params, trace], sort_keys=True, default=str).encode()
                         ).hexdigest()[:10]
@@ -128,11 +148,13 @@ class Runner:
         self.timeout = timeout
         self.force = force
         self.status = status or {}
+        self._saved: set[pathlib.Path] = set()
 
     def case_path(self, case: cases_mod.Case) -> pathlib.Path:
         p = self.out / "cases" / f"{case.name}.npz"
-        if self.force or not p.exists():
+        if p not in self._saved:
             case.save(p)
+            self._saved.add(p)
         return p
 
     def run(self, case: cases_mod.Case, method: str, trace: bool = False,
@@ -156,7 +178,10 @@ class Runner:
         d.mkdir(parents=True, exist_ok=True)
         stem = d / f"{method}{('-' + tag) if tag else ''}"
         npz, meta = pathlib.Path(str(stem) + ".npz"), pathlib.Path(str(stem) + ".npz.json")
-        key = _key(params, trace)
+        stamp = [case_digest(case)]
+        if "foldmatch_rs" in spec["modules"]:
+            stamp.append(extension_stamp())  # a rebuilt extension invalidates FoldMatch runs
+        key = _key({**params, "_stamp": stamp}, trace)
         cp = self.case_path(case)
         cached = None
         if not self.force and meta.exists():

@@ -252,9 +252,7 @@ def _cpu_s() -> float:
 def _metrics(case: dict[str, np.ndarray], fitted: np.ndarray) -> dict[str, Any]:
     import foldmatch_rs as fm
 
-    e = fm.evaluate(
-        case["template_vertices"], case["faces"], fitted, case["scan"], case["ground_truth"]
-    )
+    e = fm.evaluate(case["template_vertices"], case["faces"], fitted, case["scan"], case["ground_truth"])
     d = e["target_diagonal"]
     return {
         "f_lambda": e["f_lambda"],
@@ -422,9 +420,7 @@ def work_peer(job: dict[str, Any], case: dict[str, np.ndarray]) -> dict[str, Any
     with warnings.catch_warnings(), ThreadSampler() as ts:
         warnings.simplefilter("ignore")
         t0 = time.perf_counter()
-        fitted, _, extra = run(
-            case["template_vertices"], case["faces"], case["scan"], None, False, **params
-        )
+        fitted, _, extra = run(case["template_vertices"], case["faces"], case["scan"], None, False, **params)
         wall = time.perf_counter() - t0
     cpu = _cpu_s() - cpu0
     out = {
@@ -642,9 +638,7 @@ def machine() -> dict[str, Any]:
         "python": sys.version.split()[0],
     }
     try:
-        out = subprocess.run(
-            ["lscpu"], check=False, capture_output=True, text=True, timeout=10
-        ).stdout
+        out = subprocess.run(["lscpu"], check=False, capture_output=True, text=True, timeout=10).stdout
         for line in out.splitlines():
             k, _, v = line.partition(":")
             if k.strip() in (
@@ -699,9 +693,7 @@ def versions() -> dict[str, str]:
         pkg = pathlib.Path(spec.origin).parent if spec and spec.origin else ROOT / "python"
         so = next(pkg.glob("_foldmatch_rs*.so"))
         built = so.stat().st_mtime
-        out["extension_built"] = datetime.datetime.fromtimestamp(built).isoformat(
-            timespec="minutes"
-        )
+        out["extension_built"] = datetime.datetime.fromtimestamp(built).isoformat(timespec="minutes")
         newer = [f for f in (ROOT / "src").rglob("*.rs") if f.stat().st_mtime > built]
         if newer:
             out["extension_stale"] = ", ".join(str(f.relative_to(ROOT)) for f in sorted(newer))
@@ -798,6 +790,8 @@ def analyse(recs: list[dict[str, Any]], p: dict[str, Any]) -> dict[str, Any]:
         if ok(one) and ok(two):
             th[preset] = {
                 "speedup": one["wall_s"] / two["wall_s"],
+                "busy_2": two.get("cpu_per_wall"),
+                "load_before_2": two.get("loadavg_before"),
                 "stages": {
                     s: (
                         one["stage_seconds"][s] / two["stage_seconds"][s]
@@ -842,11 +836,7 @@ def targets(recs: list[dict[str, Any]], a: dict[str, Any], p: dict[str, Any]) ->
                 f"{r['wall_s']:.2f} s",
                 r["wall_s"] <= 1.0 and r["iterations"] >= 100,
             )
-    ref = [
-        x
-        for x in a["ratios"].get("paper", [])
-        if x["other"] == "reference" and x["preset"] == "paper"
-    ]
+    ref = [x for x in a["ratios"].get("paper", []) if x["other"] == "reference" and x["preset"] == "paper"]
     if ref:
         add(
             "paper preset vs the NumPy reference (100 iterations, extrapolated)",
@@ -902,12 +892,11 @@ def targets(recs: list[dict[str, Any]], a: dict[str, Any], p: dict[str, Any]) ->
             "≥ 1.8×",
             f"{t['speedup']:.2f}×",
             t["speedup"] >= 1.8,
+            thread_caveat(t),
         )
     for cname in ("paper", "small"):
         rows = [
-            x
-            for x in a["ratios"].get(cname, [])
-            if x["other"] != "reference" and x["preset"] == "default"
+            x for x in a["ratios"].get(cname, []) if x["other"] != "reference" and x["preset"] == "default"
         ]
         full = [x for x in rows if not x["capped"]]
         pool = full or rows
@@ -1016,10 +1005,7 @@ def section_table(recs: list[dict[str, Any]]) -> str:
                 str(r.get("iterations", "—")) if good else "—",
                 f_s(1000 * r["per_iteration_s"], 1) if good and r.get("per_iteration_s") else "—",
                 f_s(r.get("peak_rss_mb"), 0) if good else "—",
-                (
-                    f"{r.get('threads') or 'all'} / {r.get('os_threads', '?')} / "
-                    f"{r.get('cpu_per_wall', 0):.2f}"
-                )
+                (f"{r.get('threads') or 'all'} / {r.get('os_threads', '?')} / {r.get('cpu_per_wall', 0):.2f}")
                 if good
                 else "—",
                 f"{q['f_lambda']:.3f}" if q else "—",
@@ -1277,8 +1263,10 @@ def md_header(meta: dict[str, Any]) -> str:
         *(
             [
                 (
-                    f"* **Warning:** the extension is older than {v['extension_stale']}: these "
-                    "figures are of the code before those changes (rebuild with `make build`)."
+                    f"* **Warning:** {len(v['extension_stale'].split(', '))} file(s) of src/ "
+                    f"were modified after the extension was built ({v['extension_stale']}; "
+                    "by modification time): if their content changed, these figures are of "
+                    "the code before the change (rebuild with `make build`)."
                 )
             ]
             if v.get("extension_stale")
@@ -1322,9 +1310,7 @@ def md_peers(recs: list[dict[str, Any]], a: dict[str, Any], p: dict[str, Any]) -
             q = ""
             if "other_f_lambda" in x:
                 q = f"{x['ours_f_lambda']:.3f} vs {x['other_f_lambda']:.3f}" + (
-                    " (ours ≤)"
-                    if x["ours_f_lambda"] <= x["other_f_lambda"] + 1e-3
-                    else " (ours worse)"
+                    " (ours ≤)" if x["ours_f_lambda"] <= x["other_f_lambda"] + 1e-3 else " (ours worse)"
                 )
             name = "NumPy reference" if x["other"] == "reference" else x["other"]
             note = (
@@ -1337,9 +1323,7 @@ def md_peers(recs: list[dict[str, Any]], a: dict[str, Any], p: dict[str, Any]) -
             rows.append([f"FoldMatch {x['preset']}", name, f"{x['ratio']:.1f}×", q, note])
         if rows:
             parts.append("\nRatios (other's wall time ÷ FoldMatch's; > 1: FoldMatch faster):\n")
-            parts.append(
-                table(["ours", "other", "speed ratio", "f_λ ours vs other", "notes"], rows)
-            )
+            parts.append(table(["ours", "other", "speed ratio", "f_λ ours vs other", "notes"], rows))
         parts.append("")
     return "\n".join(parts)
 
@@ -1427,6 +1411,17 @@ def md_scaling(recs: list[dict[str, Any]], a: dict[str, Any]) -> str:
     return "\n".join(out)
 
 
+def thread_caveat(t: dict[str, Any]) -> str:
+    """Why a low 1 → 2 thread figure may say more about the machine than the code."""
+    busy = t.get("busy_2")
+    if busy is None or busy >= 1.5:
+        return ""
+    return (
+        f"the 2-thread run kept only {busy:.2f} cores busy (1-min load {t.get('load_before_2')} "
+        "before it): either another process held a core, or the code ran serially"
+    )
+
+
 def md_threads(recs: list[dict[str, Any]], a: dict[str, Any]) -> str:
     rs = [r for r in recs if r["section"] == "threads"]
     if not rs:
@@ -1436,6 +1431,8 @@ def md_threads(recs: list[dict[str, Any]], a: dict[str, Any]) -> str:
     for preset, t in a["threads"].items():
         per = ", ".join(f"{STAGE_NAMES[s]} {v:.2f}×" for s, v in t["stages"].items() if v)
         out.append(f"\nSpeedup 1 → 2 threads, preset {preset}: **{t['speedup']:.2f}×** ({per}).")
+        if thread_caveat(t):
+            out.append(f"⚠ {thread_caveat(t).capitalize()}.")
     return "\n".join(out)
 
 
@@ -1467,8 +1464,7 @@ def md_missed(recs: list[dict[str, Any]], a: dict[str, Any], quick: bool) -> str
             f"({r['per_iteration_s'] * 1000:.1f} ms per iteration); reaching 1 s needs "
             f"{need:.1f}× overall. Largest stages: "
             + ", ".join(
-                f"{STAGE_NAMES[s]} {st[s]:.2f} s ({100 * st[s] / r['wall_s']:.0f} %)"
-                for s in order[:4]
+                f"{STAGE_NAMES[s]} {st[s]:.2f} s ({100 * st[s] / r['wall_s']:.0f} %)" for s in order[:4]
             )
             + "."
         )
@@ -1481,7 +1477,7 @@ def md_missed(recs: list[dict[str, Any]], a: dict[str, Any], quick: bool) -> str
             "scale worst: "
             + ", ".join(f"{STAGE_NAMES[s]} {v:.2f}×" for s, v in worst)
             + " (a stage near 1× is serial or memory-bound; a loaded machine also lowers "
-            "every figure).\n"
+            "every figure)." + (f" ⚠ {thread_caveat(th).capitalize()}." if thread_caveat(th) else "") + "\n"
         )
     large = find(recs, section="large", kind="foldmatch")
     if ok(large):
@@ -1491,8 +1487,7 @@ def md_missed(recs: list[dict[str, Any]], a: dict[str, Any], quick: bool) -> str
             f"**Large case: {large['wall_s']:.1f} s, {large['peak_rss_mb']:.0f} MB.** "
             "Largest stages: "
             + ", ".join(
-                f"{STAGE_NAMES[s]} {st[s]:.1f} s ({100 * st[s] / large['wall_s']:.0f} %)"
-                for s in order[:4]
+                f"{STAGE_NAMES[s]} {st[s]:.1f} s ({100 * st[s] / large['wall_s']:.0f} %)" for s in order[:4]
             )
             + ".\n"
         )
@@ -1556,8 +1551,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--only",
         default="",
-        help="comma-separated sections to run: peers, threads, sweep_m, sweep_n, "
-        "large (default: all)",
+        help="comma-separated sections to run: peers, threads, sweep_m, sweep_n, large (default: all)",
     )
     ap.add_argument(
         "--from-json",
@@ -1589,8 +1583,7 @@ def main(argv: list[str] | None = None) -> int:
     jobs = [j for j in jobs_for(p) if not only or j["section"] in only]
     meta: dict[str, Any] = {
         "date": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
-        "command": (COMMAND_QUICK if args.quick else COMMAND_FULL)
-        + (f" --only {args.only}" if only else ""),
+        "command": (COMMAND_QUICK if args.quick else COMMAND_FULL) + (f" --only {args.only}" if only else ""),
         "quick": args.quick,
         "machine": machine(),
         "versions": versions(),
