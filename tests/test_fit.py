@@ -245,3 +245,28 @@ def test_paper_preset_is_the_method_as_printed(case):
     assert r.params["coarse_fraction"] == 0 and r.params["rings"] == 2
     with pytest.raises(fm.InvalidParameterError, match="preset"):
         fm.fit(case["template_vertices"], case["faces"], case["scan"], preset="fast")
+
+
+def test_gil_is_released_during_the_fit(case):
+    """A Python thread keeps running while the core computes."""
+    import threading
+    import time
+
+    ticks = []
+    done = threading.Event()
+
+    def ticker():
+        while not done.is_set():
+            ticks.append(time.perf_counter())
+            time.sleep(0.001)
+
+    t = threading.Thread(target=ticker)
+    t.start()
+    start = time.perf_counter()
+    fm.fit(case["template_vertices"], case["faces"], case["scan"], iterations=60, preset="paper")
+    end = time.perf_counter()
+    done.set()
+    t.join()
+    during = [x for x in ticks if start < x < end]
+    # With the GIL held for the whole fit the ticker could not run at all in between.
+    assert len(during) > 0.2 * (end - start) / 0.002, (len(during), end - start)
