@@ -34,8 +34,9 @@ lint: venv
 	cargo clippy --all-targets --features python,cli -- -D warnings
 	$(VENV)/bin/ruff check python tests $(wildcard bench)
 
-rust-test:
-	cargo test --profile $(CARGO_PROFILE) --features cli
+## The trimesh cross-checks of the mesh I/O run with the venv's Python.
+rust-test: venv
+	FOLDMATCH_PYTHON=$(abspath $(PY)) cargo test --profile $(CARGO_PROFILE) --features cli
 
 ## Type stubs must match the built module.
 stubtest: build

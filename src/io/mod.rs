@@ -522,30 +522,37 @@ mod tests {
     // Cross-checks with files written and read by Python's trimesh (skipped without it).
     // ---------------------------------------------------------------------------------------
 
-    /// Runs `python3 -c script args...`; `None` (with the reason printed) when python3 or
-    /// trimesh is unavailable.
+    /// The Python that has trimesh: `$FOLDMATCH_PYTHON` (set by `make`), else `python3`.
+    fn python() -> String {
+        std::env::var("FOLDMATCH_PYTHON").unwrap_or_else(|_| "python3".into())
+    }
+
+    /// Runs `python -c script args...`; `None` (with the reason printed) when Python or
+    /// trimesh is unavailable — except under CI (`CI` set), where that is a failure.
     fn python_trimesh(script: &str, args: &[&Path]) -> Option<String> {
-        let probe = Command::new("python3")
+        let skip = |reason: String| -> Option<String> {
+            assert!(
+                std::env::var_os("CI").is_none(),
+                "trimesh cross-check cannot run in CI: {reason}"
+            );
+            eprintln!("skipping trimesh cross-check: {reason}");
+            None
+        };
+        let probe = Command::new(python())
             .args(["-c", "import trimesh, numpy"])
             .output();
         match probe {
             Ok(o) if o.status.success() => {}
             Ok(o) => {
-                eprintln!(
-                    "skipping trimesh cross-check: `import trimesh` failed: {}",
-                    String::from_utf8_lossy(&o.stderr)
-                        .lines()
-                        .last()
-                        .unwrap_or("")
-                );
-                return None;
+                let err = String::from_utf8_lossy(&o.stderr);
+                return skip(format!(
+                    "`import trimesh` failed: {}",
+                    err.lines().last().unwrap_or("")
+                ));
             }
-            Err(e) => {
-                eprintln!("skipping trimesh cross-check: cannot run python3: {e}");
-                return None;
-            }
+            Err(e) => return skip(format!("cannot run {}: {e}", python())),
         }
-        let out = Command::new("python3")
+        let out = Command::new(python())
             .arg("-c")
             .arg(script)
             .args(args)
