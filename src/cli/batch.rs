@@ -172,13 +172,7 @@ fn log_file(ui: &Ui, done: usize, total: usize, entry: &FileReport) {
     let head = format!("[{done:>width$}/{total}]");
     match entry.status {
         Status::Ok => {
-            let distance = entry
-                .metrics
-                .as_ref()
-                .and_then(|m| m.get("scan_to_fit_mean"))
-                .and_then(|d| d.as_f64())
-                .map(|d| format!(", scan-to-fit {d:.4}"))
-                .unwrap_or_default();
+            let distance = entry.scan_to_fit_note("scan-to-fit");
             ui.info(format_args!(
                 "{head} ok      {} -> {} ({} it, {:.2} s{distance})",
                 entry.name,

@@ -167,13 +167,7 @@ fn fit(cmd: &FitCmd, ctx: &Context) -> i32 {
     let entry = &outcome.report;
     let mut code = match entry.status {
         Status::Ok => {
-            let distance = entry
-                .metrics
-                .as_ref()
-                .and_then(|m| m.get("scan_to_fit_mean"))
-                .and_then(|d| d.as_f64())
-                .map(|d| format!(", mean scan-to-fit {d:.4}"))
-                .unwrap_or_default();
+            let distance = entry.scan_to_fit_note("mean scan-to-fit");
             ui.info(format_args!(
                 "fitted {} -> {} ({} iterations, {:.2} s{distance})",
                 entry.scan,

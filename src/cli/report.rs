@@ -64,6 +64,17 @@ pub struct FileReport {
 }
 
 impl FileReport {
+    /// The mean scan-to-fit distance of a fitted file, formatted for a log line after
+    /// `label` (empty when there are no metrics).
+    pub fn scan_to_fit_note(&self, label: &str) -> String {
+        self.metrics
+            .as_ref()
+            .and_then(|m| m.get("scan_to_fit_mean"))
+            .and_then(|d| d.as_f64())
+            .map(|d| format!(", {label} {d:.4}"))
+            .unwrap_or_default()
+    }
+
     /// A file not started yet.
     pub fn pending(name: &str, scan: &Path, output: &Path) -> Self {
         Self {
