@@ -8,10 +8,10 @@ CARGO_PROFILE ?= ci
 
 all: test
 
-$(VENV)/.deps: requirements-dev.txt
+$(VENV)/.deps: requirements-dev.txt bench/requirements.txt
 	python3 -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -r requirements-dev.txt
+	$(PY) -m pip install -q -r requirements-dev.txt -r bench/requirements.txt
 	touch $@
 
 venv: $(VENV)/.deps
