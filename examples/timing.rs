@@ -33,5 +33,10 @@ fn main() {
         rayon::current_num_threads(),
         total
     );
-    println!("{:#?}", r.diagnostics.stage_seconds);
+    println!(
+        "{:#?}\nfresh k-NN queries: {} of {}",
+        r.diagnostics.stage_seconds,
+        r.diagnostics.knn_queries,
+        r.iterations * case.template_vertices.len()
+    );
 }

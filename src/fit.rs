@@ -117,6 +117,10 @@ pub struct FitParams {
     pub coarse_fraction: f64,
     /// Radius (graph distance) of the neighborhoods of the coarse phase.
     pub coarse_rings: usize,
+    /// Evaluate the logarithms and exponentials of Eq. 5 by truncated series where the
+    /// matrices are near the identity (agreeing with the eigen-decomposition to round-off);
+    /// `false` always uses the eigen-decomposition (the exact reference path).
+    pub matrix_series: bool,
     /// Re-use earlier k-NN candidates when that is provably exact (see
     /// [`crate::knn::NeighborCache`]); `false` queries the k-d tree for every vertex every
     /// iteration. Results are the same either way.
@@ -153,6 +157,7 @@ impl Default for FitParams {
             coarse_fraction: 0.3,
             coarse_rings: 8,
             knn_cache: true,
+            matrix_series: true,
             anneal: 1.0,
             anneal_iterations: 0,
         }
@@ -426,6 +431,9 @@ pub struct Diagnostics {
     pub frame: Option<Frame>,
     /// Seconds per stage.
     pub stage_seconds: StageTimes,
+    /// Fresh k-d tree queries of the target neighborhoods over the fit (M per iteration
+    /// without the candidate cache).
+    pub knn_queries: usize,
 }
 
 /// The outcome of a fit, in the user's frame.
@@ -531,6 +539,7 @@ pub fn deformation_model(
             &ws.raw,
             topo.rings,
             params.regularization,
+            params.matrix_series,
             &mut ws.reg,
             &mut ws.reg_rotation,
             &mut ws.reg_stretch,
@@ -683,11 +692,12 @@ pub fn fit(
 
     for it in 1..=params.iterations {
         let t = &mut ws.times;
-        timed(&mut t.knn, || match nn_cache.as_mut() {
-            Some(cache) => {
-                cache.query(&index, &pos, &mut nn_idx, &mut nn_d2);
+        diagnostics.knn_queries += timed(&mut t.knn, || match nn_cache.as_mut() {
+            Some(cache) => cache.query(&index, &pos, &mut nn_idx, &mut nn_d2),
+            None => {
+                index.nearest_all(&pos, k, &mut nn_idx, &mut nn_d2);
+                m
             }
-            None => index.nearest_all(&pos, k, &mut nn_idx, &mut nn_d2),
         });
         let nbody_params = annealed(params, it);
         let extra = if two_way {

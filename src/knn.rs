@@ -56,6 +56,33 @@ impl PointIndex {
         }
     }
 
+    /// Like [`PointIndex::nearest_into`], searching only within squared distance `radius2`;
+    /// returns `false` (and leaves the outputs partly written) when fewer than
+    /// `indices.len()` points lie that close.
+    pub fn nearest_within_into(
+        &self,
+        query: &[f64; 3],
+        radius2: f64,
+        indices: &mut [u32],
+        dist2: &mut [f64],
+    ) -> bool {
+        let k = indices.len();
+        let found = self.tree.nearest_n_within::<SquaredEuclidean>(
+            query,
+            radius2,
+            NonZero::new(k).unwrap(),
+            true,
+        );
+        if found.len() < k {
+            return false;
+        }
+        for (slot, nn) in found.iter().enumerate() {
+            indices[slot] = nn.item as u32;
+            dist2[slot] = nn.distance;
+        }
+        true
+    }
+
     /// The nearest indexed point of `query`: (index, squared distance).
     pub fn nearest_one(&self, query: &[f64; 3]) -> (u32, f64) {
         let nn = self.tree.nearest_one::<SquaredEuclidean>(query);
@@ -151,7 +178,18 @@ impl NeighborCache {
                 if reusable {
                     *state = 1;
                 } else {
-                    index.nearest_into(q, cand, cand_d);
+                    // The old candidates are all within d_c + δ of the new position, so the c
+                    // nearest points are too: a bounded search finds the same points, faster.
+                    let bound = if *state > 0 {
+                        (cand_d[c - 1] + moved) * (1.0 + 1e-9)
+                    } else {
+                        f64::INFINITY
+                    };
+                    if !(bound.is_finite()
+                        && index.nearest_within_into(q, bound * bound, cand, cand_d))
+                    {
+                        index.nearest_into(q, cand, cand_d);
+                    }
                     cand_d.iter_mut().for_each(|d| *d = d.sqrt());
                     *anchor = *q;
                     *state = 2;

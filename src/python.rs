@@ -528,7 +528,7 @@ fn regularize_gradients<'py>(
     let (r, u) = compute(py, None, || {
         let mut buf = regularize::RegularizeBuffers::new(h.len());
         let (mut r, mut u) = (vec![Mat3::zeros(); h.len()], vec![Mat3::zeros(); h.len()]);
-        regularize::regularize(&h, &nb, mode, &mut buf, &mut r, &mut u);
+        regularize::regularize(&h, &nb, mode, true, &mut buf, &mut r, &mut u);
         (r, u)
     })?;
     Ok((mats_to_array(py, &r), mats_to_array(py, &u)))

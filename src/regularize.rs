@@ -10,7 +10,10 @@
 //! and the rotations are averaged separately by the chordal mean `R̄_k = proj_SO(3)(Σ β_j R_j)`.
 //! The regularized gradient is `H̄_k = R̄_k Ū_k`.
 
-use crate::math::{nearest_rotation, polar, spd_log, spd_roots, sym_exp, Mat3};
+use crate::math::{
+    nearest_rotation, polar, polar_with_roots, spd_log, spd_log_near_identity, spd_roots, sym_exp,
+    sym_exp_small, Mat3, SpdRoots,
+};
 use crate::rings::Neighborhoods;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -34,42 +37,68 @@ pub struct RegularizeBuffers {
     pub rotation: Vec<Mat3>,
     /// Stretch factor U_j of every raw gradient (or `log U_j` for the log-Euclidean mean).
     pub stretch: Vec<Mat3>,
+    /// `U_j^{±½}` of every stretch (affine-invariant mean with `series`).
+    pub roots: Vec<SpdRoots>,
 }
 
 impl RegularizeBuffers {
     /// Buffers for `m` vertices.
     pub fn new(m: usize) -> Self {
+        let identity_roots = SpdRoots {
+            sqrt: Mat3::identity(),
+            inv_sqrt: Mat3::identity(),
+        };
         Self {
             rotation: vec![Mat3::identity(); m],
             stretch: vec![Mat3::identity(); m],
+            roots: vec![identity_roots; m],
         }
     }
 }
 
 /// Regularizes `raw` gradients over the neighborhoods `rings` into `regularized` (as
 /// rotation and stretch: `H̄_k = rotation[k] · stretch[k]`).
+///
+/// With `series`, logarithms and exponentials of near-identity matrices use truncated series
+/// ([`spd_log_near_identity`], [`sym_exp_small`]) and `U_k^{±½}` come from the polar
+/// decomposition's own eigen-decomposition; the results agree with the eigen-decomposition
+/// path (`series = false`, kept as the exact reference) to round-off.
 pub fn regularize(
     raw: &[Mat3],
     rings: &Neighborhoods,
     mode: Regularization,
+    series: bool,
     buffers: &mut RegularizeBuffers,
     out_rotation: &mut [Mat3],
     out_stretch: &mut [Mat3],
 ) {
+    let log = if series {
+        spd_log_near_identity
+    } else {
+        spd_log
+    };
+    let exp = if series { sym_exp_small } else { sym_exp };
     buffers
         .rotation
         .par_iter_mut()
         .zip(buffers.stretch.par_iter_mut())
+        .zip(buffers.roots.par_iter_mut())
         .zip(raw.par_iter())
-        .for_each(|((r, u), h)| {
-            let p = polar(h);
+        .for_each(|(((r, u), roots), h)| {
+            let p = if series && mode == Regularization::AffineInvariant {
+                let (p, rt) = polar_with_roots(h);
+                *roots = rt;
+                p
+            } else {
+                polar(h)
+            };
             *r = p.rotation;
             *u = match mode {
-                Regularization::LogEuclidean => spd_log(&p.stretch),
+                Regularization::LogEuclidean => log(&p.stretch),
                 _ => p.stretch,
             };
         });
-    let (rot, stretch) = (&buffers.rotation, &buffers.stretch);
+    let (rot, stretch, all_roots) = (&buffers.rotation, &buffers.stretch, &buffers.roots);
     out_rotation
         .par_iter_mut()
         .zip(out_stretch.par_iter_mut())
@@ -86,23 +115,27 @@ pub fn regularize(
             let mut log_sum = Mat3::zeros();
             match mode {
                 Regularization::AffineInvariant => {
-                    let roots = spd_roots(&stretch[k]);
+                    let roots = if series {
+                        all_roots[k]
+                    } else {
+                        spd_roots(&stretch[k])
+                    };
                     for &j in ring {
                         let j = j as usize;
                         r_sum += beta * rot[j];
                         if j != k {
                             let m = roots.inv_sqrt * stretch[j] * roots.inv_sqrt;
-                            log_sum += beta * spd_log(&m);
+                            log_sum += beta * log(&m);
                         }
                     }
-                    *u_out = roots.sqrt * sym_exp(&log_sum) * roots.sqrt;
+                    *u_out = roots.sqrt * exp(&log_sum) * roots.sqrt;
                 }
                 Regularization::LogEuclidean => {
                     for &j in ring {
                         r_sum += beta * rot[j as usize];
                         log_sum += beta * stretch[j as usize];
                     }
-                    *u_out = sym_exp(&log_sum);
+                    *u_out = exp(&log_sum);
                 }
                 Regularization::None => unreachable!(),
             }
@@ -140,7 +173,7 @@ mod tests {
         ] {
             let mut buf = RegularizeBuffers::new(5);
             let (mut ro, mut uo) = (vec![Mat3::zeros(); 5], vec![Mat3::zeros(); 5]);
-            regularize(&h, &all_ring(5), mode, &mut buf, &mut ro, &mut uo);
+            regularize(&h, &all_ring(5), mode, true, &mut buf, &mut ro, &mut uo);
             for k in 0..5 {
                 assert_relative_eq!(ro[k], r, epsilon = 1e-10);
                 assert_relative_eq!(uo[k], u, epsilon = 1e-10);
@@ -161,7 +194,7 @@ mod tests {
         ] {
             let mut buf = RegularizeBuffers::new(2);
             let (mut ro, mut uo) = (vec![Mat3::zeros(); 2], vec![Mat3::zeros(); 2]);
-            regularize(&h, &all_ring(2), mode, &mut buf, &mut ro, &mut uo);
+            regularize(&h, &all_ring(2), mode, true, &mut buf, &mut ro, &mut uo);
             let want = Mat3::from_diagonal(&nalgebra::Vector3::new(2.0, 1.0, 1.0));
             assert_relative_eq!(uo[0], want, epsilon = 1e-10);
             assert_relative_eq!(uo[1], want, epsilon = 1e-10);

@@ -270,3 +270,14 @@ def test_gil_is_released_during_the_fit(case):
     during = [x for x in ticks if start < x < end]
     # With the GIL held for the whole fit the ticker could not run at all in between.
     assert len(during) > 0.2 * (end - start) / 0.002, (len(during), end - start)
+
+
+def test_matrix_series_changes_nothing_beyond_round_off(case):
+    """The series evaluation of Eq. 5 agrees with the kept eigen-decomposition path."""
+    args = (case["template_vertices"], case["faces"], case["scan"])
+    for preset in ("default", "paper"):
+        fast = fm.fit(*args, iterations=30, preset=preset)
+        exact = fm.fit(*args, iterations=30, preset=preset, matrix_series=False, knn_cache=False)
+        scale = np.abs(exact.vertices).max()
+        assert np.abs(fast.vertices - exact.vertices).max() <= 1e-9 * scale
+        np.testing.assert_allclose(fast.wvf_accumulated, exact.wvf_accumulated, atol=1e-9)

@@ -191,6 +191,7 @@ def fit(
     coarse_fraction: Optional[float] = None,
     coarse_rings: Optional[int] = None,
     knn_cache: Optional[bool] = None,
+    matrix_series: Optional[bool] = None,
     anneal: Optional[float] = None,
     anneal_iterations: Optional[int] = None,
     callback: Optional[Callable[[dict[str, Any]], Optional[bool]]] = None,
@@ -263,6 +264,9 @@ def fit(
         of its ``coarse_rings``-ring neighborhood, i.e. piecewise rigidly (0.3, 8).
     knn_cache : bool
         Re-use earlier k-NN candidates where that is provably exact (True; same results).
+    matrix_series : bool
+        Evaluate Eq. 5's logarithms/exponentials of near-identity matrices by truncated series
+        (True; agrees with the eigen-decomposition path to round-off).
     anneal, anneal_iterations : float, int
         Softening annealing: ε starts at ``anneal × ε`` and decreases linearly to ε over
         ``anneal_iterations`` (1: constant, the paper's reading).
@@ -303,6 +307,7 @@ def fit(
         snapshot_every=snapshot_every, two_way=two_way, rigid_fraction=rigid_fraction,
         coarse_fraction=coarse_fraction, coarse_rings=coarse_rings,
         anneal=anneal, anneal_iterations=anneal_iterations, knn_cache=knn_cache,
+        matrix_series=matrix_series,
     )
     raw = _core.fit_raw(tv, tf, x, xf, _params_json(params), callback, threads, preset)
     return FitResult(
