@@ -144,7 +144,7 @@ impl Default for FitParams {
             nbody: NBodyParams::default(),
             psi: 0.05,
             normal_completion: 0.3,
-            regularization: Regularization::AffineInvariant,
+            regularization: Regularization::LogEuclidean,
             rotation_source: RotationSource::Regularized,
             velocity_sync: true,
             normalize: true,
@@ -166,12 +166,14 @@ impl Default for FitParams {
 
 impl FitParams {
     /// The paper's method as printed, with only the converging readings of SPEC §2: one-way
-    /// attraction, no rigid or coarse phase (the `"paper"` preset).
+    /// attraction, no rigid or coarse phase, Eq. 5 as the affine-invariant mean (the
+    /// `"paper"` preset).
     pub fn paper() -> Self {
         Self {
             two_way: 0.0,
             rigid_fraction: 0.0,
             coarse_fraction: 0.0,
+            regularization: Regularization::AffineInvariant,
             ..Self::default()
         }
     }

@@ -148,10 +148,13 @@ def foldmatch_update(old, new, faces, **kw):
     for k in range(m):
         ring = rings[k]
         beta = 1.0 / len(ring)
-        root = sym_fn(stretch[k], np.sqrt)
-        inv_root = sym_fn(stretch[k], lambda x: 1 / np.sqrt(x))
-        logs = sum(beta * sym_fn(inv_root @ stretch[j] @ inv_root, np.log) for j in ring)
-        u_bar = root @ sym_fn(logs, np.exp) @ root
+        if p["regularization"] == "log_euclidean":
+            u_bar = sym_fn(sum(beta * sym_fn(stretch[j], np.log) for j in ring), np.exp)
+        else:  # affine-invariant (Eq. 5 on the stretch part)
+            root = sym_fn(stretch[k], np.sqrt)
+            inv_root = sym_fn(stretch[k], lambda x: 1 / np.sqrt(x))
+            logs = sum(beta * sym_fn(inv_root @ stretch[j] @ inv_root, np.log) for j in ring)
+            u_bar = root @ sym_fn(logs, np.exp) @ root
         r_bar = nearest_rotation(sum(beta * rot[j] for j in ring))
         u_hat, wvf[k] = modified_stretch(u_bar, p["psi"])
         h = r_bar @ u_bar if p["rotation_source"] == "regularized" else raw[k]

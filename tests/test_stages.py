@@ -40,11 +40,12 @@ def test_nbody_step_matches_numpy_reference():
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
-def test_foldmatch_update_matches_numpy_reference(seed):
+@pytest.mark.parametrize("regularization", ["affine_invariant", "log_euclidean"])
+def test_foldmatch_update_matches_numpy_reference(seed, regularization):
     old, faces = bumpy_sheet(seed=seed)
     rng = np.random.default_rng(10 + seed)
     new = old + 0.02 * rng.normal(size=old.shape) + np.array([0.01, 0.0, -0.02])
-    opts = {"psi": 0.05, "rings": 2}
+    opts = {"psi": 0.05, "rings": 2, "regularization": regularization}
     out_rs, wvf_rs = fm.foldmatch_update(old, new, faces, **opts)
     out_np, wvf_np = reference.foldmatch_update(old, new, faces, **opts)
     np.testing.assert_allclose(out_rs, out_np, rtol=1e-10, atol=1e-10)

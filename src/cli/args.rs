@@ -391,7 +391,7 @@ pub struct ParamArgs {
     /// γ, weight of the normal completion of Eq. 4 (0 disables it) [default: 0.3].
     #[arg(long, value_name = "GAMMA")]
     pub normal_completion: Option<f64>,
-    /// Mean used by Eq. 5 [default: affine-invariant].
+    /// Mean used by Eq. 5 [default: log-euclidean] (the paper preset: affine-invariant).
     #[arg(long, value_enum, value_name = "MEAN")]
     pub regularization: Option<RegularizationArg>,
     /// Gradient used by the rotation solve of Eq. 8 [default: regularized].
