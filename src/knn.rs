@@ -119,7 +119,7 @@ pub const MAX_CACHED: usize = 192;
 /// Exact re-use of earlier k-NN queries for points that moved little (SPEC §7, issue
 /// "Performance").
 ///
-/// Each point keeps the `c = min(2K, N)` nearest candidates found at its *anchor* position,
+/// Each point keeps the `c = min(3K/2, N)` nearest candidates found at its *anchor* position,
 /// with their distances. After the point moved by δ from its anchor, every point outside the
 /// candidate set is at least `d_c − δ` away and the K-th nearest candidate at most `d_K + δ`,
 /// so while `d_c − δ > d_K + δ` the K nearest points are the K nearest candidates: re-ranking
@@ -138,7 +138,7 @@ pub struct NeighborCache {
 impl NeighborCache {
     /// A cache for `m` query points, `k` neighbours each, over an index of `n` points.
     pub fn new(m: usize, k: usize, n: usize) -> Self {
-        let c = (2 * k).min(n).min(MAX_CACHED).max(k);
+        let c = (3 * k / 2).min(n).min(MAX_CACHED).max(k);
         Self {
             k,
             c,
