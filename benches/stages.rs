@@ -298,26 +298,9 @@ fn bench_stages(c: &mut Criterion) {
     // Two-way attraction (default preset): template tree, nearest vertex of every scan point,
     // reverse forces.
     g.bench_function("two_way/reverse_attraction", |b| {
-        let mut nearest = vec![0u32; s.scan.len()];
-        let mut counts = vec![0u32; m];
+        let mut reverse = nbody::ReverseAttraction::new(m, s.scan.len());
         let mut force = vec![[0.0; 3]; m];
-        b.iter(|| {
-            let template_index = PointIndex::new(&s.pos);
-            nearest
-                .par_iter_mut()
-                .zip(s.scan.par_iter())
-                .for_each(|(n, x)| *n = template_index.nearest_one(x).0);
-            nbody::reverse_attraction(
-                &s.pos,
-                &s.scan,
-                &s.kappa,
-                &nearest,
-                1.0,
-                &s.params.nbody,
-                &mut counts,
-                &mut force,
-            );
-        });
+        b.iter(|| reverse.compute(&s.pos, &s.scan, &s.kappa, 1.0, &s.params.nbody, &mut force));
     });
 
     // Force and integration, Eq. 2–3.

@@ -676,8 +676,11 @@ pub fn fit(
     let two_way = params.two_way > 0.0 && params.method == Method::FoldMatch;
     let (rigid_iterations, coarse_iterations) = params.phase_iterations();
     let mut reverse_force = vec![[0.0; 3]; if two_way { m } else { 0 }];
-    let mut reverse_count = vec![0u32; if two_way { m } else { 0 }];
-    let mut scan_nearest = vec![0u32; if two_way { scan.len() } else { 0 }];
+    let mut reverse = if two_way {
+        nbody::ReverseAttraction::new(m, scan.len())
+    } else {
+        Default::default()
+    };
     let all_vertices: Vec<u32> = if rigid_iterations > 0 {
         (0..m as u32).collect()
     } else {
@@ -704,21 +707,14 @@ pub fn fit(
         let nbody_params = annealed(params, it);
         let extra = if two_way {
             timed(&mut t.two_way, || {
-                let template_index = PointIndex::new(&pos);
-                scan_nearest
-                    .par_iter_mut()
-                    .zip(scan.par_iter())
-                    .for_each(|(n, x)| *n = template_index.nearest_one(x).0);
-                nbody::reverse_attraction(
+                reverse.compute(
                     &pos,
                     &scan,
                     &kappa,
-                    &scan_nearest,
                     params.two_way,
                     &nbody_params,
-                    &mut reverse_count,
                     &mut reverse_force,
-                );
+                )
             });
             Some(reverse_force.as_slice())
         } else {

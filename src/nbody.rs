@@ -175,37 +175,76 @@ pub fn step(
         });
 }
 
-/// Two-way attraction: every scan point also pulls its nearest template point. `nearest[j]` is
-/// the template point nearest to scan point j; the pulls on each template point are averaged
-/// (so a point chosen by many scan points is not pulled harder than by its own neighbours),
-/// scaled by `weight` and written to `out`. Accumulated in scan order, so the result does not
-/// depend on the thread count. `counts` is scratch space of the template's length.
-#[allow(clippy::too_many_arguments)]
-pub fn reverse_attraction(
-    positions: &[[f64; 3]],
-    target: &[[f64; 3]],
-    kappa: &[f64],
-    nearest: &[u32],
-    weight: f64,
-    p: &NBodyParams,
-    counts: &mut [u32],
-    out: &mut [[f64; 3]],
-) {
-    out.iter_mut().for_each(|f| *f = [0.0; 3]);
-    counts.iter_mut().for_each(|c| *c = 0);
-    for (j, &k) in nearest.iter().enumerate() {
-        let k = k as usize;
-        let f = vec3(&out[k]) + pair_force(&vec3(&positions[k]), &vec3(&target[j]), kappa[j], p);
-        out[k] = f.into();
-        counts[k] += 1;
+/// Two-way attraction: every scan point also pulls its nearest template point with the Eq. 2
+/// kernel. The pulls on each template point are averaged (so a point chosen by many scan
+/// points is not pulled harder than by its own neighbours) and scaled by `weight`.
+///
+/// Holds the per-fit scratch buffers. Each template point sums its pulls in increasing scan
+/// order (the scan points are bucketed by their nearest template point with a counting sort),
+/// so the result is the same for any thread count.
+#[derive(Clone, Debug, Default)]
+pub struct ReverseAttraction {
+    nearest: Vec<u32>,
+    offsets: Vec<usize>,
+    heads: Vec<usize>,
+    order: Vec<u32>,
+}
+
+impl ReverseAttraction {
+    /// Scratch for a template of `m` points and a scan of `n` points.
+    pub fn new(m: usize, n: usize) -> Self {
+        Self {
+            nearest: vec![0; n],
+            offsets: vec![0; m + 1],
+            heads: vec![0; m],
+            order: vec![0; n],
+        }
     }
-    out.par_iter_mut()
-        .zip(counts.par_iter())
-        .for_each(|(f, &c)| {
-            if c > 0 {
-                *f = (vec3(f) * (weight / c as f64)).into();
+
+    /// The reverse forces on the template at `positions`, written to `out`.
+    pub fn compute(
+        &mut self,
+        positions: &[[f64; 3]],
+        target: &[[f64; 3]],
+        kappa: &[f64],
+        weight: f64,
+        p: &NBodyParams,
+        out: &mut [[f64; 3]],
+    ) {
+        let template_index = crate::knn::PointIndex::new(positions);
+        self.nearest
+            .par_iter_mut()
+            .zip(target.par_iter())
+            .for_each(|(n, x)| *n = template_index.nearest_one(x).0);
+        // Counting sort of the scan points by nearest template point (stable: scan order).
+        self.offsets.iter_mut().for_each(|o| *o = 0);
+        for &k in &self.nearest {
+            self.offsets[k as usize + 1] += 1;
+        }
+        for i in 1..self.offsets.len() {
+            self.offsets[i] += self.offsets[i - 1];
+        }
+        let m = self.heads.len();
+        self.heads.copy_from_slice(&self.offsets[..m]);
+        for (j, &k) in self.nearest.iter().enumerate() {
+            self.order[self.heads[k as usize]] = j as u32;
+            self.heads[k as usize] += 1;
+        }
+        let (offsets, order) = (&self.offsets, &self.order);
+        out.par_iter_mut().enumerate().for_each(|(k, f)| {
+            let mine = &order[offsets[k]..offsets[k + 1]];
+            let mut sum = Vec3::zeros();
+            for &j in mine {
+                let j = j as usize;
+                sum += pair_force(&vec3(&positions[k]), &vec3(&target[j]), kappa[j], p);
             }
+            *f = if mine.is_empty() {
+                [0.0; 3]
+            } else {
+                (sum * (weight / mine.len() as f64)).into()
+            };
         });
+    }
 }
 
 #[cfg(test)]
