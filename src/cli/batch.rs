@@ -148,6 +148,25 @@ struct Shared {
 }
 
 impl Shared {
+    /// Starts a run's report and writes it once (state `running`), so an interrupted run
+    /// still leaves a valid report; `None` (after logging why) when it cannot be written.
+    fn start(report: RunReport, path: &Path, ui: &Ui) -> Option<Self> {
+        let now = Instant::now();
+        let mut shared = Self {
+            report,
+            path: path.to_path_buf(),
+            started: now,
+            last_write: now,
+            write_error: None,
+        };
+        shared.write(RunState::Running);
+        if let Some(e) = shared.write_error.take() {
+            ui.error(format_args!("cannot write the report: {e}"));
+            return None;
+        }
+        Some(shared)
+    }
+
     fn write(&mut self, state: RunState) {
         self.report.state = state;
         self.report.seconds = self.started.elapsed().as_secs_f64();
@@ -295,19 +314,13 @@ pub fn batch(cmd: &BatchCmd, ctx: &Context) -> i32 {
         todo.len(),
         setup.out_dir.display()
     ));
-    let now = Instant::now();
-    let mut shared = Shared {
-        report: setup.report("batch", &cmd.scan_dir, files),
-        path: setup.report_path.clone(),
-        started: now,
-        last_write: now,
-        write_error: None,
-    };
-    shared.write(RunState::Running);
-    if let Some(e) = shared.write_error.take() {
-        ui.error(format_args!("cannot write the report: {e}"));
+    let Some(shared) = Shared::start(
+        setup.report("batch", &cmd.scan_dir, files),
+        &setup.report_path,
+        ui,
+    ) else {
         return exit_code::FATAL;
-    }
+    };
     let done = AtomicUsize::new(0);
     for entry in shared
         .report
@@ -408,19 +421,13 @@ pub fn sequence(cmd: &SequenceCmd, ctx: &Context) -> i32 {
             )
         })
         .collect();
-    let now = Instant::now();
-    let mut shared = Shared {
-        report: setup.report("sequence", &cmd.frame_dir, files),
-        path: setup.report_path.clone(),
-        started: now,
-        last_write: now,
-        write_error: None,
-    };
-    shared.write(RunState::Running);
-    if let Some(e) = shared.write_error.take() {
-        ui.error(format_args!("cannot write the report: {e}"));
+    let Some(mut shared) = Shared::start(
+        setup.report("sequence", &cmd.frame_dir, files),
+        &setup.report_path,
+        ui,
+    ) else {
         return exit_code::FATAL;
-    }
+    };
     let runner = Runner {
         template: &setup.template,
         params: &setup.params,
