@@ -148,6 +148,7 @@ fn setup() -> State {
                 &normals_old[v],
                 &normals_new[v],
                 params.normal_completion,
+                params.matrix_series,
             )
             .0
         })
@@ -346,6 +347,7 @@ fn bench_stages(c: &mut Criterion) {
                     &s.normals_old[v],
                     &s.normals_new[v],
                     c,
+                    s.params.matrix_series,
                 )
                 .0;
             });
@@ -391,7 +393,11 @@ fn bench_stages(c: &mut Criterion) {
         let mut out = vec![Mat3::identity(); m];
         b.iter(|| {
             out.par_iter_mut().enumerate().for_each(|(v, o)| {
-                *o = solve_rotation(&(s.reg_rotation[v] * s.reg_stretch[v]), &s.stretch_hat[v]);
+                *o = solve_rotation(
+                    &(s.reg_rotation[v] * s.reg_stretch[v]),
+                    &s.stretch_hat[v],
+                    s.params.matrix_series,
+                );
             });
         });
     });

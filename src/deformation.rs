@@ -15,7 +15,7 @@
 //! Whatever rank deficiency remains (a ring with no normal: isolated vertex, collinear ring) is
 //! not inverted: those directions map by the identity and the vertex is counted as degenerate.
 
-use crate::math::{sym_eigen3, vec3, Mat3, Vec3};
+use crate::math::{sym_eigen3, sym_eigenvalues3, vec3, Mat3, Vec3};
 
 /// Relative eigenvalue below which a direction of the completed second-moment matrix counts
 /// as missing.
@@ -27,7 +27,9 @@ pub const RANK_TOLERANCE: f64 = 1e-9;
 ///   zero term but counts in β);
 /// * `old`, `new` — all positions at t and t+Δt;
 /// * `normal_old`, `normal_new` — unit normals of k at t and t+Δt (zero when undefined);
-/// * `completion` — γ (0 disables the normal completion).
+/// * `completion` — γ (0 disables the normal completion);
+/// * `fast` — closed-form eigenvalues and an adjugate inverse where B is well-conditioned
+///   (the same result to round-off; see [`solve_gradient_fast`]), else eigen-decompositions.
 ///
 /// Returns `(H_k, degenerate)`.
 #[allow(clippy::too_many_arguments)]
@@ -39,6 +41,7 @@ pub fn deformation_gradient(
     normal_old: &[f64; 3],
     normal_new: &[f64; 3],
     completion: f64,
+    fast: bool,
 ) -> (Mat3, bool) {
     let yk = vec3(&old[k]);
     let yk_new = vec3(&new[k]);
@@ -58,7 +61,12 @@ pub fn deformation_gradient(
     let n_new = vec3(normal_new);
     if completion > 0.0 && n.norm_squared() > 0.5 && n_new.norm_squared() > 0.5 && len_old > 0.0 {
         let trace = b.trace();
-        let lambda_min = sym_eigen3(&b).values[2].max(0.0);
+        let lambda_min = if fast {
+            sym_eigenvalues3(&b)[2]
+        } else {
+            sym_eigen3(&b).values[2]
+        }
+        .max(0.0);
         let w = (completion * trace / 3.0 - lambda_min).max(0.0);
         if w > 0.0 {
             let s = (len_new / len_old).sqrt();
@@ -66,7 +74,29 @@ pub fn deformation_gradient(
             b += w * n * n.transpose();
         }
     }
-    solve_gradient(&a, &b)
+    if fast {
+        solve_gradient_fast(&a, &b)
+    } else {
+        solve_gradient(&a, &b)
+    }
+}
+
+/// Smallest `λ_min/λ_max` of B at which [`solve_gradient_fast`] inverts B directly: far above
+/// [`RANK_TOLERANCE`], so the closed-form eigenvalues' round-off cannot change which path
+/// [`solve_gradient`] would take.
+const DIRECT_INVERSE_MIN_RATIO: f64 = 1e-3;
+
+/// [`solve_gradient`] without an eigen-decomposition when B is well-conditioned
+/// (`λ_min > 10⁻³ λ_max` by the closed-form eigenvalues): then no direction is null and
+/// `H = A B⁻¹` with the adjugate inverse equals the eigen path to round-off.
+pub fn solve_gradient_fast(a: &Mat3, b: &Mat3) -> (Mat3, bool) {
+    let l = sym_eigenvalues3(b);
+    if l[0] > 0.0 && l[0].is_finite() && l[2] > DIRECT_INVERSE_MIN_RATIO * l[0] {
+        if let Some(inv) = b.try_inverse() {
+            return (a * inv, false);
+        }
+    }
+    solve_gradient(a, b)
 }
 
 /// `H = A B⁻¹`, with the null directions of B (relative eigenvalue below [`RANK_TOLERANCE`])
@@ -122,7 +152,7 @@ mod tests {
         let a = Mat3::new(1.2, 0.3, -0.1, 0.05, 0.9, 0.2, -0.3, 0.1, 1.1);
         let new = apply(&a, &Vec3::new(0.4, -1.0, 2.0), &old);
         let n = [0.0, 0.0, 1.0];
-        let (h, degenerate) = deformation_gradient(0, &ring, &old, &new, &n, &n, 0.3);
+        let (h, degenerate) = deformation_gradient(0, &ring, &old, &new, &n, &n, 0.3, false);
         assert!(!degenerate);
         assert_relative_eq!(h, a, epsilon = 1e-10);
     }
@@ -135,19 +165,27 @@ mod tests {
         let new = apply(&r, &Vec3::new(1.0, 2.0, 3.0), &old);
         let n_new: [f64; 3] = (r * Vec3::z()).into();
         let (h, degenerate) =
-            deformation_gradient(0, &ring, &old, &new, &[0.0, 0.0, 1.0], &n_new, 0.3);
+            deformation_gradient(0, &ring, &old, &new, &[0.0, 0.0, 1.0], &n_new, 0.3, false);
         assert!(!degenerate);
         assert_relative_eq!(h, r, epsilon = 1e-10);
         // Without completion the flat ring is rank 2: flagged, never silently inverted.
         let (_, degenerate) =
-            deformation_gradient(0, &ring, &old, &new, &[0.0, 0.0, 1.0], &n_new, 0.0);
+            deformation_gradient(0, &ring, &old, &new, &[0.0, 0.0, 1.0], &n_new, 0.0, false);
         assert!(degenerate);
     }
 
     #[test]
     fn isolated_vertex_gets_identity() {
-        let (h, degenerate) =
-            deformation_gradient(0, &[0], &[[1.0; 3]], &[[2.0; 3]], &[0.0; 3], &[0.0; 3], 0.3);
+        let (h, degenerate) = deformation_gradient(
+            0,
+            &[0],
+            &[[1.0; 3]],
+            &[[2.0; 3]],
+            &[0.0; 3],
+            &[0.0; 3],
+            0.3,
+            false,
+        );
         assert!(degenerate);
         assert_eq!(h, Mat3::identity());
     }

@@ -117,9 +117,11 @@ pub struct FitParams {
     pub coarse_fraction: f64,
     /// Radius (graph distance) of the neighborhoods of the coarse phase.
     pub coarse_rings: usize,
-    /// Evaluate the logarithms and exponentials of Eq. 5 by truncated series where the
-    /// matrices are near the identity (agreeing with the eigen-decomposition to round-off);
-    /// `false` always uses the eigen-decomposition (the exact reference path).
+    /// Fast 3×3 matrix functions, each agreeing with the eigen-decomposition to round-off:
+    /// truncated series for the logarithms and exponentials of Eq. 5 near the identity, the
+    /// Newton iteration for polar factors and nearest rotations (Eq. 5's rotation mean,
+    /// Eq. 8), closed-form eigenvalues and a direct inverse for well-conditioned Eq. 4
+    /// systems. `false` always uses the Jacobi eigen-decomposition (the exact reference path).
     pub matrix_series: bool,
     /// Re-use earlier k-NN candidates when that is provably exact (see
     /// [`crate::knn::NeighborCache`]); `false` queries the k-d tree for every vertex every
@@ -531,6 +533,7 @@ pub fn deformation_model(
                     &n_old[k],
                     &n_new[k],
                     params.normal_completion,
+                    params.matrix_series,
                 );
                 *h = g;
                 *deg = d;
@@ -560,7 +563,7 @@ pub fn deformation_model(
                     RotationSource::Regularized => reg_r[k] * reg_u[k],
                     RotationSource::Raw => raw[k],
                 };
-                *rot = solve_rotation(&h, &m.stretch);
+                *rot = solve_rotation(&h, &m.stretch, params.matrix_series);
             });
     });
     ws.times = times;

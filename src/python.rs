@@ -489,6 +489,7 @@ fn deformation_gradients<'py>(
                     &no[k],
                     &nn[k],
                     normal_completion,
+                    false,
                 )
             })
             .unzip::<_, _, Vec<_>, Vec<_>>()
@@ -588,7 +589,7 @@ fn solve_rotations<'py>(
     let r: Vec<Mat3> = h
         .iter()
         .zip(&u)
-        .map(|(h, u)| rotation::solve_rotation(h, u))
+        .map(|(h, u)| rotation::solve_rotation(h, u, false))
         .collect();
     Ok(mats_to_array(py, &r))
 }

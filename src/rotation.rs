@@ -6,12 +6,18 @@
 //! For NRGa (SPEC §2.11) the rotation is the Kabsch fit of the neighborhood's old to new
 //! positions instead.
 
-use crate::math::{nearest_rotation, vec3, Mat3, Vec3};
+use crate::math::{nearest_rotation, nearest_rotation_fast, vec3, Mat3, Vec3};
 
-/// Solves Eq. 8: the rotation closest to `h` once the stretch `u_hat` is factored out.
+/// Solves Eq. 8: the rotation closest to `h` once the stretch `u_hat` is factored out
+/// (`fast`: by [`nearest_rotation_fast`], equal to round-off).
 #[inline]
-pub fn solve_rotation(h: &Mat3, u_hat: &Mat3) -> Mat3 {
-    nearest_rotation(&(h * u_hat.transpose()))
+pub fn solve_rotation(h: &Mat3, u_hat: &Mat3, fast: bool) -> Mat3 {
+    let m = h * u_hat.transpose();
+    if fast {
+        nearest_rotation_fast(&m)
+    } else {
+        nearest_rotation(&m)
+    }
 }
 
 /// Centroids of `ring` in `old` and `new` positions.
@@ -57,9 +63,13 @@ mod tests {
     fn procrustes_recovers_random_rotation() {
         let r = *nalgebra::Rotation3::from_euler_angles(1.0, -0.4, 2.5).matrix();
         let u = Mat3::new(1.2, 0.1, 0.0, 0.1, 0.9, 0.0, 0.0, 0.0, 1.0);
-        assert_relative_eq!(solve_rotation(&(r * u), &u), r, epsilon = 1e-10);
+        assert_relative_eq!(solve_rotation(&(r * u), &u, false), r, epsilon = 1e-10);
         // Any SPD Û sharing U's eigenvectors gives the same rotation.
-        assert_relative_eq!(solve_rotation(&(r * u), &(u * u)), r, epsilon = 1e-10);
+        assert_relative_eq!(
+            solve_rotation(&(r * u), &(u * u), false),
+            r,
+            epsilon = 1e-10
+        );
     }
 
     #[test]
