@@ -138,8 +138,11 @@ pub struct NeighborCache {
     k: usize,
     c: usize,
     anchors: Vec<[f64; 3]>,
+    /// The c candidates of every point, in the order of their last known distance (so the
+    /// next re-ranking starts nearly sorted).
     candidates: Vec<u32>,
-    candidate_dist: Vec<f64>,
+    /// Per point, at its anchor: the distances of the k-th and of the c-th nearest candidate.
+    anchor_bounds: Vec<[f64; 2]>,
     /// Per point: 0 = no candidates yet, 1 = candidates re-used, 2 = queried afresh.
     state: Vec<u8>,
 }
@@ -153,7 +156,7 @@ impl NeighborCache {
             c,
             anchors: vec![[0.0; 3]; m],
             candidates: vec![0; m * c],
-            candidate_dist: vec![0.0; m * c],
+            anchor_bounds: vec![[0.0; 2]; m],
             state: vec![0; m],
         }
     }
@@ -173,49 +176,61 @@ impl NeighborCache {
         self.anchors
             .par_iter_mut()
             .zip(self.candidates.par_chunks_mut(c))
-            .zip(self.candidate_dist.par_chunks_mut(c))
+            .zip(self.anchor_bounds.par_iter_mut())
             .zip(self.state.par_iter_mut())
             .zip(indices.par_chunks_mut(k).zip(dist2.par_chunks_mut(k)))
             .zip(queries.par_iter())
-            .for_each(|(((((anchor, cand), cand_d), state), (idx, d2)), q)| {
+            .for_each(|(((((anchor, cand), bounds), state), (idx, d2)), q)| {
                 let moved = (0..3)
                     .map(|a| (q[a] - anchor[a]).powi(2))
                     .sum::<f64>()
                     .sqrt();
-                let reusable =
-                    *state > 0 && (whole_set || cand_d[c - 1] - moved > cand_d[k - 1] + moved);
+                let [d_k, d_c] = *bounds;
+                let reusable = *state > 0 && (whole_set || d_c - moved > d_k + moved);
                 if reusable {
                     *state = 1;
                 } else {
                     // The old candidates are all within d_c + δ of the new position, so the c
                     // nearest points are too: a bounded search finds the same points, faster.
                     let bound = if *state > 0 {
-                        (cand_d[c - 1] + moved) * (1.0 + 1e-9)
+                        (d_c + moved) * (1.0 + 1e-9)
                     } else {
                         f64::INFINITY
                     };
+                    let mut found_d2 = [0.0f64; MAX_CACHED];
+                    let found_d2 = &mut found_d2[..c];
                     if !(bound.is_finite()
-                        && index.nearest_within_into(q, bound * bound, cand, cand_d))
+                        && index.nearest_within_into(q, bound * bound, cand, found_d2))
                     {
-                        index.nearest_into(q, cand, cand_d);
+                        index.nearest_into(q, cand, found_d2);
                     }
-                    cand_d.iter_mut().for_each(|d| *d = d.sqrt());
+                    *bounds = [found_d2[k - 1].sqrt(), found_d2[c - 1].sqrt()];
                     *anchor = *q;
                     *state = 2;
                 }
-                // Re-rank the candidates by their distance to the query's current position.
+                // Re-rank the candidates by their distance to the query's current position:
+                // an insertion sort, as the stored order is last iteration's ranking and the
+                // points move little between iterations (nearly sorted input, ~c steps).
                 let mut ranked = [(0.0f64, 0u32); MAX_CACHED];
                 let ranked = &mut ranked[..c];
                 for (slot, &j) in ranked.iter_mut().zip(cand.iter()) {
                     let p = index.point(j);
                     *slot = ((0..3).map(|a| (q[a] - p[a]).powi(2)).sum::<f64>(), j);
                 }
-                let by_distance =
-                    |a: &(f64, u32), b: &(f64, u32)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
-                if c > k {
-                    ranked.select_nth_unstable_by(k - 1, by_distance);
+                let before =
+                    |a: &(f64, u32), b: &(f64, u32)| a.0 < b.0 || (a.0 == b.0 && a.1 < b.1);
+                for i in 1..c {
+                    let item = ranked[i];
+                    let mut at = i;
+                    while at > 0 && before(&item, &ranked[at - 1]) {
+                        ranked[at] = ranked[at - 1];
+                        at -= 1;
+                    }
+                    ranked[at] = item;
                 }
-                ranked[..k].sort_unstable_by(by_distance);
+                for (slot, &(_, j)) in cand.iter_mut().zip(ranked.iter()) {
+                    *slot = j;
+                }
                 for (s, &(d, j)) in ranked[..k].iter().enumerate() {
                     idx[s] = j;
                     d2[s] = d;
