@@ -182,17 +182,43 @@ def _trimesh_target(x, xf):
     return trimesh.PointCloud(x), False
 
 
+def _without_isolated(v, f):
+    """Vertices referenced by a face, the faces renumbered to them, and a function putting a
+    fit of those back on all vertices: each unreferenced vertex moves with its nearest
+    referenced template vertex. trimesh's Amberg system is singular with unreferenced
+    vertices (the real skirts have 80–84, duplicates of seam vertices)."""
+    used = np.zeros(len(v), bool)
+    used[np.asarray(f).ravel()] = True
+    if used.all():
+        return v, f, lambda y: y
+    keep = np.flatnonzero(used)
+    new_index = np.full(len(v), -1)
+    new_index[keep] = np.arange(len(keep))
+    lonely = np.flatnonzero(~used)
+    d2 = ((v[lonely, None, :] - v[None, keep, :]) ** 2).sum(-1)
+    partner = d2.argmin(1)
+
+    def expand(y):
+        out = v.astype(np.float64).copy()
+        out[keep] = y
+        out[lonely] = v[lonely] + (y[partner] - v[keep[partner]])
+        return out
+
+    return v[keep], new_index[f], expand
+
+
 def run_amberg(v, f, x, xf=None, trace=False, steps=None, distance_threshold=0.1, **_):
     import trimesh
     from trimesh.registration import nricp_amberg
 
     yn, xn, back = normalize(v, x)
-    src = trimesh.Trimesh(yn, f, process=False)
+    yk, fk, expand = _without_isolated(yn, np.asarray(f))
+    src = trimesh.Trimesh(yk, fk, process=False)
     tgt, use_faces = _trimesh_target(xn, xf)
     # trimesh 5.2 needs use_faces=False for point-cloud targets (and rtree for mesh targets)
     rec = nricp_amberg(src, tgt, steps=steps, distance_threshold=distance_threshold,
                        use_faces=use_faces, return_records=True)
-    return back(rec[-1]), ([back(r) for r in rec] if trace else None), {
+    return back(expand(rec[-1])), ([back(expand(r)) for r in rec] if trace else None), {
         "iterations": len(rec) - 1}
 
 

@@ -70,27 +70,34 @@ STAGE_NAMES = {
 }
 #: What would make each stage cheaper (for the "missed targets" analysis).
 LEVERS = {
-    "knn": "k-NN: bounded-heap queries written straight into the preallocated M×K buffers (no "
-    "per-query allocation or sort), a tree with a cache-friendly layout, and reusing "
-    "last iteration's neighbors as the starting bound (vertices move ≪ ε per step)",
-    "two_way": "two-way attraction: avoid rebuilding the template k-d tree every iteration "
-    "(rebuild every few iterations, or query the previous tree and correct), make "
-    "the reverse-force accumulation parallel (CSR of scan points per vertex or "
-    "per-thread accumulators); the N scan-point queries make it O(N log M)",
-    "nbody": "force: one sqrt instead of two powf per pair, f64x4 SIMD over the K neighbors, "
-    "neighbors' coordinates and κ gathered once per vertex",
-    "gradient": "gradients: closed-form 3×3 symmetric eigenvalues (Cardano) for λ_min and a "
-    "Cholesky solve instead of a Jacobi eigen-decomposition per vertex",
-    "regularize": "regularization: a closed-form or warm-started 3×3 symmetric eigensolver for "
-    "the ~|ring| spd_log per vertex (≈250K per iteration at the paper size), "
-    "U_k^{±½} once per vertex (SPEC §7)",
-    "rotation": "rotation: closed-form eigen of UᵀU / a few Newton-polar iterations warm-started "
-    "from the previous R_k*",
-    "update": "update: fuse the ring centroids into the rotation pass; the rigid/coarse phases' "
-    "Kabsch fits share the same 3×3 kernels",
+    "knn": "k-NN: a fresh query costs several µs (kiddo 5's `nearest_n` / `within_unsorted`, one "
+    "allocation each, K = 28 here, 64 at 1M points). The candidate cache answers ~97 % of the "
+    "fine phase exactly, but the rigid and coarse phases (60 of the 100 iterations) move "
+    "nearly every vertex past its margin every iteration. Closing: a cheaper exact query (a "
+    "uniform grid over the scan, whose K-NN radii are nearly uniform, or kiddo 6's "
+    "fixed-size result buffers), or fewer neighbors in the rigid/coarse phases (an option; "
+    "results change)",
+    "two_way": "two-way attraction: N nearest-template queries per iteration on a template tree "
+    "rebuilt every iteration, plus a serial counting sort over N. An exact cache bounded by "
+    "the template's largest displacement was tried and re-used too few queries (the rigid "
+    "and coarse phases move every vertex). Closing: per-region displacement bounds (grid "
+    "cells), or the reverse search every few iterations (an option; results change)",
+    "nbody": "force: f64x4 SIMD over the K neighbors, neighbors' coordinates and κ gathered "
+    "once per vertex",
+    "gradient": "gradients: already closed-form eigenvalues and a direct inverse where B is "
+    "well-conditioned; what is left is the ring gathers (memory-bound)",
+    "regularize": "regularization (paper preset): the affine-invariant mean needs one "
+    "logarithm per ring pair (≈250K per iteration); the default's log-Euclidean mean needs "
+    "one per vertex",
+    "rotation": "ψ-stretch/rotation: the ψ-modified stretch needs the eigenvectors of nearly "
+    "isotropic U (Jacobi kept: a closed form is ill-conditioned there and would change results "
+    "beyond 1e-9); the rotation solve already uses Newton polar iterations",
+    "update": "update: the coarse phase's 8-ring Kabsch fits (~145 ring members per vertex); "
+    "prefix sums of ring moments over the BFS layers would cut them",
     "setup": "setup: curvature of the scan and the coarse 8-ring BFS are per fit; at small "
     "iteration counts they are a visible share",
 }
+
 
 
 # ======================================================================================
