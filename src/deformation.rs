@@ -84,7 +84,7 @@ pub fn deformation_gradient(
 /// Smallest `λ_min/λ_max` of B at which [`solve_gradient_fast`] inverts B directly: far above
 /// [`RANK_TOLERANCE`], so the closed-form eigenvalues' round-off cannot change which path
 /// [`solve_gradient`] would take.
-const DIRECT_INVERSE_MIN_RATIO: f64 = 1e-3;
+pub const DIRECT_INVERSE_MIN_RATIO: f64 = 1e-3;
 
 /// [`solve_gradient`] without an eigen-decomposition when B is well-conditioned
 /// (`λ_min > 10⁻³ λ_max` by the closed-form eigenvalues): then no direction is null and

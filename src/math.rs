@@ -153,7 +153,7 @@ pub fn nearest_rotation(m: &Mat3) -> Mat3 {
 /// Smallest `det M / (‖M‖_F/√3)³` (a cube of the ratio of the geometric to the quadratic mean
 /// of the singular values) at which [`rotation_newton`] is used: below it (near-singular or
 /// reflecting input) the eigen-decomposition path handles the rank deficiency.
-const NEWTON_MIN_NORMALIZED_DET: Real = 1e-3;
+pub const NEWTON_MIN_NORMALIZED_DET: Real = 1e-3;
 
 /// The orthogonal polar factor of `m` by the scaled Newton iteration
 /// `X ← ½(γX + X⁻ᵀ/γ)`, `γ = (‖X⁻¹‖_F/‖X‖_F)^{½}` (Higham 1986), or `None` when `m` is
