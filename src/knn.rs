@@ -133,8 +133,8 @@ pub const MAX_CACHED: usize = 192;
 ///
 /// Each point keeps the `c = min(2K, N, 192)` nearest candidates found at its *anchor* position,
 /// with the anchor distances of the K-th and the c-th. After the point moved by δ from its
-/// anchor, every point outside the
-/// candidate set is at least `d_c − δ` away and the K-th nearest candidate at most `d_K + δ`,
+/// anchor, every point outside the candidate set is at least `d_c − δ` away and the K-th
+/// nearest candidate at most `d_K + δ`,
 /// so while `d_c − δ > d_K + δ` the K nearest points are the K nearest candidates: re-ranking
 /// the candidates by their new distances gives exactly the k-d tree's answer (up to the order
 /// of exactly tied distances). Otherwise the point is queried afresh and re-anchored.
