@@ -49,14 +49,17 @@ def evaluate(case_arrays: dict[str, np.ndarray], fitted: np.ndarray) -> dict[str
 
 
 def machine() -> dict[str, Any]:
-    info: dict[str, Any] = {"platform": platform.platform(), "cpus": os.cpu_count()}
+    """The machine a run was measured on (lscpu fields, memory, load average), shared by
+    compare.py and perf.py."""
+    info: dict[str, Any] = {"platform": platform.platform(), "cpus": os.cpu_count(),
+                            "nproc": os.cpu_count(), "python": sys.version.split()[0]}
     try:
         out = subprocess.run(["lscpu"], check=False, capture_output=True, text=True,
                              timeout=10).stdout
         for line in out.splitlines():
             k, _, v = line.partition(":")
-            if k.strip() in ("Model name", "CPU(s)", "Thread(s) per core", "Hypervisor vendor",
-                             "L3 cache"):
+            if k.strip() in ("Model name", "CPU(s)", "Thread(s) per core", "Core(s) per socket",
+                             "Hypervisor vendor", "L2 cache", "L3 cache", "CPU max MHz"):
                 info[k.strip()] = v.strip()
     except (OSError, subprocess.SubprocessError):
         pass

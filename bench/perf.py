@@ -35,7 +35,6 @@ import json
 import math
 import os
 import pathlib
-import platform
 import resource
 import subprocess
 import sys
@@ -636,37 +635,6 @@ def describe(rec: dict[str, Any]) -> str:
         what += f" {rec['preset']}" + (f" t={rec['threads']}" if rec.get("threads") else "")
     c = rec["case"]
     return f"[{rec['section']}] {what} on {c['nx']}×{c['ny']}/{c['scan_points']}"
-
-
-def machine() -> dict[str, Any]:
-    info: dict[str, Any] = {
-        "platform": platform.platform(),
-        "nproc": os.cpu_count(),
-        "python": sys.version.split()[0],
-    }
-    try:
-        out = subprocess.run(["lscpu"], check=False, capture_output=True, text=True, timeout=10).stdout
-        for line in out.splitlines():
-            k, _, v = line.partition(":")
-            if k.strip() in (
-                "Model name",
-                "CPU(s)",
-                "Thread(s) per core",
-                "Core(s) per socket",
-                "Hypervisor vendor",
-                "L2 cache",
-                "L3 cache",
-                "CPU max MHz",
-            ):
-                info[k.strip()] = v.strip()
-    except (OSError, subprocess.SubprocessError):
-        pass
-    try:
-        with open("/proc/meminfo") as fh:
-            info["memory_gib"] = round(int(fh.readline().split()[1]) / 2**20, 1)
-    except OSError:
-        pass
-    return info
 
 
 def versions() -> dict[str, str]:
@@ -1583,6 +1551,8 @@ def main(argv: list[str] | None = None) -> int:
             log(f"wrote {FIGURE.relative_to(ROOT)} and {DOC.relative_to(ROOT)}")
         return 0
 
+    import harness  # the shared machine description (not needed by --worker processes)
+
     start = time.perf_counter()
     p = plan(args.quick)
     out = args.out or HERE / "out" / ("perf_quick.json" if args.quick else "perf.json")
@@ -1592,7 +1562,7 @@ def main(argv: list[str] | None = None) -> int:
         "date": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
         "command": (COMMAND_QUICK if args.quick else COMMAND_FULL) + (f" --only {args.only}" if only else ""),
         "quick": args.quick,
-        "machine": machine(),
+        "machine": harness.machine(),
         "versions": versions(),
         "git": git_state(),
         "load_start": os.getloadavg()[0],
