@@ -26,7 +26,7 @@ VARIANTS = [
     ("paper + rigid 30% + coarse 30%", {"preset": "paper", "rigid_fraction": 0.3,
                                         "coarse_fraction": 0.3}),
     ("paper + softening annealing ×3", {"preset": "paper", "anneal": 3.0,
-                                        "anneal_iterations": 60}),
+                                        "anneal_fraction": 0.6}),
     ("paper + 3-ring", {"preset": "paper", "rings": 3}),
     ("default (two-way + rigid + coarse)", {}),
     ("default + 3-ring", {"rings": 3}),

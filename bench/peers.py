@@ -94,7 +94,8 @@ def run_foldmatch_paper(v, f, x, xf=None, trace=False, **params):
 
 
 def run_nrga(v, f, x, xf=None, trace=False, **params):
-    return run_foldmatch(v, f, x, xf, trace, method="nrga", **params)
+    # NRGa as published: the paper's constants (constant softening), no fidelity options.
+    return run_foldmatch(v, f, x, xf, trace, preset="paper", method="nrga", **params)
 
 
 def run_pycpd(v, f, x, xf=None, trace=False, alpha=2.0, beta=2.0, w=0.0, maxiter=100, tol=1e-3,
@@ -252,8 +253,8 @@ METHODS: dict[str, dict[str, Any]] = {
                                  "converging readings of SPEC §2"},
     "nrga": {"label": "NRGa", "run": run_nrga, "params": FOLDMATCH_PARAMS, "modules": ["foldmatch_rs"],
                  "pip": [], "family": "ours",
-                 "note": "fm.fit(method='nrga'): the same N-body model, per-vertex rigid fits of "
-                      "k-nearest template neighborhoods, no mesh model"},
+                 "note": "fm.fit(preset='paper', method='nrga'): the same N-body model, per-vertex "
+                      "rigid fits of k-nearest template neighborhoods, no mesh model"},
     "cpd_pycpd": {"label": "CPD (pycpd)", "run": run_pycpd, "params": CPD_PARAMS, "modules": ["pycpd"],
                       "pip": ["pycpd"], "family": "cpd", "max_mn": 1.2e7, "max_m": 3000,
                       "note": "dense kernel (M×M solve) and dense M×N×3 E-step; ~5 s per "

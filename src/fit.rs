@@ -127,11 +127,11 @@ pub struct FitParams {
     /// [`crate::knn::NeighborCache`]); `false` queries the k-d tree for every vertex every
     /// iteration. Results are the same either way.
     pub knn_cache: bool,
-    /// Softening annealing: ε starts at `anneal × ε` and decreases linearly to ε over
-    /// `anneal_iterations` (1: constant ε, the paper's reading).
+    /// Softening annealing: ε starts at `anneal × ε` and decreases linearly to ε over the
+    /// first `anneal_fraction` of the ξ iterations (1: constant ε, the paper's reading).
     pub anneal: f64,
-    /// Iterations over which the softening anneals.
-    pub anneal_iterations: usize,
+    /// Fraction of the iterations over which the softening anneals.
+    pub anneal_fraction: f64,
 }
 
 impl Default for FitParams {
@@ -154,42 +154,57 @@ impl Default for FitParams {
             use_curvature: true,
             prealign: Prealign::None,
             snapshot_every: 0,
-            two_way: 1.0,
+            two_way: 2.0,
             rigid_fraction: 0.3,
-            coarse_fraction: 0.3,
+            coarse_fraction: 0.5,
             coarse_rings: 8,
             knn_cache: true,
             matrix_series: true,
-            anneal: 1.0,
-            anneal_iterations: 0,
+            anneal: 3.0,
+            anneal_fraction: 0.6,
         }
     }
 }
 
 impl FitParams {
     /// The paper's method as printed, with only the converging readings of SPEC §2: one-way
-    /// attraction, no rigid or coarse phase, Eq. 5 as the affine-invariant mean (the
-    /// `"paper"` preset).
+    /// attraction, no rigid or coarse phase, constant softening, Eq. 5 as the affine-invariant
+    /// mean (the `"paper"` preset).
     pub fn paper() -> Self {
         Self {
             two_way: 0.0,
             rigid_fraction: 0.0,
             coarse_fraction: 0.0,
+            anneal: 1.0,
+            anneal_fraction: 0.0,
             regularization: Regularization::AffineInvariant,
             ..Self::default()
         }
     }
 
+    /// The default without softening annealing, for a fit that starts close to its scan
+    /// (warm-started frames of a sequence): annealing is a far-start device and, with few
+    /// iterations per frame, leaves too little time at the final ε (docs/method.md).
+    pub fn tracking() -> Self {
+        Self {
+            anneal: 1.0,
+            anneal_fraction: 0.0,
+            ..Self::default()
+        }
+    }
+
     /// A named preset: `"default"` (the most accurate configuration measured, see
-    /// docs/method.md) or `"paper"` ([`FitParams::paper`]).
+    /// docs/method.md), `"paper"` ([`FitParams::paper`]) or `"tracking"`
+    /// ([`FitParams::tracking`]).
     pub fn preset(name: &str) -> Result<Self> {
         match name {
             "default" => Ok(Self::default()),
             "paper" => Ok(Self::paper()),
+            "tracking" => Ok(Self::tracking()),
             other => Err(FoldMatchError::parameter(
                 "preset",
                 other,
-                "one of default, paper",
+                "one of default, paper, tracking",
             )),
         }
     }
@@ -306,6 +321,7 @@ impl FitParams {
         for (name, v) in [
             ("rigid_fraction", self.rigid_fraction),
             ("coarse_fraction", self.coarse_fraction),
+            ("anneal_fraction", self.anneal_fraction),
         ] {
             if !(0.0..=1.0).contains(&v) {
                 return Err(FoldMatchError::parameter(name, v, "must be in [0, 1]"));
@@ -860,11 +876,12 @@ fn kabsch_update(rings: &Neighborhoods, old: &[[f64; 3]], new: &[[f64; 3]], next
 }
 
 /// The N-body constants of iteration `it` (1-based): the softening annealed from
-/// `anneal × ε` down to ε over `anneal_iterations`.
+/// `anneal × ε` down to ε over the first `anneal_fraction × ξ` iterations.
 fn annealed(params: &FitParams, it: usize) -> NBodyParams {
     let mut p = params.nbody;
-    if params.anneal > 1.0 && params.anneal_iterations > 0 {
-        let remaining = 1.0 - ((it - 1) as f64 / params.anneal_iterations as f64).min(1.0);
+    let span = params.anneal_fraction * params.iterations as f64;
+    if params.anneal > 1.0 && span > 0.0 {
+        let remaining = 1.0 - ((it - 1) as f64 / span).min(1.0);
         p.softening *= 1.0 + (params.anneal - 1.0) * remaining;
     }
     p
@@ -906,4 +923,43 @@ pub fn fit_simple(
 /// Magnitudes of a vector field.
 pub fn magnitudes(field: &[[f64; 3]]) -> Vec<f64> {
     field.iter().map(|v| vec3(v).norm()).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn softening_anneals_linearly_over_its_fraction_of_the_iterations() {
+        let mut p = FitParams {
+            anneal: 3.0,
+            anneal_fraction: 0.5,
+            iterations: 10,
+            ..FitParams::default()
+        };
+        let eps = p.nbody.softening;
+        let at = |p: &FitParams, it| annealed(p, it).softening / eps;
+        assert!((at(&p, 1) - 3.0).abs() < 1e-15);
+        // Span 5 iterations: at iteration 3, 2/5 of the way from 3 down to 1.
+        assert!((at(&p, 3) - 2.2).abs() < 1e-15);
+        for it in 6..=10 {
+            assert_eq!(at(&p, it), 1.0, "iteration {it}");
+        }
+        // Same schedule, in fractions, whatever ξ is.
+        p.iterations = 100;
+        assert!((at(&p, 21) - 2.2).abs() < 1e-15);
+        for off in [
+            FitParams {
+                anneal: 1.0,
+                ..p.clone()
+            },
+            FitParams {
+                anneal_fraction: 0.0,
+                ..p.clone()
+            },
+            FitParams::paper(),
+        ] {
+            assert!((1..=100).all(|it| at(&off, it) == 1.0));
+        }
+    }
 }

@@ -243,6 +243,7 @@ def test_paper_preset_is_the_method_as_printed(case):
     r = fm.fit(case["template_vertices"], case["faces"], case["scan"], preset="paper", iterations=5)
     assert r.params["two_way"] == 0 and r.params["rigid_fraction"] == 0
     assert r.params["coarse_fraction"] == 0 and r.params["rings"] == 2
+    assert r.params["anneal"] == 1
     with pytest.raises(fm.InvalidParameterError, match="preset"):
         fm.fit(case["template_vertices"], case["faces"], case["scan"], preset="fast")
 

@@ -193,7 +193,7 @@ def fit(
     knn_cache: Optional[bool] = None,
     matrix_series: Optional[bool] = None,
     anneal: Optional[float] = None,
-    anneal_iterations: Optional[int] = None,
+    anneal_fraction: Optional[float] = None,
     callback: Optional[Callable[[dict[str, Any]], Optional[bool]]] = None,
     threads: Optional[int] = None,
 ) -> FitResult:
@@ -209,10 +209,11 @@ def fit(
         The scan.
     target_faces : (F, 3) int, optional
         Scan triangles, when the scan is a mesh (only used for its Gaussian curvature).
-    preset : {"default", "paper"}
+    preset : {"default", "paper", "tracking"}
         Where unset parameters come from: ``"default"`` (:data:`DEFAULT_PARAMS`, the most
-        accurate configuration measured) or ``"paper"`` (:data:`PAPER_PARAMS`, the method as
-        the paper describes it).
+        accurate configuration measured), ``"paper"`` (:data:`PAPER_PARAMS`, the method as
+        the paper describes it) or ``"tracking"`` (the default without softening annealing,
+        for a fit warm-started close to its scan, e.g. the previous frame of a sequence).
     method : {"foldmatch", "nrga"}
         FoldMatch (default) or the NRGa point-based baseline.
     iterations : int
@@ -255,21 +256,21 @@ def fit(
         Keep the vertex positions every this many iterations (0: none).
     two_way : float
         Weight of the two-way attraction: every scan point also pulls its nearest template
-        vertex (1.0; 0 is the paper's one-way attraction; FoldMatch only).
+        vertex (2.0; 0 is the paper's one-way attraction; FoldMatch only).
     rigid_fraction : float
         Rigid phase: this fraction of the iterations comes first and moves the whole template
         rigidly under the N-body forces (0.3; FoldMatch only).
     coarse_fraction, coarse_rings : float, int
         Coarse phase: the next fraction of the iterations moves every vertex by the rigid fit
-        of its ``coarse_rings``-ring neighborhood, i.e. piecewise rigidly (0.3, 8).
+        of its ``coarse_rings``-ring neighborhood, i.e. piecewise rigidly (0.5, 8).
     knn_cache : bool
         Re-use earlier k-NN candidates where that is provably exact (True; same results).
     matrix_series : bool
         Evaluate Eq. 5's logarithms/exponentials of near-identity matrices by truncated series
         (True; agrees with the eigen-decomposition path to round-off).
-    anneal, anneal_iterations : float, int
-        Softening annealing: ε starts at ``anneal × ε`` and decreases linearly to ε over
-        ``anneal_iterations`` (1: constant, the paper's reading).
+    anneal, anneal_fraction : float, float
+        Softening annealing: ε starts at ``anneal × ε`` and decreases linearly to ε over the
+        first ``anneal_fraction`` of the iterations (3, 0.6; 1: constant, the paper's reading).
     callback : callable, optional
         Called after every iteration with a dict (``iteration``, ``iterations``,
         ``mean_displacement``, ``max_displacement``); returning ``False`` stops the fit, which
@@ -306,7 +307,7 @@ def fit(
         tolerance=tolerance, use_curvature=use_curvature, prealign=prealign,
         snapshot_every=snapshot_every, two_way=two_way, rigid_fraction=rigid_fraction,
         coarse_fraction=coarse_fraction, coarse_rings=coarse_rings,
-        anneal=anneal, anneal_iterations=anneal_iterations, knn_cache=knn_cache,
+        anneal=anneal, anneal_fraction=anneal_fraction, knn_cache=knn_cache,
         matrix_series=matrix_series,
     )
     raw = _core.fit_raw(tv, tf, x, xf, _params_json(params), callback, threads, preset)

@@ -329,8 +329,9 @@ pub enum PrealignArg {
 #[command(next_help_heading = "Fit parameters")]
 pub struct ParamArgs {
     /// Starting values of every parameter: `default` (the most accurate configuration
-    /// measured) or `paper` (the paper's method with only the converging readings)
-    /// [default: default].
+    /// measured), `paper` (the paper's method with only the converging readings) or
+    /// `tracking` (the default without softening annealing, for warm-started fits)
+    /// [default: default; for `sequence`: tracking].
     #[arg(long, value_name = "NAME")]
     pub preset: Option<String>,
     /// JSON file of parameters (the names of `FitParams`, e.g. {"iterations": 50}); it
@@ -628,6 +629,11 @@ impl ParamArgs {
     ///
     /// Errors name the file or the parameter.
     pub fn to_params(&self) -> Result<FitParams, String> {
+        self.to_params_over("default")
+    }
+
+    /// As [`ParamArgs::to_params`], starting from `default_preset` when `--preset` is not given.
+    pub fn to_params_over(&self, default_preset: &str) -> Result<FitParams, String> {
         let mut map = match &self.params {
             None => Map::new(),
             Some(path) => {
@@ -651,7 +657,7 @@ impl ParamArgs {
             }
         };
         map.extend(self.overrides());
-        let base = FitParams::preset(self.preset.as_deref().unwrap_or("default"))
+        let base = FitParams::preset(self.preset.as_deref().unwrap_or(default_preset))
             .map_err(|e| e.to_string())?;
         let Value::Object(mut full) = serde_json::to_value(base).map_err(|e| e.to_string())? else {
             unreachable!("FitParams serializes to an object")

@@ -37,6 +37,7 @@ struct Setup {
 fn setup(
     ui: &Ui,
     params: &ParamArgs,
+    default_preset: &str,
     template: &Path,
     input_dir: &Path,
     out_dir: &Path,
@@ -45,7 +46,7 @@ fn setup(
     extension: &str,
     resume: bool,
 ) -> Result<Setup, String> {
-    let params = params.to_params()?;
+    let params = params.to_params_over(default_preset)?;
     ui.detail(format_args!("parameters: {}", params.to_json()));
     let template = Template::load(template, &params)?;
     if !input_dir.is_dir() {
@@ -272,6 +273,7 @@ pub fn batch(cmd: &BatchCmd, ctx: &Context) -> i32 {
     let setup = match setup(
         ui,
         &cmd.params,
+        "default",
         &cmd.template,
         &cmd.scan_dir,
         &cmd.output,
@@ -390,6 +392,8 @@ pub fn sequence(cmd: &SequenceCmd, ctx: &Context) -> i32 {
     let setup = match setup(
         ui,
         &cmd.params,
+        // Warm-started frames start close to their scans: no softening annealing.
+        "tracking",
         &cmd.template,
         &cmd.frame_dir,
         &cmd.output,
