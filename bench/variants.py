@@ -6,11 +6,14 @@ and, per group, the medians of f_R, f_λ, f_H, f_E, f_F and scan→fit mean::
 
     .venv/bin/python bench/variants.py --groups real,small \\
         --variant 'no rigid={"rigid_fraction": 0}' --variant 'default={}'
-    .venv/bin/python bench/variants.py --preset placement     # the schedule study of method.md
+    .venv/bin/python bench/variants.py --preset schedule --groups real,small,sheets,wind,paper
+    .venv/bin/python bench/variants.py --preset placement
 
 Groups: ``real`` (22 pre-placed real-garment cases), ``small`` / ``paper`` (generated, rotated
 and offset), ``sheets`` (24 random sheets), ``wind`` (30 wind frames). Results go to
-``--out`` (JSON, one row per case and variant).
+``--out`` (JSON, one row per case and variant). With a comparison run in
+``bench/out/results.json`` (``bench/compare.py``), each variant is also scored against the
+best peer of every case.
 """
 
 from __future__ import annotations
@@ -67,8 +70,10 @@ def group_cases(group: str) -> Iterator[cases_mod.Case]:
             print(f"group {group} skipped: {why}", file=sys.stderr)
             return
         yield from (cases_mod.real_cases() if group == "real" else cases_mod.wind_samples())
-    elif group in ("small", "paper"):
+    elif group == "small":
         yield from cases_mod.generated_cases(group)
+    elif group == "paper":  # as bench/compare.py: the noisy and holed scans
+        yield from cases_mod.generated_cases(group, ("noisy", "holes"))
     elif group == "sheets":
         yield from cases_mod.sheet_samples()
     else:
@@ -82,6 +87,68 @@ def parse_variant(text: str) -> tuple[str, dict[str, Any]]:
     return name, json.loads(kw)
 
 
+PEERS = ("cpd_pycpd", "cpd_probreg", "cpd_rustcpd", "bcpd_probreg", "nricp_amberg",
+         "nricp_sumner", "nrga")
+
+
+def best_peers(results: pathlib.Path) -> dict[str, tuple[float, float]]:
+    """Per case of a bench/compare.py run: the lowest f_R and the lowest f_λ of any peer."""
+    best = {}
+    for cases in json.loads(results.read_text())["groups"].values():
+        for c in cases:
+            ok = [c["rows"][p] for p in PEERS
+                  if isinstance(c["rows"].get(p), dict) and "f_R" in c["rows"][p]]
+            if ok:
+                best[c["name"]] = (min(r["f_R"] for r in ok), min(r["f_lambda"] for r in ok))
+    return best
+
+
+def against_peers(rows: list[dict[str, Any]], best: dict[str, tuple[float, float]]) -> None:
+    """Per variant: cases where it has the lowest f_R / f_λ of all methods, and the geometric
+    mean over the cases of its f_R ÷ the best peer's (overall and in its worst group)."""
+    groups = list(dict.fromkeys(r["group"] for r in rows))
+    print("\nagainst the best peer of each case (bench/out/results.json)\n")
+    print("| variant | " + " | ".join(f"{g}: wins f_R / f_λ" for g in groups)
+          + " | f_R ÷ best (geo. mean) | worst group | f_λ ÷ best |")
+    print("| :--- |" + " ---: |" * (len(groups) + 3))
+    for v in dict.fromkeys(r["variant"] for r in rows):
+        sel = [r for r in rows if r["variant"] == v and r["case"] in best]
+        cells = []
+        for g in groups:
+            gs = [r for r in sel if r["group"] == g]
+            cells.append(f"{sum(r['f_R'] <= best[r['case']][0] for r in gs)} / "
+                         f"{sum(r['f_lambda'] <= best[r['case']][1] for r in gs)} of {len(gs)}")
+
+        def geo(rs: list[dict[str, Any]], m: str, i: int) -> float:
+            return float(np.exp(np.mean([np.log(r[m] / best[r["case"]][i]) for r in rs])))
+
+        worst = max(geo([r for r in sel if r["group"] == g], "f_R", 0) for g in groups)
+        print(f"| {v} | " + " | ".join(cells)
+              + f" | {geo(sel, 'f_R', 0):.3f} | {worst:.3f} | {geo(sel, 'f_lambda', 1):.3f} |")
+
+
+def summary(rows: list[dict[str, Any]]) -> None:
+    """Medians per group: one markdown table of f_R / f_λ (variants × groups), then every
+    metric per group."""
+    groups = list(dict.fromkeys(r["group"] for r in rows))
+    variants = list(dict.fromkeys(r["variant"] for r in rows))
+
+    def med(v: str, g: str, m: str) -> float:
+        return float(np.median([r[m] for r in rows if r["variant"] == v and r["group"] == g]))
+
+    print("\nmedian f_R / f_λ per group\n")
+    print("| variant | " + " | ".join(groups) + " |")
+    print("| :--- |" + " ---: |" * len(groups))
+    for v in variants:
+        print(f"| {v} | " + " | ".join(f"{med(v, g, 'f_R'):.4f} / {med(v, g, 'f_lambda'):.3f}"
+                                      for g in groups) + " |")
+    for g in groups:
+        print(f"\nmedians, {g}: " + " | ".join(METRICS) + " | s")
+        for v in variants:
+            cells = [f"{med(v, g, m):.4f}" for m in METRICS] + [f"{med(v, g, 'seconds'):.2f}"]
+            print(f"  {v:<52} " + " | ".join(cells))
+
+
 def main() -> int:
     import foldmatch_rs as fm
 
@@ -90,7 +157,15 @@ def main() -> int:
     ap.add_argument("--variant", action="append", default=[], metavar="NAME=JSON")
     ap.add_argument("--preset", choices=sorted(PRESETS))
     ap.add_argument("--out", default=str(HERE / "out" / "variants.json"))
+    ap.add_argument("--from-json", metavar="FILE", help="print the summary of an earlier run")
     args = ap.parse_args()
+    peers = HERE / "out" / "results.json"
+    if args.from_json:
+        rows = json.loads(pathlib.Path(args.from_json).read_text())
+        summary(rows)
+        if peers.is_file():
+            against_peers(rows, best_peers(peers))
+        return 0
     variants = list(PRESETS[args.preset]) if args.preset else []
     variants += [parse_variant(v) for v in args.variant]
     if not variants:
@@ -113,15 +188,9 @@ def main() -> int:
                              "seconds": seconds, **{m: e[m] for m in METRICS}})
                 cells.append(f"{e['f_R']:.4f} / {e['f_lambda']:.3f}")
             print(f"| {case.name} | " + " | ".join(cells) + " |", flush=True)
-    header = " | ".join(METRICS) + " | s"
-    for group in groups:
-        print(f"\nmedians, {group}: {header}")
-        for name, _ in variants:
-            sel = [r for r in rows if r["group"] == group and r["variant"] == name]
-            if sel:
-                cells = [f"{np.median([r[m] for r in sel]):.4f}" for m in METRICS]
-                cells.append(f"{np.median([r['seconds'] for r in sel]):.2f}")
-                print(f"  {name:<40} " + " | ".join(cells))
+    summary(rows)
+    if peers.is_file():
+        against_peers(rows, best_peers(peers))
     pathlib.Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     pathlib.Path(args.out).write_text(json.dumps(rows, indent=1))
     return 0
