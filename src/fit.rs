@@ -117,6 +117,11 @@ pub struct FitParams {
     pub coarse_fraction: f64,
     /// Radius (graph distance) of the neighborhoods of the coarse phase.
     pub coarse_rings: usize,
+    /// Levels of the coarse phase: its iterations are split evenly into this many levels, level
+    /// `l` using neighborhoods of radius `max(1, coarse_rings / 2^l)` (1: one radius throughout),
+    /// so the pieces that move rigidly shrink as the fit proceeds, like the decreasing
+    /// stiffness of non-rigid ICP.
+    pub coarse_levels: usize,
     /// Fast 3×3 matrix functions, each agreeing with the eigen-decomposition to round-off:
     /// truncated series for the logarithms and exponentials of Eq. 5 near the identity, the
     /// Newton iteration for polar factors and nearest rotations (Eq. 5's rotation mean,
@@ -158,6 +163,7 @@ impl Default for FitParams {
             rigid_fraction: 0.3,
             coarse_fraction: 0.5,
             coarse_rings: 8,
+            coarse_levels: 1,
             knn_cache: true,
             matrix_series: true,
             anneal: 3.0,
@@ -332,6 +338,13 @@ impl FitParams {
                 "rigid_fraction + coarse_fraction",
                 self.rigid_fraction + self.coarse_fraction,
                 "must be <= 1",
+            ));
+        }
+        if !(1..=4).contains(&self.coarse_levels) {
+            return Err(FoldMatchError::parameter(
+                "coarse_levels",
+                self.coarse_levels,
+                "must be in 1..=4",
             ));
         }
         if !(1..=32).contains(&self.coarse_rings) {
@@ -705,10 +718,12 @@ pub fn fit(
     } else {
         Vec::new()
     };
-    let coarse_rings = if coarse_iterations > 0 {
-        n_rings(faces, m, params.coarse_rings)
+    let coarse_levels: Vec<Neighborhoods> = if coarse_iterations > 0 {
+        (0..params.coarse_levels)
+            .map(|l| n_rings(faces, m, (params.coarse_rings >> l).max(1)))
+            .collect()
     } else {
-        Neighborhoods::default()
+        Vec::new()
     };
     let mut history = Vec::with_capacity(params.iterations);
     let mut snapshots = Vec::new();
@@ -764,7 +779,8 @@ pub fn fit(
                 0
             }
             _ if it <= rigid_iterations + coarse_iterations => {
-                kabsch_update(&coarse_rings, &pos, &proposed, &mut next);
+                let level = (it - rigid_iterations - 1) * coarse_levels.len() / coarse_iterations;
+                kabsch_update(&coarse_levels[level], &pos, &proposed, &mut next);
                 0
             }
             Method::FoldMatch => {

@@ -190,6 +190,7 @@ def fit(
     rigid_fraction: Optional[float] = None,
     coarse_fraction: Optional[float] = None,
     coarse_rings: Optional[int] = None,
+    coarse_levels: Optional[int] = None,
     knn_cache: Optional[bool] = None,
     matrix_series: Optional[bool] = None,
     anneal: Optional[float] = None,
@@ -263,6 +264,9 @@ def fit(
     coarse_fraction, coarse_rings : float, int
         Coarse phase: the next fraction of the iterations moves every vertex by the rigid fit
         of its ``coarse_rings``-ring neighborhood, i.e. piecewise rigidly (0.5, 8).
+    coarse_levels : int
+        Split the coarse phase into this many levels, level ``l`` with radius
+        ``max(1, coarse_rings // 2**l)`` (1: one radius throughout).
     knn_cache : bool
         Re-use earlier k-NN candidates where that is provably exact (True; same results).
     matrix_series : bool
@@ -307,6 +311,7 @@ def fit(
         tolerance=tolerance, use_curvature=use_curvature, prealign=prealign,
         snapshot_every=snapshot_every, two_way=two_way, rigid_fraction=rigid_fraction,
         coarse_fraction=coarse_fraction, coarse_rings=coarse_rings,
+        coarse_levels=coarse_levels,
         anneal=anneal, anneal_fraction=anneal_fraction, knn_cache=knn_cache,
         matrix_series=matrix_series,
     )
