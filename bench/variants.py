@@ -41,14 +41,14 @@ PRESETS: dict[str, list[tuple[str, dict[str, Any]]]] = {
         ("no rigid phase, coarse 30 %", {"rigid_fraction": 0.0}),
         ("no rigid phase, coarse 50 %", {"rigid_fraction": 0.0, "coarse_fraction": 0.5}),
     ],
-    # The schedule grid behind the default of 2026-11-22 (docs/method.md); each on top of
-    # the library defaults, so every setting is spelled out.
+    # The schedule grid behind the default of 2026-11-22 (docs/method.md), one schedule per
+    # fit; every setting spelled out.
     "schedule": [
         (name, {"two_way": tw, "rigid_fraction": rf, "coarse_fraction": cf, "anneal": an,
-                "anneal_fraction": ai, "rings": rings})
+                "anneal_fraction": ai, "rings": rings, "selection": "single"})
         for name, tw, rf, cf, an, ai, rings in [
             ("previous default (two-way 1, coarse 30 %, no annealing)", 1.0, 0.3, 0.3, 1.0, 0.0, 2),
-            ("two-way 2, coarse 50 %, anneal ×3 over 60 % (default)", 2.0, 0.3, 0.5, 3.0, 0.6, 2),
+            ("two-way 2, coarse 50 %, anneal ×3 over 60 % (given)", 2.0, 0.3, 0.5, 3.0, 0.6, 2),
             ("two-way 2, coarse 40 %, anneal ×3 over 60 %", 2.0, 0.3, 0.4, 3.0, 0.6, 2),
             ("two-way 1.5, coarse 50 %, anneal ×3 over 60 %", 1.5, 0.3, 0.5, 3.0, 0.6, 2),
             ("two-way 3, coarse 50 %, anneal ×3 over 60 %", 3.0, 0.3, 0.5, 3.0, 0.6, 2),
@@ -58,6 +58,17 @@ PRESETS: dict[str, list[tuple[str, dict[str, Any]]]] = {
             ("two-way 2, coarse 50 %, anneal ×2 over 60 %", 2.0, 0.3, 0.5, 2.0, 0.6, 2),
             ("two-way 2, coarse 50 %, anneal ×3, 3-ring", 2.0, 0.3, 0.5, 3.0, 0.6, 3),
         ]
+    ],
+    # Schedule selection (docs/method.md): each schedule alone, and the default (both, keep
+    # the fit closer to the scan); the last two as coarse-phase levels, for the record.
+    "selection": [
+        ("given schedule alone (two-way 2, coarse 50 %, annealed)", {"selection": "single"}),
+        ("sharp schedule alone (two-way 1, coarse 30 %, constant ε)",
+         {"selection": "single", "two_way": 1.0, "coarse_fraction": 0.3, "anneal": 1.0,
+          "anneal_fraction": 0.0}),
+        ("both, keep the closer to the scan (default)", {}),
+        ("default + 2 coarse levels (8, 4 rings)", {"coarse_levels": 2}),
+        ("default + 3 coarse levels (16, 8, 4 rings)", {"coarse_levels": 3, "coarse_rings": 16}),
     ],
 }
 METRICS = ("f_R", "f_lambda", "f_H", "f_E", "f_F", "s2f_mean_rel")

@@ -60,6 +60,18 @@ pub enum Prealign {
     Centroid,
 }
 
+/// Schedule selection (issue "Fidelity", docs/method.md).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Selection {
+    /// Run the schedule the parameters describe.
+    Single,
+    /// Also run the *sharp* schedule ([`FitParams::sharp_schedule`]: two-way 1, coarse 30 %,
+    /// constant softening) and return whichever fit lies closer to the scan (the mean distance
+    /// from every scan point to its nearest fitted vertex). FoldMatch only; twice the cost.
+    ScanDistance,
+}
+
 /// Distance (in target bounding-box diagonals) beyond which an unaligned template is refused.
 pub const FAR_AWAY: f64 = 1.0;
 
@@ -137,6 +149,8 @@ pub struct FitParams {
     pub anneal: f64,
     /// Fraction of the iterations over which the softening anneals.
     pub anneal_fraction: f64,
+    /// Run one schedule, or two and keep the fit closer to the scan ([`Selection`]).
+    pub selection: Selection,
 }
 
 impl Default for FitParams {
@@ -168,6 +182,7 @@ impl Default for FitParams {
             matrix_series: true,
             anneal: 3.0,
             anneal_fraction: 0.6,
+            selection: Selection::ScanDistance,
         }
     }
 }
@@ -183,6 +198,7 @@ impl FitParams {
             coarse_fraction: 0.0,
             anneal: 1.0,
             anneal_fraction: 0.0,
+            selection: Selection::Single,
             regularization: Regularization::AffineInvariant,
             ..Self::default()
         }
@@ -195,7 +211,23 @@ impl FitParams {
         Self {
             anneal: 1.0,
             anneal_fraction: 0.0,
+            selection: Selection::Single,
             ..Self::default()
+        }
+    }
+
+    /// The alternative schedule of [`Selection::ScanDistance`]: these parameters with the
+    /// first-round schedule of docs/method.md — two-way weight 1, coarse phase 30 %, constant
+    /// softening — which fits gently curved, misplaced cloth (the random sheets) best, where
+    /// the annealed default fits large articulated motion best.
+    pub fn sharp_schedule(&self) -> Self {
+        Self {
+            two_way: self.two_way.min(1.0),
+            coarse_fraction: self.coarse_fraction.min(0.3),
+            anneal: 1.0,
+            anneal_fraction: 0.0,
+            selection: Selection::Single,
+            ..self.clone()
         }
     }
 
@@ -428,6 +460,17 @@ impl StageTimes {
     pub fn model(&self) -> f64 {
         self.gradient + self.regularize + self.rotation
     }
+
+    /// Adds another run's seconds, stage by stage.
+    pub fn add(&mut self, other: &Self) {
+        self.knn += other.knn;
+        self.two_way += other.two_way;
+        self.nbody += other.nbody;
+        self.gradient += other.gradient;
+        self.regularize += other.regularize;
+        self.rotation += other.rotation;
+        self.update += other.update;
+    }
 }
 
 /// Runs `f`, adding its wall time to `slot`.
@@ -467,6 +510,12 @@ pub struct Diagnostics {
     /// Fresh k-d tree queries of the target neighborhoods over the fit (M per iteration
     /// without the candidate cache).
     pub knn_queries: usize,
+    /// Which schedule produced the result: `"given"` (the parameters as given) or `"sharp"`
+    /// ([`FitParams::sharp_schedule`], chosen by [`Selection::ScanDistance`]).
+    pub schedule: String,
+    /// Under [`Selection::ScanDistance`]: the mean scan→fit distance (user units) of the given
+    /// and of the sharp schedule's fit; empty otherwise.
+    pub candidate_scan_distances: Vec<f64>,
 }
 
 /// The outcome of a fit, in the user's frame.
@@ -615,6 +664,74 @@ pub fn fit(
     observer: &mut (dyn FnMut(&Progress) -> bool + Send),
 ) -> Result<FitResult> {
     params.validate()?;
+    let run = |p: &FitParams, observer: &mut (dyn FnMut(&Progress) -> bool + Send)| {
+        fit_schedule(
+            template_vertices,
+            template_faces,
+            target,
+            target_faces,
+            p,
+            observer,
+        )
+    };
+    if params.selection == Selection::Single || params.method != Method::FoldMatch {
+        return run(params, observer);
+    }
+    // Schedule selection: the given schedule, then the sharp one; progress counts both.
+    let xi = params.iterations;
+    let given = FitParams {
+        selection: Selection::Single,
+        ..params.clone()
+    };
+    let mut first = run(&given, &mut |p: &Progress| {
+        observer(&Progress {
+            iterations: 2 * xi,
+            ..*p
+        })
+    })?;
+    first.params = params.clone();
+    if first.diagnostics.stopped_by_callback {
+        return Ok(first);
+    }
+    let mut second = run(&params.sharp_schedule(), &mut |p: &Progress| {
+        observer(&Progress {
+            iteration: xi + p.iteration,
+            iterations: 2 * xi,
+            ..*p
+        })
+    })?;
+    second.params = params.clone();
+    let scan_distance = |r: &FitResult| {
+        let d = crate::metrics::nearest_distances(target, &r.vertices);
+        d.iter().sum::<f64>() / d.len() as f64
+    };
+    let distances = vec![scan_distance(&first), scan_distance(&second)];
+    // A sharp run stopped by the observer is incomplete: keep the given schedule's fit.
+    let sharp_wins = !second.diagnostics.stopped_by_callback && distances[1] < distances[0];
+    let (mut chosen, other) = if sharp_wins {
+        (second, first)
+    } else {
+        (first, second)
+    };
+    let d = &mut chosen.diagnostics;
+    d.schedule = if sharp_wins { "sharp" } else { "given" }.into();
+    d.candidate_scan_distances = distances;
+    d.stopped_by_callback |= other.diagnostics.stopped_by_callback;
+    d.knn_queries += other.diagnostics.knn_queries;
+    d.stage_seconds.add(&other.diagnostics.stage_seconds);
+    Ok(chosen)
+}
+
+/// One fit with one schedule (what [`fit`] runs once, or twice under
+/// [`Selection::ScanDistance`]).
+fn fit_schedule(
+    template_vertices: &[[f64; 3]],
+    template_faces: &[[u32; 3]],
+    target: &[[f64; 3]],
+    target_faces: Option<&[[u32; 3]]>,
+    params: &FitParams,
+    observer: &mut (dyn FnMut(&Progress) -> bool + Send),
+) -> Result<FitResult> {
     validate_points("template_vertices", template_vertices)?;
     validate_points("target", target)?;
     validate_faces("template_faces", template_faces, template_vertices.len())?;
@@ -691,6 +808,7 @@ pub fn fit(
         omega0_dt_squared: params.nbody.omega0_dt_squared(k),
         curvature: curvature_source.into(),
         frame: Some(frame),
+        schedule: "given".into(),
         ..Default::default()
     };
 
@@ -977,5 +1095,121 @@ mod tests {
         ] {
             assert!((1..=100).all(|it| at(&off, it) == 1.0));
         }
+    }
+
+    fn grid_case() -> (Vec<[f64; 3]>, Vec<[u32; 3]>, Vec<[f64; 3]>) {
+        let (v, f) = crate::synthetic::grid_sheet(13, 13, 1.0, 1.0);
+        let target = v
+            .iter()
+            .map(|p| [p[0], p[1], 0.05 * (4.0 * p[0]).sin() + 0.02])
+            .collect();
+        (v, f, target)
+    }
+
+    #[test]
+    fn coarse_levels_shrink_the_radius_and_stop_at_one_ring() {
+        let (v, f, x) = grid_case();
+        let base = FitParams {
+            iterations: 12,
+            selection: Selection::Single,
+            coarse_rings: 1,
+            ..FitParams::default()
+        };
+        let one = fit_simple(&v, &f, &x, None, &base).unwrap();
+        // Radius max(1, 1 >> l) = 1 at every level: the same fit, bit for bit.
+        let three = fit_simple(
+            &v,
+            &f,
+            &x,
+            None,
+            &FitParams {
+                coarse_levels: 3,
+                ..base.clone()
+            },
+        );
+        assert_eq!(one.vertices, three.unwrap().vertices);
+        // From 4 rings, a second level (2 rings) changes the coarse phase.
+        let wide = FitParams {
+            coarse_rings: 4,
+            ..base.clone()
+        };
+        let a = fit_simple(&v, &f, &x, None, &wide).unwrap();
+        let b = fit_simple(
+            &v,
+            &f,
+            &x,
+            None,
+            &FitParams {
+                coarse_levels: 2,
+                ..wide
+            },
+        )
+        .unwrap();
+        assert_ne!(a.vertices, b.vertices);
+        for bad in [0, 5] {
+            let p = FitParams {
+                coarse_levels: bad,
+                ..base.clone()
+            };
+            assert!(p
+                .validate()
+                .unwrap_err()
+                .to_string()
+                .contains("coarse_levels"));
+        }
+    }
+
+    #[test]
+    fn selection_returns_the_candidate_closer_to_the_scan() {
+        let (v, f, x) = grid_case();
+        let params = FitParams {
+            iterations: 20,
+            ..FitParams::default()
+        };
+        let chosen = fit_simple(&v, &f, &x, None, &params).unwrap();
+        let given = FitParams {
+            selection: Selection::Single,
+            ..params.clone()
+        };
+        let runs = [
+            fit_simple(&v, &f, &x, None, &given).unwrap(),
+            fit_simple(&v, &f, &x, None, &params.sharp_schedule()).unwrap(),
+        ];
+        let dist = |r: &FitResult| {
+            let d = crate::metrics::nearest_distances(&x, &r.vertices);
+            d.iter().sum::<f64>() / d.len() as f64
+        };
+        let d = chosen.diagnostics.candidate_scan_distances.clone();
+        assert_eq!(d, vec![dist(&runs[0]), dist(&runs[1])]);
+        let k = usize::from(d[1] < d[0]);
+        assert_eq!(chosen.vertices, runs[k].vertices);
+        assert_eq!(chosen.diagnostics.schedule, ["given", "sharp"][k]);
+        assert_eq!(chosen.params, params);
+        // Progress counts both runs.
+        let mut seen = Vec::new();
+        fit(&v, &f, &x, None, &params, &mut |p| {
+            seen.push((p.iteration, p.iterations));
+            true
+        })
+        .unwrap();
+        assert_eq!(seen, (1..=40).map(|i| (i, 40)).collect::<Vec<_>>());
+        // The sharp schedule differs from the given one only in its schedule fields.
+        let sharp = params.sharp_schedule();
+        assert_eq!(
+            (sharp.two_way, sharp.coarse_fraction, sharp.anneal),
+            (1.0, 0.3, 1.0)
+        );
+        assert_eq!(sharp.selection, Selection::Single);
+        assert_eq!(
+            FitParams {
+                two_way: params.two_way,
+                coarse_fraction: params.coarse_fraction,
+                anneal: params.anneal,
+                anneal_fraction: params.anneal_fraction,
+                selection: params.selection,
+                ..sharp
+            },
+            params
+        );
     }
 }

@@ -283,3 +283,28 @@ def test_matrix_series_changes_nothing_beyond_round_off(case):
         scale = np.abs(exact.vertices).max()
         assert np.abs(fast.vertices - exact.vertices).max() <= 1e-9 * scale
         np.testing.assert_allclose(fast.wvf_accumulated, exact.wvf_accumulated, atol=1e-9)
+
+
+def test_selection_keeps_the_schedule_closer_to_the_scan(case):
+    """The default fits the given and the sharp schedule and keeps the one whose mean
+    scan→nearest-fitted-vertex distance is lower (checked against a brute-force NumPy
+    distance); each candidate equals the single-schedule fit run on its own."""
+    v, f, x = case["template_vertices"], case["faces"], case["scan"]
+    chosen = fm.fit(v, f, x, iterations=30)
+    given = fm.fit(v, f, x, iterations=30, selection="single")
+    sharp = fm.fit(v, f, x, iterations=30, selection="single", two_way=1.0,
+                   coarse_fraction=0.3, anneal=1.0, anneal_fraction=0.0)
+
+    def scan_distance(y):
+        d2 = ((x[:, None, :] - y[None, :, :]) ** 2).sum(-1)
+        return float(np.sqrt(d2.min(1)).mean())
+
+    want = [scan_distance(given.vertices), scan_distance(sharp.vertices)]
+    got = chosen.diagnostics["candidate_scan_distances"]
+    np.testing.assert_allclose(got, want, rtol=1e-12)
+    k = int(want[1] < want[0])
+    assert chosen.diagnostics["schedule"] == ("given", "sharp")[k]
+    np.testing.assert_array_equal(chosen.vertices, (given, sharp)[k].vertices)
+    assert given.diagnostics["candidate_scan_distances"] == []
+    with pytest.raises(fm.InvalidParameterError, match="selection"):
+        fm.fit(v, f, x, iterations=2, selection="best")

@@ -195,6 +195,7 @@ def fit(
     matrix_series: Optional[bool] = None,
     anneal: Optional[float] = None,
     anneal_fraction: Optional[float] = None,
+    selection: Optional[str] = None,
     callback: Optional[Callable[[dict[str, Any]], Optional[bool]]] = None,
     threads: Optional[int] = None,
 ) -> FitResult:
@@ -275,6 +276,12 @@ def fit(
     anneal, anneal_fraction : float, float
         Softening annealing: ε starts at ``anneal × ε`` and decreases linearly to ε over the
         first ``anneal_fraction`` of the iterations (3, 0.6; 1: constant, the paper's reading).
+    selection : {"scan_distance", "single"}
+        ``"scan_distance"`` (default) also fits with the *sharp* schedule (two-way 1, coarse
+        30 %, constant softening) and returns the fit closer to the scan (mean scan→fit
+        distance; twice the cost); ``diagnostics["schedule"]`` says which (``"given"`` or
+        ``"sharp"``) and ``diagnostics["candidate_scan_distances"]`` gives both distances.
+        ``"single"`` runs the given schedule only (the paper and tracking presets).
     callback : callable, optional
         Called after every iteration with a dict (``iteration``, ``iterations``,
         ``mean_displacement``, ``max_displacement``); returning ``False`` stops the fit, which
@@ -312,7 +319,7 @@ def fit(
         snapshot_every=snapshot_every, two_way=two_way, rigid_fraction=rigid_fraction,
         coarse_fraction=coarse_fraction, coarse_rings=coarse_rings,
         coarse_levels=coarse_levels,
-        anneal=anneal, anneal_fraction=anneal_fraction, knn_cache=knn_cache,
+        anneal=anneal, anneal_fraction=anneal_fraction, selection=selection, knn_cache=knn_cache,
         matrix_series=matrix_series,
     )
     raw = _core.fit_raw(tv, tf, x, xf, _params_json(params), callback, threads, preset)
