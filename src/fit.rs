@@ -1097,7 +1097,10 @@ mod tests {
         }
     }
 
-    fn grid_case() -> (Vec<[f64; 3]>, Vec<[u32; 3]>, Vec<[f64; 3]>) {
+    /// A 13 × 13 sheet (vertices, faces) and a wavy, lifted copy of its vertices as the scan.
+    type Case = (Vec<[f64; 3]>, Vec<[u32; 3]>, Vec<[f64; 3]>);
+
+    fn grid_case() -> Case {
         let (v, f) = crate::synthetic::grid_sheet(13, 13, 1.0, 1.0);
         let target = v
             .iter()
