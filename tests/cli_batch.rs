@@ -114,6 +114,8 @@ fn good_scans_are_fitted_bad_ones_reported_and_resume_redoes_nothing() {
     let report = json(&d.join("out/report.json"));
     assert_eq!(report["state"], "complete");
     assert_eq!(report["command"], "batch");
+    // Independent scans start from the default preset (schedule selection on).
+    assert_eq!(report["params"]["selection"], "scan_distance");
     assert_eq!(
         report["summary"],
         serde_json::json!({"total": 8, "ok": 3, "error": 5, "skipped": 0, "interrupted": 0, "pending": 0})

@@ -79,6 +79,9 @@ sequence: 4 ok, 0 failed, 0 skipped in [..] s; report: out/report.json
     let report = json(&d.join("out/report.json"));
     assert_eq!(report["command"], "sequence");
     assert_eq!(report["state"], "complete");
+    // Warm-started frames start from the tracking preset: one schedule, constant softening.
+    assert_eq!(report["params"]["anneal"], 1.0);
+    assert_eq!(report["params"]["selection"], "single");
     assert_eq!(names(&report), ["f1.ply", "f2.ply", "f3.obj", "f10.ply"]);
     assert_eq!(
         field(&report, "warm_start"),
