@@ -655,6 +655,9 @@ pub fn deformation_model(
 ///   curvature only);
 /// * `observer` — called after every iteration; returning `false` stops the fit, which then
 ///   returns what it has (with `diagnostics.stopped_by_callback`).
+///
+/// Under [`Selection::ScanDistance`] (the default) two schedules are fitted one after the other
+/// (progress counts `2ξ` iterations) and the fit closer to the scan is returned.
 pub fn fit(
     template_vertices: &[[f64; 3]],
     template_faces: &[[u32; 3]],
