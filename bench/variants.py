@@ -23,7 +23,7 @@ import json
 import pathlib
 import sys
 import time
-from typing import Any, Iterator
+from typing import Any
 
 import numpy as np
 
@@ -31,7 +31,9 @@ HERE = pathlib.Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 import cases as cases_mod  # noqa: E402
+import compare  # noqa: E402
 import harness  # noqa: E402
+import peers  # noqa: E402
 
 PRESETS: dict[str, list[tuple[str, dict[str, Any]]]] = {
     # Does the rigid phase help when the template is already placed? (docs/method.md)
@@ -74,21 +76,20 @@ PRESETS: dict[str, list[tuple[str, dict[str, Any]]]] = {
 METRICS = ("f_R", "f_lambda", "f_H", "f_E", "f_F", "s2f_mean_rel")
 
 
-def group_cases(group: str) -> Iterator[cases_mod.Case]:
-    if group in ("real", "wind"):
-        why = cases_mod.real_data_missing()
-        if why is not None:
-            print(f"group {group} skipped: {why}", file=sys.stderr)
-            return
-        yield from (cases_mod.real_cases() if group == "real" else cases_mod.wind_samples())
-    elif group == "small":
-        yield from cases_mod.generated_cases(group)
-    elif group == "paper":  # as bench/compare.py: the noisy and holed scans
-        yield from cases_mod.generated_cases(group, ("noisy", "holes"))
-    elif group == "sheets":
-        yield from cases_mod.sheet_samples()
-    else:
-        raise SystemExit(f"unknown group {group!r} (real, small, paper, sheets, wind)")
+#: variants.py group → (bench/compare.py group that builds it, the cases' own group tag).
+GROUPS = {"real": ("real", "real"), "small": ("small", "small"), "paper": ("paper", "paper"),
+          "sheets": ("samples", "samples-sheet"), "wind": ("samples", "samples-wind")}
+
+
+def group_cases(group: str) -> list[cases_mod.Case]:
+    """The cases of a group, exactly as bench/compare.py builds them."""
+    if group not in GROUPS:
+        raise SystemExit(f"unknown group {group!r} ({', '.join(GROUPS)})")
+    source, tag = GROUPS[group]
+    built, notes = compare.build_cases(source)
+    for note in notes:
+        print(f"group {group}: {note}", file=sys.stderr)
+    return [c for c in built if c.group == tag]
 
 
 def parse_variant(text: str) -> tuple[str, dict[str, Any]]:
@@ -98,8 +99,8 @@ def parse_variant(text: str) -> tuple[str, dict[str, Any]]:
     return name, json.loads(kw)
 
 
-PEERS = ("cpd_pycpd", "cpd_probreg", "cpd_rustcpd", "bcpd_probreg", "nricp_amberg",
-         "nricp_sumner", "nrga")
+#: Every compared method but FoldMatch's own two configurations (NRGa counts as a peer).
+PEERS = [m for m in peers.METHODS if m not in ("foldmatch", "foldmatch_paper")]
 
 
 def best_peers(results: pathlib.Path) -> dict[str, tuple[float, float]]:
