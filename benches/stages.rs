@@ -299,7 +299,7 @@ fn bench_stages(c: &mut Criterion) {
     // Two-way attraction (default preset): template tree, nearest vertex of every scan point,
     // reverse forces.
     g.bench_function("two_way/reverse_attraction", |b| {
-        let mut reverse = nbody::ReverseAttraction::new(m, s.scan.len());
+        let mut reverse = nbody::ReverseAttraction::new(m, s.scan.len(), false);
         let mut force = vec![[0.0; 3]; m];
         b.iter(|| reverse.compute(&s.pos, &s.scan, &s.kappa, 1.0, &s.params.nbody, &mut force));
     });

@@ -68,7 +68,8 @@ pub enum Selection {
     Single,
     /// Also run the *sharp* schedule ([`FitParams::sharp_schedule`]: two-way 1, coarse 30 %,
     /// constant softening) and return whichever fit lies closer to the scan (the mean distance
-    /// from every scan point to its nearest fitted vertex). FoldMatch only; twice the cost.
+    /// from every scan point to its nearest fitted vertex). FoldMatch only; twice the work,
+    /// the two runs side by side (concurrently, sharing the setup).
     ScanDistance,
 }
 
@@ -510,6 +511,9 @@ pub struct Diagnostics {
     /// Fresh k-d tree queries of the target neighborhoods over the fit (M per iteration
     /// without the candidate cache).
     pub knn_queries: usize,
+    /// Fresh k-d tree queries of the two-way attraction (a scan point's nearest template
+    /// vertex; N per iteration without the cache).
+    pub two_way_queries: usize,
     /// Which schedule produced the result: `"given"` (the parameters as given) or `"sharp"`
     /// ([`FitParams::sharp_schedule`], chosen by [`Selection::ScanDistance`]).
     pub schedule: String,
@@ -656,8 +660,10 @@ pub fn deformation_model(
 /// * `observer` — called after every iteration; returning `false` stops the fit, which then
 ///   returns what it has (with `diagnostics.stopped_by_callback`).
 ///
-/// Under [`Selection::ScanDistance`] (the default) two schedules are fitted one after the other
-/// (progress counts `2ξ` iterations) and the fit closer to the scan is returned.
+/// Under [`Selection::ScanDistance`] (the default) the given and the sharp schedule are fitted
+/// side by side, in lockstep (each iteration of both runs concurrently, then one progress
+/// report, so progress counts ξ iterations and a stop applies to both), sharing the setup; the
+/// fit closer to the scan is returned.
 pub fn fit(
     template_vertices: &[[f64; 3]],
     template_faces: &[[u32; 3]],
@@ -667,268 +673,385 @@ pub fn fit(
     observer: &mut (dyn FnMut(&Progress) -> bool + Send),
 ) -> Result<FitResult> {
     params.validate()?;
-    let run = |p: &FitParams, observer: &mut (dyn FnMut(&Progress) -> bool + Send)| {
-        fit_schedule(
-            template_vertices,
-            template_faces,
-            target,
-            target_faces,
-            p,
-            observer,
-        )
+    let select = params.selection == Selection::ScanDistance && params.method == Method::FoldMatch;
+    let schedules = if select {
+        let given = FitParams {
+            selection: Selection::Single,
+            ..params.clone()
+        };
+        vec![given, params.sharp_schedule()]
+    } else {
+        vec![params.clone()]
     };
-    if params.selection == Selection::Single || params.method != Method::FoldMatch {
-        return run(params, observer);
+    let prepared = Prepared::new(
+        template_vertices,
+        template_faces,
+        target,
+        target_faces,
+        &schedules,
+    )?;
+    let mut runs: Vec<ScheduleRun> = schedules
+        .into_iter()
+        .map(|p| ScheduleRun::new(&prepared, p))
+        .collect();
+    drive(&prepared, &mut runs, params.iterations, observer)?;
+    let mut results: Vec<FitResult> = runs.into_iter().map(|r| r.finish(&prepared)).collect();
+    if !select {
+        return Ok(results.pop().expect("one run"));
     }
-    // Schedule selection: the given schedule, then the sharp one; progress counts both.
-    let xi = params.iterations;
-    let given = FitParams {
-        selection: Selection::Single,
-        ..params.clone()
-    };
-    let mut first = run(&given, &mut |p: &Progress| {
-        observer(&Progress {
-            iterations: 2 * xi,
-            ..*p
-        })
-    })?;
-    first.params = params.clone();
-    if first.diagnostics.stopped_by_callback {
-        return Ok(first);
-    }
-    let mut second = run(&params.sharp_schedule(), &mut |p: &Progress| {
-        observer(&Progress {
-            iteration: xi + p.iteration,
-            iterations: 2 * xi,
-            ..*p
-        })
-    })?;
-    second.params = params.clone();
+    let sharp = results.pop().expect("two runs");
+    let given = results.pop().expect("two runs");
     let scan_distance = |r: &FitResult| {
         let d = crate::metrics::nearest_distances(target, &r.vertices);
         d.iter().sum::<f64>() / d.len() as f64
     };
-    let distances = vec![scan_distance(&first), scan_distance(&second)];
-    // A sharp run stopped by the observer is incomplete: keep the given schedule's fit.
-    let sharp_wins = !second.diagnostics.stopped_by_callback && distances[1] < distances[0];
+    let distances = vec![scan_distance(&given), scan_distance(&sharp)];
+    let sharp_wins = distances[1] < distances[0];
     let (mut chosen, other) = if sharp_wins {
-        (second, first)
+        (sharp, given)
     } else {
-        (first, second)
+        (given, sharp)
     };
+    chosen.params = params.clone();
     let d = &mut chosen.diagnostics;
     d.schedule = if sharp_wins { "sharp" } else { "given" }.into();
     d.candidate_scan_distances = distances;
-    d.stopped_by_callback |= other.diagnostics.stopped_by_callback;
     d.knn_queries += other.diagnostics.knn_queries;
+    d.two_way_queries += other.diagnostics.two_way_queries;
     d.stage_seconds.add(&other.diagnostics.stage_seconds);
     Ok(chosen)
 }
 
-/// One fit with one schedule (what [`fit`] runs once, or twice under
-/// [`Selection::ScanDistance`]).
-fn fit_schedule(
-    template_vertices: &[[f64; 3]],
-    template_faces: &[[u32; 3]],
-    target: &[[f64; 3]],
-    target_faces: Option<&[[u32; 3]]>,
-    params: &FitParams,
+/// Steps every run in lockstep (concurrently when there are two) and reports each iteration
+/// once, with the first still-running schedule's figures; a `false` from the observer stops
+/// them all.
+fn drive(
+    prepared: &Prepared,
+    runs: &mut [ScheduleRun],
+    iterations: usize,
     observer: &mut (dyn FnMut(&Progress) -> bool + Send),
-) -> Result<FitResult> {
-    validate_points("template_vertices", template_vertices)?;
-    validate_points("target", target)?;
-    validate_faces("template_faces", template_faces, template_vertices.len())?;
-    if let Some(tf) = target_faces {
-        validate_faces("target_faces", tf, target.len())?;
-    }
-    let m = template_vertices.len();
-    let cleaned = clean_faces(template_faces);
-    let faces = &cleaned.faces;
-
-    // Normalized frame (SPEC §1).
-    let frame = if params.normalize {
-        Frame::of_target(target)
-    } else {
-        Frame::identity()
-    };
-    let scan = frame.forward(target);
-    let mut pos = frame.forward(template_vertices);
-    let centroid = pos.iter().fold(Vec3::zeros(), |acc, p| acc + vec3(p)) / m as f64;
-    let scan_centroid = scan.iter().fold(Vec3::zeros(), |acc, p| acc + vec3(p)) / scan.len() as f64;
-    let scan_diag = if params.normalize {
-        1.0
-    } else {
-        Frame::of_target(target).scale
-    };
-    let offset = centroid - scan_centroid;
-    match params.prealign {
-        Prealign::Centroid => {
-            for p in &mut pos {
-                *p = (vec3(p) - offset).into();
+) -> Result<()> {
+    for it in 1..=iterations {
+        let records: Vec<Option<IterationRecord>> = match runs {
+            [one] => vec![one.step(prepared)?],
+            [a, b] => {
+                let (ra, rb) = rayon::join(|| a.step(prepared), || b.step(prepared));
+                vec![ra?, rb?]
             }
+            _ => unreachable!("one or two schedules"),
+        };
+        let Some(record) = records.into_iter().flatten().next() else {
+            break; // every run has converged
+        };
+        if !observer(&Progress {
+            iteration: it,
+            iterations,
+            record,
+        }) {
+            for run in runs.iter_mut().filter(|r| !r.finished) {
+                run.diagnostics.stopped_by_callback = true;
+                run.finished = true;
+            }
+            break;
         }
-        Prealign::None if offset.norm() > FAR_AWAY * scan_diag => {
-            return Err(FoldMatchError::FarAway {
-                distance: offset.norm() / scan_diag,
-            });
-        }
-        Prealign::None => {}
     }
-    let start = pos.clone();
+    Ok(())
+}
 
-    // Target side: k-d tree, K, curvature.
-    let index = PointIndex::new(&scan);
-    let k = neighborhood_size(params.rho, scan.len(), params.k_min, params.k_max);
-    let (kappa, curvature_source) = if !params.use_curvature {
-        (vec![0.0; scan.len()], "off")
-    } else if let Some(tf) = target_faces.filter(|f| !f.is_empty()) {
-        (gaussian_curvature_mesh(&scan, tf), "mesh")
-    } else {
-        (gaussian_curvature_points(&scan, &index), "point_cloud")
-    };
+/// What every schedule of a fit reads and none writes: the inputs validated and in the
+/// normalized frame (SPEC §1), the scan's k-d tree and curvature, the template's topology.
+/// Built once per [`fit`], shared by both runs of schedule selection.
+struct Prepared {
+    faces: Vec<[u32; 3]>,
+    frame: Frame,
+    scan: Vec<[f64; 3]>,
+    /// The template in the normalized frame, after any pre-alignment.
+    start: Vec<[f64; 3]>,
+    index: PointIndex,
+    /// K, the target neighborhood size.
+    k: usize,
+    kappa: Vec<f64>,
+    incidence: VertexFaces,
+    /// Γᵏ_Y: n-rings (FoldMatch) or k-NN neighborhoods (NRGa).
+    rings: Neighborhoods,
+    /// The coarse phase's neighborhoods, one per level (empty when no schedule has one).
+    coarse_levels: Vec<Neighborhoods>,
+    /// Every vertex index (the rigid phase's "ring"; empty when no schedule has one).
+    all_vertices: Vec<u32>,
+    /// The diagnostics every run starts from.
+    diagnostics: Diagnostics,
+}
 
-    // Template side: incidence, neighborhoods.
-    let incidence = VertexFaces::new(faces, m);
-    let isolated = (0..m)
-        .filter(|&v| incidence.offsets[v] == incidence.offsets[v + 1])
-        .count();
-    let rings = match params.method {
-        Method::FoldMatch => n_rings(faces, m, params.rings),
-        Method::Nrga => knn_neighborhoods(&start, params),
-    };
-    let topo = TemplateTopology {
-        faces,
-        incidence: &incidence,
-        rings: &rings,
-    };
+impl Prepared {
+    /// Validates the inputs and builds the shared state; `schedules` differ at most in their
+    /// schedule fields ([`FitParams::sharp_schedule`]), the first one's structure is used.
+    fn new(
+        template_vertices: &[[f64; 3]],
+        template_faces: &[[u32; 3]],
+        target: &[[f64; 3]],
+        target_faces: Option<&[[u32; 3]]>,
+        schedules: &[FitParams],
+    ) -> Result<Self> {
+        let params = &schedules[0];
+        validate_points("template_vertices", template_vertices)?;
+        validate_points("target", target)?;
+        validate_faces("template_faces", template_faces, template_vertices.len())?;
+        if let Some(tf) = target_faces {
+            validate_faces("target_faces", tf, target.len())?;
+        }
+        let m = template_vertices.len();
+        let cleaned = clean_faces(template_faces);
+        let faces = cleaned.faces;
 
-    let mut diagnostics = Diagnostics {
-        target_neighbours: k,
-        mean_ring_size: rings.members.len() as f64 / m as f64,
-        degenerate_faces: cleaned.degenerate.clone(),
-        duplicate_faces: cleaned.duplicate.clone(),
-        isolated_vertices: isolated,
-        omega0_dt_squared: params.nbody.omega0_dt_squared(k),
-        curvature: curvature_source.into(),
-        frame: Some(frame),
-        schedule: "given".into(),
-        ..Default::default()
-    };
+        // Normalized frame (SPEC §1).
+        let frame = if params.normalize {
+            Frame::of_target(target)
+        } else {
+            Frame::identity()
+        };
+        let scan = frame.forward(target);
+        let mut start = frame.forward(template_vertices);
+        let centroid = start.iter().fold(Vec3::zeros(), |acc, p| acc + vec3(p)) / m as f64;
+        let scan_centroid =
+            scan.iter().fold(Vec3::zeros(), |acc, p| acc + vec3(p)) / scan.len() as f64;
+        let scan_diag = if params.normalize {
+            1.0
+        } else {
+            Frame::of_target(target).scale
+        };
+        let offset = centroid - scan_centroid;
+        match params.prealign {
+            Prealign::Centroid => {
+                for p in &mut start {
+                    *p = (vec3(p) - offset).into();
+                }
+            }
+            Prealign::None if offset.norm() > FAR_AWAY * scan_diag => {
+                return Err(FoldMatchError::FarAway {
+                    distance: offset.norm() / scan_diag,
+                });
+            }
+            Prealign::None => {}
+        }
 
-    // Buffers, allocated once.
-    let mut vel = vec![[0.0; 3]; m];
-    let mut proposed = vec![[0.0; 3]; m];
-    let mut next = vec![[0.0; 3]; m];
-    let mut disp = vec![0.0; m];
-    let mut nn_idx = vec![0u32; m * k];
-    let mut nn_d2 = vec![0.0; m * k];
-    let mut nn_cache = params
-        .knn_cache
-        .then(|| NeighborCache::new(m, k, scan.len()));
-    let mut ws = Workspace::new(m);
-    let two_way = params.two_way > 0.0 && params.method == Method::FoldMatch;
-    let (rigid_iterations, coarse_iterations) = params.phase_iterations();
-    let mut reverse_force = vec![[0.0; 3]; if two_way { m } else { 0 }];
-    let mut reverse = if two_way {
-        nbody::ReverseAttraction::new(m, scan.len())
-    } else {
-        Default::default()
-    };
-    let all_vertices: Vec<u32> = if rigid_iterations > 0 {
-        (0..m as u32).collect()
-    } else {
-        Vec::new()
-    };
-    let coarse_levels: Vec<Neighborhoods> = if coarse_iterations > 0 {
-        (0..params.coarse_levels)
-            .map(|l| n_rings(faces, m, (params.coarse_rings >> l).max(1)))
-            .collect()
-    } else {
-        Vec::new()
-    };
-    let mut history = Vec::with_capacity(params.iterations);
-    let mut snapshots = Vec::new();
-    let dt = params.nbody.time_step;
+        // Target side: k-d tree, K, curvature.
+        let index = PointIndex::new(&scan);
+        let k = neighborhood_size(params.rho, scan.len(), params.k_min, params.k_max);
+        let (kappa, curvature_source) = if !params.use_curvature {
+            (vec![0.0; scan.len()], "off")
+        } else if let Some(tf) = target_faces.filter(|f| !f.is_empty()) {
+            (gaussian_curvature_mesh(&scan, tf), "mesh")
+        } else {
+            (gaussian_curvature_points(&scan, &index), "point_cloud")
+        };
 
-    for it in 1..=params.iterations {
-        let t = &mut ws.times;
-        diagnostics.knn_queries += timed(&mut t.knn, || match nn_cache.as_mut() {
-            Some(cache) => cache.query(&index, &pos, &mut nn_idx, &mut nn_d2),
+        // Template side: incidence, neighborhoods, the phases' neighborhoods.
+        let incidence = VertexFaces::new(&faces, m);
+        let isolated = (0..m)
+            .filter(|&v| incidence.offsets[v] == incidence.offsets[v + 1])
+            .count();
+        let rings = match params.method {
+            Method::FoldMatch => n_rings(&faces, m, params.rings),
+            Method::Nrga => knn_neighborhoods(&start, params),
+        };
+        let phases: Vec<(usize, usize)> =
+            schedules.iter().map(FitParams::phase_iterations).collect();
+        let all_vertices = if phases.iter().any(|p| p.0 > 0) {
+            (0..m as u32).collect()
+        } else {
+            Vec::new()
+        };
+        let coarse_levels = if phases.iter().any(|p| p.1 > 0) {
+            (0..params.coarse_levels)
+                .map(|l| n_rings(&faces, m, (params.coarse_rings >> l).max(1)))
+                .collect()
+        } else {
+            Vec::new()
+        };
+
+        let diagnostics = Diagnostics {
+            target_neighbours: k,
+            mean_ring_size: rings.members.len() as f64 / m as f64,
+            degenerate_faces: cleaned.degenerate,
+            duplicate_faces: cleaned.duplicate,
+            isolated_vertices: isolated,
+            omega0_dt_squared: params.nbody.omega0_dt_squared(k),
+            curvature: curvature_source.into(),
+            frame: Some(frame),
+            schedule: "given".into(),
+            ..Default::default()
+        };
+        Ok(Self {
+            faces,
+            frame,
+            scan,
+            start,
+            index,
+            k,
+            kappa,
+            incidence,
+            rings,
+            coarse_levels,
+            all_vertices,
+            diagnostics,
+        })
+    }
+
+    fn topology(&self) -> TemplateTopology<'_> {
+        TemplateTopology {
+            faces: &self.faces,
+            incidence: &self.incidence,
+            rings: &self.rings,
+        }
+    }
+}
+
+/// One schedule's fit in progress: its state and every per-vertex buffer, allocated once.
+struct ScheduleRun {
+    params: FitParams,
+    pos: Vec<[f64; 3]>,
+    vel: Vec<[f64; 3]>,
+    proposed: Vec<[f64; 3]>,
+    next: Vec<[f64; 3]>,
+    disp: Vec<f64>,
+    nn_idx: Vec<u32>,
+    nn_d2: Vec<f64>,
+    nn_cache: Option<NeighborCache>,
+    ws: Workspace,
+    /// The two-way attraction's state (`None`: one-way attraction).
+    reverse: Option<(nbody::ReverseAttraction, Vec<[f64; 3]>)>,
+    rigid_iterations: usize,
+    coarse_iterations: usize,
+    iteration: usize,
+    history: Vec<IterationRecord>,
+    snapshots: Vec<(usize, Vec<[f64; 3]>)>,
+    diagnostics: Diagnostics,
+    /// Converged, or stopped by the observer.
+    finished: bool,
+}
+
+impl ScheduleRun {
+    fn new(prepared: &Prepared, params: FitParams) -> Self {
+        let (m, n, k) = (prepared.start.len(), prepared.scan.len(), prepared.k);
+        let (rigid_iterations, coarse_iterations) = params.phase_iterations();
+        let reverse = (params.two_way > 0.0 && params.method == Method::FoldMatch).then(|| {
+            (
+                nbody::ReverseAttraction::new(m, n, params.knn_cache),
+                vec![[0.0; 3]; m],
+            )
+        });
+        Self {
+            pos: prepared.start.clone(),
+            vel: vec![[0.0; 3]; m],
+            proposed: vec![[0.0; 3]; m],
+            next: vec![[0.0; 3]; m],
+            disp: vec![0.0; m],
+            nn_idx: vec![0u32; m * k],
+            nn_d2: vec![0.0; m * k],
+            nn_cache: params.knn_cache.then(|| NeighborCache::new(m, k, n)),
+            ws: Workspace::new(m),
+            reverse,
+            rigid_iterations,
+            coarse_iterations,
+            iteration: 0,
+            history: Vec::with_capacity(params.iterations),
+            snapshots: Vec::new(),
+            diagnostics: prepared.diagnostics.clone(),
+            finished: false,
+            params,
+        }
+    }
+
+    /// One iteration (§2 then §3); `None` when the run has already finished.
+    fn step(&mut self, prepared: &Prepared) -> Result<Option<IterationRecord>> {
+        if self.finished || self.iteration >= self.params.iterations {
+            return Ok(None);
+        }
+        self.iteration += 1;
+        let it = self.iteration;
+        let params = &self.params;
+        let (m, k) = (self.pos.len(), prepared.k);
+        let (scan, kappa) = (&prepared.scan, &prepared.kappa);
+        let t = &mut self.ws.times;
+        let (pos, nn_idx, nn_d2) = (&self.pos, &mut self.nn_idx, &mut self.nn_d2);
+        self.diagnostics.knn_queries += timed(&mut t.knn, || match self.nn_cache.as_mut() {
+            Some(cache) => cache.query(&prepared.index, pos, nn_idx, nn_d2),
             None => {
-                index.nearest_all(&pos, k, &mut nn_idx, &mut nn_d2);
+                prepared.index.nearest_all(pos, k, nn_idx, nn_d2);
                 m
             }
         });
         let nbody_params = annealed(params, it);
-        let extra = if two_way {
-            timed(&mut t.two_way, || {
-                reverse.compute(
-                    &pos,
-                    &scan,
-                    &kappa,
-                    params.two_way,
-                    &nbody_params,
-                    &mut reverse_force,
-                )
-            });
-            Some(reverse_force.as_slice())
-        } else {
-            None
+        let extra = match self.reverse.as_mut() {
+            Some((reverse, force)) => {
+                self.diagnostics.two_way_queries += timed(&mut t.two_way, || {
+                    reverse.compute(pos, scan, kappa, params.two_way, &nbody_params, force)
+                });
+                Some(force.as_slice())
+            }
+            None => None,
         };
         timed(&mut t.nbody, || {
             nbody::step(
-                &pos,
-                &mut vel,
-                &nn_idx,
+                pos,
+                &mut self.vel,
+                nn_idx,
                 k,
-                &scan,
-                &kappa,
+                scan,
+                kappa,
                 &nbody_params,
                 extra,
-                &mut proposed,
+                &mut self.proposed,
             )
         });
         let update_start = std::time::Instant::now();
+        let (old, new, next) = (&self.pos, &self.proposed, &mut self.next);
         let degenerate = match params.method {
-            _ if it <= rigid_iterations => {
-                let (c_old, c_new) = ring_centroids(&all_vertices, &pos, &proposed);
-                let r = kabsch(&all_vertices, &pos, &proposed, &c_old, &c_new);
-                let old = &pos;
+            _ if it <= self.rigid_iterations => {
+                let all = &prepared.all_vertices;
+                let (c_old, c_new) = ring_centroids(all, old, new);
+                let r = kabsch(all, old, new, &c_old, &c_new);
                 next.par_iter_mut().enumerate().for_each(|(v, out)| {
                     *out = transform_vertex(&r, &vec3(&old[v]), &c_old, &c_new).into();
                 });
                 0
             }
-            _ if it <= rigid_iterations + coarse_iterations => {
-                let level = (it - rigid_iterations - 1) * coarse_levels.len() / coarse_iterations;
-                kabsch_update(&coarse_levels[level], &pos, &proposed, &mut next);
+            _ if it <= self.rigid_iterations + self.coarse_iterations => {
+                let levels = &prepared.coarse_levels;
+                let level =
+                    (it - self.rigid_iterations - 1) * levels.len() / self.coarse_iterations;
+                kabsch_update(&levels[level], old, new, next);
                 0
             }
             Method::FoldMatch => {
+                let ws = &mut self.ws;
                 let before = ws.times.model();
-                let d = deformation_model(&pos, &proposed, &topo, params, &mut ws);
+                let d = deformation_model(old, new, &prepared.topology(), params, ws);
                 ws.times.update -= ws.times.model() - before; // counted in their own stages
-                let (rot, old, new) = (&ws.rotation, &pos, &proposed);
+                let rot = &ws.rotation;
                 next.par_iter_mut().enumerate().for_each(|(v, out)| {
-                    let (c_old, c_new) = ring_centroids(rings.of(v), old, new);
+                    let (c_old, c_new) = ring_centroids(prepared.rings.of(v), old, new);
                     *out = transform_vertex(&rot[v], &vec3(&old[v]), &c_old, &c_new).into();
                 });
                 d
             }
             Method::Nrga => {
-                kabsch_update(&rings, &pos, &proposed, &mut next);
+                kabsch_update(&prepared.rings, old, new, next);
                 0
             }
         };
-        ws.times.update += update_start.elapsed().as_secs_f64();
+        self.ws.times.update += update_start.elapsed().as_secs_f64();
         // Velocities follow the applied motion (SPEC §2.4); displacement figures.
-        disp.par_iter_mut()
-            .zip(vel.par_iter_mut())
+        let (dt, sync) = (params.nbody.time_step, params.velocity_sync);
+        let (pos, next) = (&self.pos, &self.next);
+        self.disp
+            .par_iter_mut()
+            .zip(self.vel.par_iter_mut())
             .enumerate()
             .for_each(|(v, (d, vl))| {
                 let delta = vec3(&next[v]) - vec3(&pos[v]);
                 *d = delta.norm();
-                if params.velocity_sync {
+                if sync {
                     *vl = (delta / dt).into();
                 }
             });
@@ -937,68 +1060,68 @@ fn fit_schedule(
                 "vertex {bad} became non-finite at iteration {it}"
             )));
         }
-        std::mem::swap(&mut pos, &mut next);
+        std::mem::swap(&mut self.pos, &mut self.next);
         // Sequential reduction: identical for any thread count.
-        let mean = disp.iter().sum::<f64>() / m as f64;
-        let max = disp.iter().copied().fold(0.0, f64::max);
+        let mean = self.disp.iter().sum::<f64>() / m as f64;
+        let max = self.disp.iter().copied().fold(0.0, f64::max);
         let record = IterationRecord {
             iteration: it,
             mean_displacement: mean,
             max_displacement: max,
             degenerate_gradients: degenerate,
         };
-        history.push(record);
-        if params.snapshot_every > 0 && it % params.snapshot_every == 0 {
-            let mut snap = pos.clone();
-            frame.inverse_in_place(&mut snap);
-            snapshots.push((it, snap));
+        self.history.push(record);
+        let every = self.params.snapshot_every;
+        if every > 0 && it.is_multiple_of(every) {
+            let mut snap = self.pos.clone();
+            prepared.frame.inverse_in_place(&mut snap);
+            self.snapshots.push((it, snap));
         }
-        if !observer(&Progress {
-            iteration: it,
-            iterations: params.iterations,
-            record,
-        }) {
-            diagnostics.stopped_by_callback = true;
-            break;
+        if self.params.tolerance > 0.0 && mean < self.params.tolerance {
+            self.diagnostics.converged = true;
+            self.finished = true;
         }
-        if params.tolerance > 0.0 && mean < params.tolerance {
-            diagnostics.converged = true;
-            break;
-        }
+        Ok(Some(record))
     }
 
-    diagnostics.stage_seconds = ws.times;
-    // Per-step field of the last iteration, and the accumulated field of the total motion.
-    let wvf = if params.method == Method::FoldMatch && !history.is_empty() {
-        ws.wvf.clone()
-    } else {
-        vec![[0.0; 3]; m]
-    };
-    let acc_rings;
-    let acc_topo = if params.method == Method::FoldMatch {
-        topo
-    } else {
-        acc_rings = n_rings(faces, m, params.rings);
-        TemplateTopology {
-            faces,
-            incidence: &incidence,
-            rings: &acc_rings,
-        }
-    };
-    deformation_model(&start, &pos, &acc_topo, params, &mut ws);
-    let wvf_accumulated = ws.wvf;
+    /// The result in the user's frame, with the wrinkle-vector fields of the last step and of
+    /// the whole motion.
+    fn finish(mut self, prepared: &Prepared) -> FitResult {
+        let params = &self.params;
+        let m = self.pos.len();
+        self.diagnostics.stage_seconds = self.ws.times;
+        // Per-step field of the last iteration, and the accumulated field of the total motion.
+        let wvf = if params.method == Method::FoldMatch && !self.history.is_empty() {
+            self.ws.wvf.clone()
+        } else {
+            vec![[0.0; 3]; m]
+        };
+        let acc_rings;
+        let acc_topo = if params.method == Method::FoldMatch {
+            prepared.topology()
+        } else {
+            acc_rings = n_rings(&prepared.faces, m, params.rings);
+            TemplateTopology {
+                faces: &prepared.faces,
+                incidence: &prepared.incidence,
+                rings: &acc_rings,
+            }
+        };
+        deformation_model(&prepared.start, &self.pos, &acc_topo, params, &mut self.ws);
+        let wvf_accumulated = self.ws.wvf;
 
-    frame.inverse_in_place(&mut pos);
-    Ok(FitResult {
-        vertices: pos,
-        wvf,
-        wvf_accumulated,
-        iterations: history.len(),
-        history,
-        snapshots,
-        params: params.clone(),
-        diagnostics,
-    })
+        prepared.frame.inverse_in_place(&mut self.pos);
+        FitResult {
+            vertices: self.pos,
+            wvf,
+            wvf_accumulated,
+            iterations: self.history.len(),
+            history: self.history,
+            snapshots: self.snapshots,
+            params: self.params,
+            diagnostics: self.diagnostics,
+        }
+    }
 }
 
 /// Moves every vertex by the Kabsch rigid fit of its neighborhood's motion `old → new`
@@ -1191,14 +1314,28 @@ mod tests {
         assert_eq!(chosen.vertices, runs[k].vertices);
         assert_eq!(chosen.diagnostics.schedule, ["given", "sharp"][k]);
         assert_eq!(chosen.params, params);
-        // Progress counts both runs.
+        // The runs advance in lockstep: progress counts ξ, with the given schedule's figures.
         let mut seen = Vec::new();
         fit(&v, &f, &x, None, &params, &mut |p| {
-            seen.push((p.iteration, p.iterations));
+            seen.push((p.iteration, p.iterations, p.record));
             true
         })
         .unwrap();
-        assert_eq!(seen, (1..=40).map(|i| (i, 40)).collect::<Vec<_>>());
+        assert_eq!(
+            seen,
+            (1..=20)
+                .map(|i| (i, 20, runs[0].history[i - 1]))
+                .collect::<Vec<_>>()
+        );
+        // A stop applies to both runs: each candidate equals its single run stopped there.
+        let stopped = |p: &FitParams| fit(&v, &f, &x, None, p, &mut |p| p.iteration < 7).unwrap();
+        let both = stopped(&params);
+        assert!(both.diagnostics.stopped_by_callback && both.iterations == 7);
+        let alone = [stopped(&given), stopped(&params.sharp_schedule())];
+        assert_eq!(
+            both.diagnostics.candidate_scan_distances,
+            vec![dist(&alone[0]), dist(&alone[1])]
+        );
         // The sharp schedule differs from the given one only in its schedule fields.
         let sharp = params.sharp_schedule();
         assert_eq!(

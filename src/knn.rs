@@ -132,12 +132,14 @@ pub const MAX_CACHED: usize = 192;
 /// "Performance").
 ///
 /// Each point keeps the `c = min(2K, N, 192)` nearest candidates found at its *anchor* position,
-/// with the anchor distances of the K-th and the c-th. After the point moved by δ from its
-/// anchor, every point outside the candidate set is at least `d_c − δ` away and the K-th
-/// nearest candidate at most `d_K + δ`,
-/// so while `d_c − δ > d_K + δ` the K nearest points are the K nearest candidates: re-ranking
-/// the candidates by their new distances gives exactly the k-d tree's answer (up to the order
-/// of exactly tied distances). Otherwise the point is queried afresh and re-anchored.
+/// with the anchor distance `d_c` of the c-th. After the point moved by δ from its anchor, every
+/// point outside the candidate set is at least `d_c − δ` away (triangle inequality). The
+/// candidates are re-ranked by their distances to the new position; while the K-th of them is
+/// closer than `d_c − δ`, the K nearest points are the K nearest candidates: exactly the k-d
+/// tree's answer (up to the order of exactly tied distances). Otherwise the point is queried
+/// afresh and re-anchored. (Testing the re-ranked K-th distance, rather than its worst case
+/// `d_K + δ`, lets a point travel about twice as far before its re-query: on the paper-sized
+/// fit, 40 % fewer fresh queries.)
 pub struct NeighborCache {
     k: usize,
     c: usize,
@@ -145,8 +147,8 @@ pub struct NeighborCache {
     /// The c candidates of every point, in the order of their last known distance (so the
     /// next re-ranking starts nearly sorted).
     candidates: Vec<u32>,
-    /// Per point, at its anchor: the distances of the k-th and of the c-th nearest candidate.
-    anchor_bounds: Vec<[f64; 2]>,
+    /// Per point: the distance of the c-th nearest candidate at its anchor.
+    anchor_radius: Vec<f64>,
     /// Per point: 0 = no candidates yet, 1 = candidates re-used, 2 = queried afresh.
     state: Vec<u8>,
 }
@@ -160,7 +162,7 @@ impl NeighborCache {
             c,
             anchors: vec![[0.0; 3]; m],
             candidates: vec![0; m * c],
-            anchor_bounds: vec![[0.0; 2]; m],
+            anchor_radius: vec![0.0; m],
             state: vec![0; m],
         }
     }
@@ -180,57 +182,46 @@ impl NeighborCache {
         self.anchors
             .par_iter_mut()
             .zip(self.candidates.par_chunks_mut(c))
-            .zip(self.anchor_bounds.par_iter_mut())
+            .zip(self.anchor_radius.par_iter_mut())
             .zip(self.state.par_iter_mut())
             .zip(indices.par_chunks_mut(k).zip(dist2.par_chunks_mut(k)))
             .zip(queries.par_iter())
-            .for_each(|(((((anchor, cand), bounds), state), (idx, d2)), q)| {
-                let moved = (0..3)
-                    .map(|a| (q[a] - anchor[a]).powi(2))
-                    .sum::<f64>()
-                    .sqrt();
-                let [d_k, d_c] = *bounds;
-                let reusable = *state > 0 && (whole_set || d_c - moved > d_k + moved);
-                if reusable {
+            .for_each(|(((((anchor, cand), radius), state), (idx, d2)), q)| {
+                let mut ranked = [(0.0f64, 0u32); MAX_CACHED];
+                let ranked = &mut ranked[..c];
+                let mut exact = false;
+                if *state > 0 {
+                    rerank(index, q, cand, ranked);
+                    let moved = (0..3)
+                        .map(|a| (q[a] - anchor[a]).powi(2))
+                        .sum::<f64>()
+                        .sqrt();
+                    // Every non-candidate is at least `radius − moved` away; the margin keeps
+                    // round-off from admitting a tie.
+                    let outside = (*radius - moved) * (1.0 - 1e-9);
+                    exact = whole_set || (outside > 0.0 && ranked[k - 1].0 < outside * outside);
+                }
+                if exact {
                     *state = 1;
                 } else {
-                    // The old candidates are all within d_c + δ of the new position, so the c
-                    // nearest points are too: a bounded search finds the same points, faster.
-                    let bound = if *state > 0 {
-                        (d_c + moved) * (1.0 + 1e-9)
+                    // The old candidates all lie within the re-ranked c-th distance of the new
+                    // position, so the c nearest points do too: a bounded search finds the
+                    // same points, faster.
+                    let bound2 = if *state > 0 {
+                        ranked[c - 1].0 * (1.0 + 1e-9)
                     } else {
                         f64::INFINITY
                     };
                     let mut found_d2 = [0.0f64; MAX_CACHED];
                     let found_d2 = &mut found_d2[..c];
-                    if !(bound.is_finite()
-                        && index.nearest_within_into(q, bound * bound, cand, found_d2))
+                    if !(bound2.is_finite() && index.nearest_within_into(q, bound2, cand, found_d2))
                     {
                         index.nearest_into(q, cand, found_d2);
                     }
-                    *bounds = [found_d2[k - 1].sqrt(), found_d2[c - 1].sqrt()];
+                    *radius = found_d2[c - 1].sqrt();
                     *anchor = *q;
                     *state = 2;
-                }
-                // Re-rank the candidates by their distance to the query's current position:
-                // an insertion sort, as the stored order is last iteration's ranking and the
-                // points move little between iterations (nearly sorted input, ~c steps).
-                let mut ranked = [(0.0f64, 0u32); MAX_CACHED];
-                let ranked = &mut ranked[..c];
-                for (slot, &j) in ranked.iter_mut().zip(cand.iter()) {
-                    let p = index.point(j);
-                    *slot = ((0..3).map(|a| (q[a] - p[a]).powi(2)).sum::<f64>(), j);
-                }
-                let before =
-                    |a: &(f64, u32), b: &(f64, u32)| a.0 < b.0 || (a.0 == b.0 && a.1 < b.1);
-                for i in 1..c {
-                    let item = ranked[i];
-                    let mut at = i;
-                    while at > 0 && before(&item, &ranked[at - 1]) {
-                        ranked[at] = ranked[at - 1];
-                        at -= 1;
-                    }
-                    ranked[at] = item;
+                    rerank(index, q, cand, ranked);
                 }
                 for (slot, &(_, j)) in cand.iter_mut().zip(ranked.iter()) {
                     *slot = j;
@@ -241,6 +232,158 @@ impl NeighborCache {
                 }
             });
         self.state.iter().filter(|&&s| s == 2).count()
+    }
+}
+
+/// Ranks the candidates `cand` by their squared distance to `q` (ties by index) into `ranked`:
+/// an insertion sort, as the stored order is the last iteration's ranking and the points move
+/// little between iterations (nearly sorted input, ~c steps).
+#[inline]
+fn rerank(index: &PointIndex, q: &[f64; 3], cand: &[u32], ranked: &mut [(f64, u32)]) {
+    for (slot, &j) in ranked.iter_mut().zip(cand.iter()) {
+        let p = index.point(j);
+        *slot = ((0..3).map(|a| (q[a] - p[a]).powi(2)).sum::<f64>(), j);
+    }
+    let before = |a: &(f64, u32), b: &(f64, u32)| a.0 < b.0 || (a.0 == b.0 && a.1 < b.1);
+    for i in 1..ranked.len() {
+        let item = ranked[i];
+        let mut at = i;
+        while at > 0 && before(&item, &ranked[at - 1]) {
+            ranked[at] = ranked[at - 1];
+            at -= 1;
+        }
+        ranked[at] = item;
+    }
+}
+
+/// Candidates a [`NearestMovingCache`] keeps per fixed point.
+pub const MOVING_CANDIDATES: usize = 8;
+
+/// The nearest point of a *moving* set (the template, during the two-way attraction) for every
+/// point of a fixed set (the scan), with exact re-use of earlier queries (issue "Performance").
+///
+/// Each fixed point keeps its `c = min(8, M)` nearest moving points found at its anchor
+/// iteration, with the distance `r_c` of the c-th. The cache sums, over its calls, the largest
+/// move of any moving point (`travel`); since the anchor no moving point has moved farther than
+/// the travel accrued since then, Δ, so every non-candidate is at least `r_c − Δ` away. While
+/// the nearest candidate (by current distance) is closer than that, it is the nearest point:
+/// the k-d tree's answer up to exactly tied distances. Otherwise the fixed point is queried
+/// afresh against a k-d tree over the moving points, built only in iterations that need one.
+#[derive(Clone, Debug, Default)]
+pub struct NearestMovingCache {
+    cached: bool,
+    c: usize,
+    last: Vec<[f64; 3]>,
+    travel: f64,
+    candidates: Vec<u32>,
+    /// Per fixed point: (r_c, travel) at its anchor.
+    anchor: Vec<(f64, f64)>,
+    /// Per fixed point: 0 = no candidates yet, 1 = re-used, 2 = queried afresh (3: for the
+    /// first time, during a call).
+    state: Vec<u8>,
+}
+
+impl NearestMovingCache {
+    /// A cache for `n` fixed points over `m` moving points; `cached: false` queries a fresh
+    /// k-d tree for every fixed point every call (the reference path).
+    pub fn new(m: usize, n: usize, cached: bool) -> Self {
+        let c = MOVING_CANDIDATES.min(m).max(1);
+        let (cn, mm) = if cached { (n, m) } else { (0, 0) };
+        Self {
+            cached,
+            c,
+            last: vec![[0.0; 3]; mm],
+            travel: 0.0,
+            candidates: vec![0; cn * c],
+            anchor: vec![(0.0, 0.0); cn],
+            state: vec![0; cn],
+        }
+    }
+
+    /// Writes to `nearest[j]` the index of the moving point nearest to `fixed[j]`; returns the
+    /// number of fixed points queried afresh.
+    pub fn query(&mut self, moving: &[[f64; 3]], fixed: &[[f64; 3]], nearest: &mut [u32]) -> usize {
+        assert_eq!(nearest.len(), fixed.len());
+        if !self.cached {
+            let tree = PointIndex::new(moving);
+            nearest
+                .par_iter_mut()
+                .zip(fixed.par_iter())
+                .for_each(|(n, x)| *n = tree.nearest_one(x).0);
+            return fixed.len();
+        }
+        let step = moving
+            .par_iter()
+            .zip(self.last.par_iter())
+            .map(|(a, b)| (0..3).map(|i| (a[i] - b[i]).powi(2)).sum::<f64>())
+            .reduce(|| 0.0, f64::max)
+            .sqrt();
+        self.travel += step;
+        self.last.copy_from_slice(moving);
+        let (c, travel) = (self.c, self.travel);
+        self.candidates
+            .par_chunks(c)
+            .zip(self.anchor.par_iter())
+            .zip(self.state.par_iter_mut())
+            .zip(nearest.par_iter_mut())
+            .zip(fixed.par_iter())
+            .for_each(|((((cand, &(radius, at)), state), out), x)| {
+                if *state == 0 {
+                    *state = 3;
+                    return;
+                }
+                let (mut best, mut best_d2) = (u32::MAX, f64::INFINITY);
+                for &v in cand {
+                    let p = &moving[v as usize];
+                    let d2 = (0..3).map(|i| (x[i] - p[i]).powi(2)).sum::<f64>();
+                    if d2 < best_d2 || (d2 == best_d2 && v < best) {
+                        (best, best_d2) = (v, d2);
+                    }
+                }
+                let outside = (radius - (travel - at)) * (1.0 - 1e-9);
+                if outside > 0.0 && best_d2 < outside * outside {
+                    *out = best;
+                    *state = 1;
+                } else {
+                    *state = 2;
+                }
+            });
+        let fresh = self.state.iter().filter(|&&s| s >= 2).count();
+        if fresh == 0 {
+            return 0;
+        }
+        let tree = PointIndex::new(moving);
+        self.candidates
+            .par_chunks_mut(c)
+            .zip(self.anchor.par_iter_mut())
+            .zip(self.state.par_iter_mut())
+            .zip(nearest.par_iter_mut())
+            .zip(fixed.par_iter())
+            .filter(|((((_, _), state), _), _)| **state >= 2)
+            .for_each(|((((cand, anchor), state), out), x)| {
+                let was = std::mem::replace(state, 2);
+                // The old candidates all lie within their farthest current distance, so the c
+                // nearest points do too: a bounded search finds them, faster.
+                let bound2 = if was == 2 {
+                    cand.iter()
+                        .map(|&v| {
+                            let p = &moving[v as usize];
+                            (0..3).map(|i| (x[i] - p[i]).powi(2)).sum::<f64>()
+                        })
+                        .fold(0.0, f64::max)
+                        * (1.0 + 1e-9)
+                } else {
+                    f64::INFINITY
+                };
+                let mut d2 = [0.0f64; MOVING_CANDIDATES];
+                if !(bound2.is_finite() && tree.nearest_within_into(x, bound2, cand, &mut d2[..c]))
+                {
+                    tree.nearest_into(x, cand, &mut d2[..c]);
+                }
+                *anchor = (d2[c - 1].sqrt(), travel);
+                *out = cand[0];
+            });
+        fresh
     }
 }
 
@@ -302,6 +445,42 @@ mod tests {
         }
         assert!(
             reused > 5000,
+            "the cache should re-use most queries, re-used {reused}"
+        );
+    }
+
+    #[test]
+    fn moving_cache_equals_fresh_nearest_one() {
+        let mut rng = ChaCha8Rng::seed_from_u64(9);
+        let fixed: Vec<[f64; 3]> = (0..1500)
+            .map(|_| [rng.random(), rng.random(), rng.random()])
+            .collect();
+        let mut moving: Vec<[f64; 3]> = (0..700)
+            .map(|_| [rng.random(), rng.random(), rng.random()])
+            .collect();
+        let mut cache = NearestMovingCache::new(moving.len(), fixed.len(), true);
+        let mut reference = NearestMovingCache::new(moving.len(), fixed.len(), false);
+        let (mut got, mut want) = (vec![0; fixed.len()], vec![0; fixed.len()]);
+        let mut reused = 0;
+        for step in 0..40 {
+            let fresh = cache.query(&moving, &fixed, &mut got);
+            assert_eq!(reference.query(&moving, &fixed, &mut want), fixed.len());
+            assert_eq!(got, want, "step {step}");
+            reused += fixed.len() - fresh;
+            // Small random moves, and now and then one point jumping far (which must
+            // invalidate the bound of every fixed point, not only its own neighbours').
+            for p in &mut moving {
+                for c in p.iter_mut() {
+                    *c += 0.003 * (rng.random::<f64>() - 0.5);
+                }
+            }
+            if step % 10 == 9 {
+                let j = rng.random_range(0..moving.len());
+                moving[j] = [rng.random(), rng.random(), rng.random()];
+            }
+        }
+        assert!(
+            reused > 20 * fixed.len(),
             "the cache should re-use most queries, re-used {reused}"
         );
     }

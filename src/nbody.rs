@@ -3,6 +3,7 @@
 //! converging readings of SPEC §2.3–2.4; each literal reading of the paper stays reachable
 //! through [`ForceNumerator`], [`ForceSum`] and [`DampingMode`].
 
+use crate::knn::NearestMovingCache;
 use crate::math::{vec3, Vec3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -184,6 +185,7 @@ pub fn step(
 /// so the result is the same for any thread count.
 #[derive(Clone, Debug, Default)]
 pub struct ReverseAttraction {
+    queries: NearestMovingCache,
     nearest: Vec<u32>,
     offsets: Vec<usize>,
     heads: Vec<usize>,
@@ -191,9 +193,11 @@ pub struct ReverseAttraction {
 }
 
 impl ReverseAttraction {
-    /// Scratch for a template of `m` points and a scan of `n` points.
-    pub fn new(m: usize, n: usize) -> Self {
+    /// Scratch for a template of `m` points and a scan of `n` points; `cached` re-uses the
+    /// nearest-template-point queries where that is exact ([`NearestMovingCache`]).
+    pub fn new(m: usize, n: usize, cached: bool) -> Self {
         Self {
+            queries: NearestMovingCache::new(m, n, cached),
             nearest: vec![0; n],
             offsets: vec![0; m + 1],
             heads: vec![0; m],
@@ -201,7 +205,8 @@ impl ReverseAttraction {
         }
     }
 
-    /// The reverse forces on the template at `positions`, written to `out`.
+    /// The reverse forces on the template at `positions`, written to `out`; returns the number
+    /// of scan points whose nearest template point was queried afresh.
     pub fn compute(
         &mut self,
         positions: &[[f64; 3]],
@@ -210,12 +215,8 @@ impl ReverseAttraction {
         weight: f64,
         p: &NBodyParams,
         out: &mut [[f64; 3]],
-    ) {
-        let template_index = crate::knn::PointIndex::new(positions);
-        self.nearest
-            .par_iter_mut()
-            .zip(target.par_iter())
-            .for_each(|(n, x)| *n = template_index.nearest_one(x).0);
+    ) -> usize {
+        let fresh = self.queries.query(positions, target, &mut self.nearest);
         // Counting sort of the scan points by nearest template point (stable: scan order).
         self.offsets.iter_mut().for_each(|o| *o = 0);
         for &k in &self.nearest {
@@ -244,6 +245,7 @@ impl ReverseAttraction {
                 (sum * (weight / mine.len() as f64)).into()
             };
         });
+        fresh
     }
 }
 

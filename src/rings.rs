@@ -69,13 +69,52 @@ pub fn n_rings(faces: &[[u32; 3]], n_vertices: usize, rings: usize) -> Neighborh
     let adj = adjacency(faces, n_vertices);
     let rows: Vec<Vec<u32>> = (0..n_vertices)
         .into_par_iter()
-        .map(|k| bfs_ring(&adj, k as u32, rings))
+        .map_init(
+            || Visited::new(n_vertices),
+            |visited, k| bfs_ring(&adj, k as u32, rings, visited),
+        )
         .collect();
     Neighborhoods::from_rows(rows)
 }
 
-/// Bounded BFS from `start`; returns the visited set in BFS order.
-fn bfs_ring(adj: &Neighborhoods, start: u32, rings: usize) -> Vec<u32> {
+/// Per-thread "seen" marks of a breadth-first search: vertex `v` was seen in the current search
+/// when `stamp[v] == search`, so starting a search is O(1), not O(M).
+struct Visited {
+    stamp: Vec<u32>,
+    search: u32,
+}
+
+impl Visited {
+    fn new(n: usize) -> Self {
+        Self {
+            stamp: vec![0; n],
+            search: 0,
+        }
+    }
+
+    /// Starts a new search (clearing every mark).
+    fn clear(&mut self) {
+        self.search = self.search.wrapping_add(1);
+        if self.search == 0 {
+            self.stamp.iter_mut().for_each(|s| *s = 0);
+            self.search = 1;
+        }
+    }
+
+    /// Marks `v`; returns whether it was unmarked.
+    #[inline]
+    fn insert(&mut self, v: u32) -> bool {
+        let seen = &mut self.stamp[v as usize];
+        let new = *seen != self.search;
+        *seen = self.search;
+        new
+    }
+}
+
+/// Bounded BFS from `start`; returns the visited set in BFS order (each ring sorted by index).
+fn bfs_ring(adj: &Neighborhoods, start: u32, rings: usize, visited: &mut Visited) -> Vec<u32> {
+    visited.clear();
+    visited.insert(start);
     let mut out = vec![start];
     let mut frontier_start = 0;
     for _ in 0..rings {
@@ -83,16 +122,14 @@ fn bfs_ring(adj: &Neighborhoods, start: u32, rings: usize) -> Vec<u32> {
         if frontier_start == frontier_end {
             break;
         }
-        let mut next: Vec<u32> = Vec::new();
         for i in frontier_start..frontier_end {
             for &nb in adj.of(out[i] as usize) {
-                if !out.contains(&nb) && !next.contains(&nb) {
-                    next.push(nb);
+                if visited.insert(nb) {
+                    out.push(nb);
                 }
             }
         }
-        next.sort_unstable();
-        out.extend_from_slice(&next);
+        out[frontier_end..].sort_unstable();
         frontier_start = frontier_end;
     }
     out
@@ -103,8 +140,8 @@ mod tests {
     use super::*;
     use std::collections::{HashSet, VecDeque};
 
-    /// Independent reference: graph distances by a full BFS, then filter.
-    fn reference(faces: &[[u32; 3]], n: usize, rings: usize) -> Vec<HashSet<u32>> {
+    /// Independent reference: the graph distances from every vertex, by a full BFS.
+    fn distances(faces: &[[u32; 3]], n: usize) -> Vec<Vec<usize>> {
         let adj = adjacency(faces, n);
         (0..n)
             .map(|s| {
@@ -119,10 +156,7 @@ mod tests {
                         }
                     }
                 }
-                (0..n)
-                    .filter(|&v| dist[v] <= rings)
-                    .map(|v| v as u32)
-                    .collect()
+                dist
             })
             .collect()
     }
@@ -144,14 +178,23 @@ mod tests {
     fn rings_equal_bfs_reference() {
         let faces = grid(9, 7);
         let n = 63 + 1; // one isolated vertex
+        let dist = distances(&faces, n);
         for rings in 1..=4 {
             let nb = n_rings(&faces, n, rings);
-            let want = reference(&faces, n, rings);
-            for (k, want_k) in want.iter().enumerate() {
+            for (k, d) in dist.iter().enumerate() {
+                let want: HashSet<u32> =
+                    (0..n as u32).filter(|&v| d[v as usize] <= rings).collect();
                 let got: HashSet<u32> = nb.of(k).iter().copied().collect();
                 assert_eq!(got.len(), nb.of(k).len(), "no duplicates");
-                assert_eq!(nb.of(k)[0], k as u32, "vertex first");
-                assert_eq!(&got, want_k, "vertex {k}, {rings}-ring");
+                assert_eq!(got, want, "vertex {k}, {rings}-ring");
+                // The documented order (sums over a ring depend on it): by graph distance,
+                // then by index — so the vertex itself first.
+                let key = |&v: &u32| (d[v as usize], v);
+                assert!(
+                    nb.of(k).windows(2).all(|w| key(&w[0]) < key(&w[1])),
+                    "vertex {k}"
+                );
+                assert_eq!(nb.of(k)[0], k as u32);
             }
         }
         assert_eq!(n_rings(&faces, n, 2).of(63), &[63]);

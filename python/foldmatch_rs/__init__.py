@@ -269,7 +269,9 @@ def fit(
         Split the coarse phase into this many levels, level ``l`` with radius
         ``max(1, coarse_rings // 2**l)`` (1: one radius throughout).
     knn_cache : bool
-        Re-use earlier k-NN candidates where that is provably exact (True; same results).
+        Re-use earlier k-NN candidates, and the two-way attraction's nearest-vertex queries,
+        where that is provably exact (True; same results; ``diagnostics["knn_queries"]`` and
+        ``["two_way_queries"]`` count the fresh k-d tree queries).
     matrix_series : bool
         Evaluate Eq. 5's logarithms/exponentials of near-identity matrices by truncated series
         (True; agrees with the eigen-decomposition path to round-off).
@@ -279,7 +281,9 @@ def fit(
     selection : {"scan_distance", "single"}
         ``"scan_distance"`` (default) also fits with the *sharp* schedule (two-way 1, coarse
         30 %, constant softening) and returns the fit closer to the scan (mean scan→fit
-        distance; twice the cost); ``diagnostics["schedule"]`` says which (``"given"`` or
+        distance; twice the work, the two runs advancing side by side in lockstep, so the
+        callback still sees ξ iterations and a stop applies to both);
+        ``diagnostics["schedule"]`` says which (``"given"`` or
         ``"sharp"``) and ``diagnostics["candidate_scan_distances"]`` gives both distances.
         ``"single"`` runs the given schedule only (the paper and tracking presets).
     callback : callable, optional
