@@ -18,7 +18,7 @@ use criterion::{criterion_group, criterion_main, BatchSize, Criterion, SamplingM
 use foldmatch::curvature::gaussian_curvature_points;
 use foldmatch::deformation::deformation_gradient;
 use foldmatch::fit::{deformation_model, fit_simple, FitParams, TemplateTopology, Workspace};
-use foldmatch::knn::{neighborhood_size, NeighborCache, PointIndex};
+use foldmatch::knn::{neighborhood_size, NeighborCache, PointIndex, TargetNeighbours};
 use foldmatch::math::{polar, sym_eigen3, vec3, Mat3};
 use foldmatch::mesh::{vertex_normals, VertexFaces};
 use foldmatch::nbody;
@@ -53,8 +53,9 @@ struct State {
     pos: Vec<[f64; 3]>,
     /// Velocities at the start of the iteration.
     vel: Vec<[f64; 3]>,
-    /// k-NN of every vertex (M × K).
+    /// k-NN of every vertex (M × K) and their squared distances.
     nn_idx: Vec<u32>,
+    nn_d2: Vec<f64>,
     /// Positions proposed by the N-body step.
     proposed: Vec<[f64; 3]>,
     normals_old: Vec<[f64; 3]>,
@@ -182,6 +183,7 @@ fn setup() -> State {
         pos,
         vel,
         nn_idx,
+        nn_d2,
         proposed,
         normals_old,
         normals_new,
@@ -296,13 +298,26 @@ fn bench_stages(c: &mut Criterion) {
         b.iter(|| PointIndex::new(black_box(&s.scan)))
     });
 
-    // Two-way attraction (default preset): template tree, nearest vertex of every scan point,
-    // reverse forces.
-    g.bench_function("two_way/reverse_attraction", |b| {
-        let mut reverse = nbody::ReverseAttraction::new(m, s.scan.len(), false);
-        let mut force = vec![[0.0; 3]; m];
-        b.iter(|| reverse.compute(&s.pos, &s.scan, &s.kappa, 1.0, &s.params.nbody, &mut force));
-    });
+    // Two-way attraction (default preset): nearest vertex of every scan point (from the
+    // forward lists, or a template tree for every scan point), reverse forces.
+    let forward = TargetNeighbours {
+        indices: &s.nn_idx,
+        dist2: &s.nn_d2,
+        k: s.k,
+    };
+    for (name, from_forward) in [
+        ("two_way/reverse_attraction", true),
+        ("two_way/reverse_attraction_tree_only", false),
+    ] {
+        g.bench_function(name, |b| {
+            let mut reverse = nbody::ReverseAttraction::new(m, s.scan.len(), from_forward);
+            let mut force = vec![[0.0; 3]; m];
+            b.iter(|| {
+                let (x, kappa, p) = (&s.scan, &s.kappa, &s.params.nbody);
+                reverse.compute(&s.pos, x, kappa, forward, 1.0, p, &mut force)
+            });
+        });
+    }
 
     // Force and integration, Eq. 2–3.
     g.bench_function("force/nbody_step", |b| {

@@ -15,7 +15,7 @@
 use crate::curvature::{gaussian_curvature_mesh, gaussian_curvature_points};
 use crate::deformation::deformation_gradient;
 use crate::error::{FoldMatchError, Result};
-use crate::knn::{neighborhood_size, NeighborCache, PointIndex};
+use crate::knn::{neighborhood_size, NeighborCache, PointIndex, TargetNeighbours};
 use crate::math::{vec3, Mat3, Vec3};
 use crate::mesh::{clean_faces, validate_faces, validate_points, vertex_normals, VertexFaces};
 use crate::nbody::{self, NBodyParams};
@@ -984,8 +984,21 @@ impl ScheduleRun {
         let nbody_params = annealed(params, it);
         let extra = match self.reverse.as_mut() {
             Some((reverse, force)) => {
+                let forward = TargetNeighbours {
+                    indices: nn_idx,
+                    dist2: nn_d2,
+                    k,
+                };
                 self.diagnostics.two_way_queries += timed(&mut t.two_way, || {
-                    reverse.compute(pos, scan, kappa, params.two_way, &nbody_params, force)
+                    reverse.compute(
+                        pos,
+                        scan,
+                        kappa,
+                        forward,
+                        params.two_way,
+                        &nbody_params,
+                        force,
+                    )
                 });
                 Some(force.as_slice())
             }

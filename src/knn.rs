@@ -256,133 +256,93 @@ fn rerank(index: &PointIndex, q: &[f64; 3], cand: &[u32], ranked: &mut [(f64, u3
     }
 }
 
-/// Candidates a [`NearestMovingCache`] keeps per fixed point.
-pub const MOVING_CANDIDATES: usize = 8;
-
-/// The nearest point of a *moving* set (the template, during the two-way attraction) for every
-/// point of a fixed set (the scan), with exact re-use of earlier queries (issue "Performance").
-///
-/// Each fixed point keeps its `c = min(8, M)` nearest moving points found at its anchor
-/// iteration, with the distance `r_c` of the c-th. The cache sums, over its calls, the largest
-/// move of any moving point (`travel`); since the anchor no moving point has moved farther than
-/// the travel accrued since then, Δ, so every non-candidate is at least `r_c − Δ` away. While
-/// the nearest candidate (by current distance) is closer than that, it is the nearest point:
-/// the k-d tree's answer up to exactly tied distances. Otherwise the fixed point is queried
-/// afresh against a k-d tree over the moving points, built only in iterations that need one.
-#[derive(Clone, Debug, Default)]
-pub struct NearestMovingCache {
-    cached: bool,
-    c: usize,
-    last: Vec<[f64; 3]>,
-    travel: f64,
-    candidates: Vec<u32>,
-    /// Per fixed point: (r_c, travel) at its anchor.
-    anchor: Vec<(f64, f64)>,
-    /// Per fixed point: 0 = no candidates yet, 1 = re-used, 2 = queried afresh (3: for the
-    /// first time, during a call).
-    state: Vec<u8>,
+/// The K nearest scan points of every template point (Γᵏ_X), as [`PointIndex::nearest_all`]
+/// and [`NeighborCache::query`] write them: row v of `indices` / `dist2` (K entries, nearest
+/// first) belongs to template point v.
+#[derive(Clone, Copy, Debug)]
+pub struct TargetNeighbours<'a> {
+    /// Scan indices, M × K row-major.
+    pub indices: &'a [u32],
+    /// Their squared distances.
+    pub dist2: &'a [f64],
+    /// K.
+    pub k: usize,
 }
 
-impl NearestMovingCache {
-    /// A cache for `n` fixed points over `m` moving points; `cached: false` queries a fresh
-    /// k-d tree for every fixed point every call (the reference path).
-    pub fn new(m: usize, n: usize, cached: bool) -> Self {
-        let c = MOVING_CANDIDATES.min(m).max(1);
-        let (cn, mm) = if cached { (n, m) } else { (0, 0) };
+/// The nearest template point of every scan point (the two-way attraction's query), derived
+/// from the forward k-NN lists where that is provably exact (issue "Performance").
+///
+/// The forward lists give, for every template point v, its K nearest scan points and the
+/// distance ρ_v of the K-th. A scan point x absent from v's list is at least ρ_v from v, so at
+/// least `ρ_min = min_v ρ_v` from every template point that did not list it. Among the template
+/// points that did list x, the nearest one (ties by index) is therefore x's nearest template
+/// point whenever it is closer than ρ_min — the k-d tree's answer up to exactly tied distances.
+/// Scan points without that certificate (none listed them, as when the template is still far
+/// from the scan, or the nearest listing point is not close enough) are queried against a k-d
+/// tree over the template, built only in iterations that need one. Inverting the lists is one
+/// pass over M·K entries instead of N tree queries.
+#[derive(Clone, Debug, Default)]
+pub struct ReverseNearest {
+    /// Per scan point: the smallest squared distance from a template point listing it.
+    best_d2: Vec<f64>,
+}
+
+impl ReverseNearest {
+    /// Scratch for `n` scan points.
+    pub fn new(n: usize) -> Self {
         Self {
-            cached,
-            c,
-            last: vec![[0.0; 3]; mm],
-            travel: 0.0,
-            candidates: vec![0; cn * c],
-            anchor: vec![(0.0, 0.0); cn],
-            state: vec![0; cn],
+            best_d2: vec![0.0; n],
         }
     }
 
-    /// Writes to `nearest[j]` the index of the moving point nearest to `fixed[j]`; returns the
-    /// number of fixed points queried afresh.
-    pub fn query(&mut self, moving: &[[f64; 3]], fixed: &[[f64; 3]], nearest: &mut [u32]) -> usize {
-        assert_eq!(nearest.len(), fixed.len());
-        if !self.cached {
-            let tree = PointIndex::new(moving);
+    /// Writes to `nearest[j]` the index of the template point (of `template`) nearest to
+    /// `scan[j]`, given the exact forward lists of these template positions. Returns the number
+    /// of scan points queried against a k-d tree.
+    pub fn query(
+        &mut self,
+        template: &[[f64; 3]],
+        scan: &[[f64; 3]],
+        forward: TargetNeighbours<'_>,
+        nearest: &mut [u32],
+    ) -> usize {
+        let TargetNeighbours {
+            indices: forward_idx,
+            dist2: forward_d2,
+            k,
+        } = forward;
+        assert_eq!(nearest.len(), scan.len());
+        assert_eq!(forward_idx.len(), template.len() * k);
+        self.best_d2.fill(f64::INFINITY);
+        nearest.fill(u32::MAX);
+        // Template points in increasing order and a strict `<`: ties go to the lower index.
+        for (v, (row_idx, row_d2)) in forward_idx
+            .chunks_exact(k)
+            .zip(forward_d2.chunks_exact(k))
+            .enumerate()
+        {
+            for (&j, &d2) in row_idx.iter().zip(row_d2) {
+                if d2 < self.best_d2[j as usize] {
+                    self.best_d2[j as usize] = d2;
+                    nearest[j as usize] = v as u32;
+                }
+            }
+        }
+        let rho2_min = forward_d2
+            .chunks_exact(k)
+            .map(|row| row[k - 1])
+            .fold(f64::INFINITY, f64::min);
+        // The margin keeps round-off from certifying a tie.
+        let certified = |d2: f64| d2 < rho2_min * (1.0 - 1e-12);
+        let fresh = self.best_d2.iter().filter(|&&d2| !certified(d2)).count();
+        if fresh > 0 {
+            let tree = PointIndex::new(template);
             nearest
                 .par_iter_mut()
-                .zip(fixed.par_iter())
-                .for_each(|(n, x)| *n = tree.nearest_one(x).0);
-            return fixed.len();
+                .zip(self.best_d2.par_iter())
+                .zip(scan.par_iter())
+                .filter(|((_, &d2), _)| !certified(d2))
+                .for_each(|((n, _), x)| *n = tree.nearest_one(x).0);
         }
-        let step = moving
-            .par_iter()
-            .zip(self.last.par_iter())
-            .map(|(a, b)| (0..3).map(|i| (a[i] - b[i]).powi(2)).sum::<f64>())
-            .reduce(|| 0.0, f64::max)
-            .sqrt();
-        self.travel += step;
-        self.last.copy_from_slice(moving);
-        let (c, travel) = (self.c, self.travel);
-        self.candidates
-            .par_chunks(c)
-            .zip(self.anchor.par_iter())
-            .zip(self.state.par_iter_mut())
-            .zip(nearest.par_iter_mut())
-            .zip(fixed.par_iter())
-            .for_each(|((((cand, &(radius, at)), state), out), x)| {
-                if *state == 0 {
-                    *state = 3;
-                    return;
-                }
-                let (mut best, mut best_d2) = (u32::MAX, f64::INFINITY);
-                for &v in cand {
-                    let p = &moving[v as usize];
-                    let d2 = (0..3).map(|i| (x[i] - p[i]).powi(2)).sum::<f64>();
-                    if d2 < best_d2 || (d2 == best_d2 && v < best) {
-                        (best, best_d2) = (v, d2);
-                    }
-                }
-                let outside = (radius - (travel - at)) * (1.0 - 1e-9);
-                if outside > 0.0 && best_d2 < outside * outside {
-                    *out = best;
-                    *state = 1;
-                } else {
-                    *state = 2;
-                }
-            });
-        let fresh = self.state.iter().filter(|&&s| s >= 2).count();
-        if fresh == 0 {
-            return 0;
-        }
-        let tree = PointIndex::new(moving);
-        self.candidates
-            .par_chunks_mut(c)
-            .zip(self.anchor.par_iter_mut())
-            .zip(self.state.par_iter_mut())
-            .zip(nearest.par_iter_mut())
-            .zip(fixed.par_iter())
-            .filter(|((((_, _), state), _), _)| **state >= 2)
-            .for_each(|((((cand, anchor), state), out), x)| {
-                let was = std::mem::replace(state, 2);
-                // The old candidates all lie within their farthest current distance, so the c
-                // nearest points do too: a bounded search finds them, faster.
-                let bound2 = if was == 2 {
-                    cand.iter()
-                        .map(|&v| {
-                            let p = &moving[v as usize];
-                            (0..3).map(|i| (x[i] - p[i]).powi(2)).sum::<f64>()
-                        })
-                        .fold(0.0, f64::max)
-                        * (1.0 + 1e-9)
-                } else {
-                    f64::INFINITY
-                };
-                let mut d2 = [0.0f64; MOVING_CANDIDATES];
-                if !(bound2.is_finite() && tree.nearest_within_into(x, bound2, cand, &mut d2[..c]))
-                {
-                    tree.nearest_into(x, cand, &mut d2[..c]);
-                }
-                *anchor = (d2[c - 1].sqrt(), travel);
-                *out = cand[0];
-            });
         fresh
     }
 }
@@ -450,38 +410,52 @@ mod tests {
     }
 
     #[test]
-    fn moving_cache_equals_fresh_nearest_one() {
+    fn reverse_nearest_equals_the_tree_and_inverts_most_queries() {
         let mut rng = ChaCha8Rng::seed_from_u64(9);
-        let fixed: Vec<[f64; 3]> = (0..1500)
-            .map(|_| [rng.random(), rng.random(), rng.random()])
+        // A noisy scan of the unit square, and a template hovering over it, ever closer.
+        let scan: Vec<[f64; 3]> = (0..6000)
+            .map(|_| [rng.random(), rng.random(), 0.01 * rng.random::<f64>()])
             .collect();
-        let mut moving: Vec<[f64; 3]> = (0..700)
-            .map(|_| [rng.random(), rng.random(), rng.random()])
-            .collect();
-        let mut cache = NearestMovingCache::new(moving.len(), fixed.len(), true);
-        let mut reference = NearestMovingCache::new(moving.len(), fixed.len(), false);
-        let (mut got, mut want) = (vec![0; fixed.len()], vec![0; fixed.len()]);
-        let mut reused = 0;
-        for step in 0..40 {
-            let fresh = cache.query(&moving, &fixed, &mut got);
-            assert_eq!(reference.query(&moving, &fixed, &mut want), fixed.len());
-            assert_eq!(got, want, "step {step}");
-            reused += fixed.len() - fresh;
-            // Small random moves, and now and then one point jumping far (which must
-            // invalidate the bound of every fixed point, not only its own neighbours').
-            for p in &mut moving {
-                for c in p.iter_mut() {
-                    *c += 0.003 * (rng.random::<f64>() - 0.5);
-                }
+        let side = 30;
+        let index = PointIndex::new(&scan);
+        // K covering a few template spacings of scan points, as ρ·N does in a fit.
+        let k = 32;
+        let mut reverse = ReverseNearest::new(scan.len());
+        let mut got = vec![0; scan.len()];
+        let mut certified = Vec::new();
+        for height in [0.5, 0.05, 0.01, 0.0] {
+            let template: Vec<[f64; 3]> = (0..side * side)
+                .map(|i| {
+                    let (x, y) = ((i % side) as f64, (i / side) as f64);
+                    let jitter = 0.3 * (rng.random::<f64>() - 0.5);
+                    [
+                        (x + 0.5 + jitter) / side as f64,
+                        (y + 0.5) / side as f64,
+                        height,
+                    ]
+                })
+                .collect();
+            let mut idx = vec![0; template.len() * k];
+            let mut d2 = vec![0.0; template.len() * k];
+            index.nearest_all(&template, k, &mut idx, &mut d2);
+            let lists = TargetNeighbours {
+                indices: &idx,
+                dist2: &d2,
+                k,
+            };
+            let fresh = reverse.query(&template, &scan, lists, &mut got);
+            let tree = PointIndex::new(&template);
+            for (j, x) in scan.iter().enumerate() {
+                let (want, want_d2) = brute_force_nearest(&template, x, 1);
+                assert_eq!(got[j], want[0], "height {height}, scan point {j}");
+                assert_eq!(tree.nearest_one(x), (want[0], want_d2[0]));
             }
-            if step % 10 == 9 {
-                let j = rng.random_range(0..moving.len());
-                moving[j] = [rng.random(), rng.random(), rng.random()];
-            }
+            certified.push(scan.len() - fresh);
         }
+        // The exactness above covers both paths; on the scan most queries are certified.
         assert!(
-            reused > 20 * fixed.len(),
-            "the cache should re-use most queries, re-used {reused}"
+            certified[0] < certified[3] && certified[3] > 3 * scan.len() / 4,
+            "{certified:?}"
         );
     }
 

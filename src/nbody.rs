@@ -3,7 +3,7 @@
 //! converging readings of SPEC §2.3–2.4; each literal reading of the paper stays reachable
 //! through [`ForceNumerator`], [`ForceSum`] and [`DampingMode`].
 
-use crate::knn::NearestMovingCache;
+use crate::knn::{PointIndex, ReverseNearest, TargetNeighbours};
 use crate::math::{vec3, Vec3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -185,7 +185,7 @@ pub fn step(
 /// so the result is the same for any thread count.
 #[derive(Clone, Debug, Default)]
 pub struct ReverseAttraction {
-    queries: NearestMovingCache,
+    queries: Option<ReverseNearest>,
     nearest: Vec<u32>,
     offsets: Vec<usize>,
     heads: Vec<usize>,
@@ -193,11 +193,12 @@ pub struct ReverseAttraction {
 }
 
 impl ReverseAttraction {
-    /// Scratch for a template of `m` points and a scan of `n` points; `cached` re-uses the
-    /// nearest-template-point queries where that is exact ([`NearestMovingCache`]).
-    pub fn new(m: usize, n: usize, cached: bool) -> Self {
+    /// Scratch for a template of `m` points and a scan of `n` points; `from_forward` derives
+    /// the nearest template points from the forward k-NN lists where that is exact
+    /// ([`ReverseNearest`]), else every scan point queries a k-d tree over the template.
+    pub fn new(m: usize, n: usize, from_forward: bool) -> Self {
         Self {
-            queries: NearestMovingCache::new(m, n, cached),
+            queries: from_forward.then(|| ReverseNearest::new(n)),
             nearest: vec![0; n],
             offsets: vec![0; m + 1],
             heads: vec![0; m],
@@ -205,18 +206,31 @@ impl ReverseAttraction {
         }
     }
 
-    /// The reverse forces on the template at `positions`, written to `out`; returns the number
-    /// of scan points whose nearest template point was queried afresh.
+    /// The reverse forces on the template at `positions`, written to `out`; `forward` are the
+    /// target neighborhoods of these positions. Returns the number of scan points whose nearest
+    /// template point was queried against a k-d tree.
+    #[allow(clippy::too_many_arguments)]
     pub fn compute(
         &mut self,
         positions: &[[f64; 3]],
         target: &[[f64; 3]],
         kappa: &[f64],
+        forward: TargetNeighbours<'_>,
         weight: f64,
         p: &NBodyParams,
         out: &mut [[f64; 3]],
     ) -> usize {
-        let fresh = self.queries.query(positions, target, &mut self.nearest);
+        let fresh = match self.queries.as_mut() {
+            Some(reverse) => reverse.query(positions, target, forward, &mut self.nearest),
+            None => {
+                let tree = PointIndex::new(positions);
+                self.nearest
+                    .par_iter_mut()
+                    .zip(target.par_iter())
+                    .for_each(|(n, x)| *n = tree.nearest_one(x).0);
+                target.len()
+            }
+        };
         // Counting sort of the scan points by nearest template point (stable: scan order).
         self.offsets.iter_mut().for_each(|o| *o = 0);
         for &k in &self.nearest {
