@@ -506,8 +506,14 @@ pub struct Diagnostics {
     pub stopped_by_callback: bool,
     /// The normalized frame used.
     pub frame: Option<Frame>,
-    /// Seconds per stage.
+    /// Seconds per stage of the iterations, summed over the schedules run (under schedule
+    /// selection the two runs overlap in time, so the stages add up to more than the wall time
+    /// of the iterations; their shares are what they are).
     pub stage_seconds: StageTimes,
+    /// Wall-clock seconds of the fit's three parts: `[setup, iterations, finish]` (validation,
+    /// frame, scan tree, curvature and neighborhoods; the iterations of every schedule; the
+    /// wrinkle fields, the return to the user's frame and the schedule selection).
+    pub wall_seconds: [f64; 3],
     /// Fresh k-d tree queries of the target neighborhoods over the fit (M per iteration
     /// without the candidate cache).
     pub knn_queries: usize,
@@ -683,6 +689,7 @@ pub fn fit(
     } else {
         vec![params.clone()]
     };
+    let clock = std::time::Instant::now();
     let prepared = Prepared::new(
         template_vertices,
         template_faces,
@@ -694,10 +701,18 @@ pub fn fit(
         .into_iter()
         .map(|p| ScheduleRun::new(&prepared, p))
         .collect();
+    let setup = clock.elapsed().as_secs_f64();
     drive(&prepared, &mut runs, params.iterations, observer)?;
+    let iterations = clock.elapsed().as_secs_f64() - setup;
     let mut results: Vec<FitResult> = runs.into_iter().map(|r| r.finish(&prepared)).collect();
+    let walls = |r: &mut FitResult| {
+        let total = clock.elapsed().as_secs_f64();
+        r.diagnostics.wall_seconds = [setup, iterations, total - setup - iterations];
+    };
     if !select {
-        return Ok(results.pop().expect("one run"));
+        let mut only = results.pop().expect("one run");
+        walls(&mut only);
+        return Ok(only);
     }
     let sharp = results.pop().expect("two runs");
     let given = results.pop().expect("two runs");
@@ -719,6 +734,7 @@ pub fn fit(
     d.knn_queries += other.diagnostics.knn_queries;
     d.two_way_queries += other.diagnostics.two_way_queries;
     d.stage_seconds.add(&other.diagnostics.stage_seconds);
+    walls(&mut chosen);
     Ok(chosen)
 }
 

@@ -243,6 +243,19 @@ def test_knn_cache_changes_nothing(case):
         assert cached.diagnostics[key] < 0.7 * fresh.diagnostics[key], key
 
 
+def test_wall_seconds_split_the_call(case):
+    """Setup, iterations and finish are timed inside the call: non-negative, within the wall
+    time measured around it; the iterations take the largest part of a 40-iteration fit."""
+    import time
+
+    t0 = time.perf_counter()
+    r = fm.fit(case["template_vertices"], case["faces"], case["scan"], iterations=40)
+    wall = time.perf_counter() - t0
+    setup, iterations, finish = r.diagnostics["wall_seconds"]
+    assert min(setup, iterations, finish) >= 0 and setup + iterations + finish <= wall
+    assert iterations > max(setup, finish)
+
+
 def test_paper_preset_is_the_method_as_printed(case):
     r = fm.fit(case["template_vertices"], case["faces"], case["scan"], preset="paper", iterations=5)
     assert r.params["two_way"] == 0 and r.params["rigid_fraction"] == 0
