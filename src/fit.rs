@@ -138,8 +138,9 @@ pub struct FitParams {
     /// Fast 3×3 matrix functions, each agreeing with the eigen-decomposition to round-off:
     /// truncated series for the logarithms and exponentials of Eq. 5 near the identity, the
     /// Newton iteration for polar factors and nearest rotations (Eq. 5's rotation mean,
-    /// Eq. 8), closed-form eigenvalues and a direct inverse for well-conditioned Eq. 4
-    /// systems. `false` always uses the Jacobi eigen-decomposition (the exact reference path).
+    /// Eq. 8, the Kabsch fits of the rigid and coarse phases and of NRGa), closed-form
+    /// eigenvalues and a direct inverse for well-conditioned Eq. 4 systems. `false` always uses
+    /// the Jacobi eigen-decomposition (the exact reference path).
     pub matrix_series: bool,
     /// Re-use earlier k-NN candidates when that is provably exact (see
     /// [`crate::knn::NeighborCache`]); `false` queries the k-d tree for every vertex every
@@ -1039,7 +1040,7 @@ impl ScheduleRun {
             _ if it <= self.rigid_iterations => {
                 let all = &prepared.all_vertices;
                 let (c_old, c_new) = ring_centroids(all, old, new);
-                let r = kabsch(all, old, new, &c_old, &c_new);
+                let r = kabsch(all, old, new, &c_old, &c_new, params.matrix_series);
                 next.par_iter_mut().enumerate().for_each(|(v, out)| {
                     *out = transform_vertex(&r, &vec3(&old[v]), &c_old, &c_new).into();
                 });
@@ -1049,7 +1050,7 @@ impl ScheduleRun {
                 let levels = &prepared.coarse_levels;
                 let level =
                     (it - self.rigid_iterations - 1) * levels.len() / self.coarse_iterations;
-                kabsch_update(&levels[level], old, new, next);
+                kabsch_update(&levels[level], old, new, params.matrix_series, next);
                 0
             }
             Method::FoldMatch => {
@@ -1065,7 +1066,7 @@ impl ScheduleRun {
                 d
             }
             Method::Nrga => {
-                kabsch_update(&prepared.rings, old, new, next);
+                kabsch_update(&prepared.rings, old, new, params.matrix_series, next);
                 0
             }
         };
@@ -1154,12 +1155,18 @@ impl ScheduleRun {
 }
 
 /// Moves every vertex by the Kabsch rigid fit of its neighborhood's motion `old → new`
-/// (the NRGa update, and the coarse phase).
-fn kabsch_update(rings: &Neighborhoods, old: &[[f64; 3]], new: &[[f64; 3]], next: &mut [[f64; 3]]) {
+/// (the NRGa update, and the coarse phase); `fast` as in [`kabsch`].
+fn kabsch_update(
+    rings: &Neighborhoods,
+    old: &[[f64; 3]],
+    new: &[[f64; 3]],
+    fast: bool,
+    next: &mut [[f64; 3]],
+) {
     next.par_iter_mut().enumerate().for_each(|(v, out)| {
         let ring = rings.of(v);
         let (c_old, c_new) = ring_centroids(ring, old, new);
-        let r = kabsch(ring, old, new, &c_old, &c_new);
+        let r = kabsch(ring, old, new, &c_old, &c_new, fast);
         *out = transform_vertex(&r, &vec3(&old[v]), &c_old, &c_new).into();
     });
 }

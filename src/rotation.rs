@@ -40,18 +40,27 @@ pub fn transform_vertex(rotation: &Mat3, y: &Vec3, c_old: &Vec3, c_new: &Vec3) -
 }
 
 /// Kabsch rotation of the neighborhood: the rotation best mapping `old − Ȳ` onto `new − Ȳ'`.
+/// With `fast`, the nearest rotation of the covariance comes from the Newton polar iteration
+/// where it applies (a full-rank covariance: a curved neighborhood), agreeing with the
+/// eigen-decomposition to round-off ([`nearest_rotation_fast`]); a flat neighborhood's
+/// rank-2 covariance takes the eigen-decomposition either way.
 pub fn kabsch(
     ring: &[u32],
     old: &[[f64; 3]],
     new: &[[f64; 3]],
     c_old: &Vec3,
     c_new: &Vec3,
+    fast: bool,
 ) -> Mat3 {
     let mut cov = Mat3::zeros();
     for &j in ring {
         cov += (vec3(&new[j as usize]) - c_new) * (vec3(&old[j as usize]) - c_old).transpose();
     }
-    nearest_rotation(&cov)
+    if fast {
+        nearest_rotation_fast(&cov)
+    } else {
+        nearest_rotation(&cov)
+    }
 }
 
 #[cfg(test)]
@@ -86,7 +95,7 @@ mod tests {
         let new: Vec<[f64; 3]> = old.iter().map(|p| (r * vec3(p) + t).into()).collect();
         let ring = [0, 1, 2, 3, 4];
         let (co, cn) = ring_centroids(&ring, &old, &new);
-        let rk = kabsch(&ring, &old, &new, &co, &cn);
+        let rk = kabsch(&ring, &old, &new, &co, &cn, false);
         assert_relative_eq!(rk, r, epsilon = 1e-10);
         assert_relative_eq!(
             transform_vertex(&rk, &vec3(&old[4]), &co, &cn),
