@@ -71,7 +71,14 @@ pub enum Selection {
     /// from every scan point to its nearest fitted vertex). FoldMatch only; twice the work,
     /// the two runs side by side (concurrently, sharing the setup).
     ScanDistance,
+    /// Like [`Selection::ScanDistance`] with a third candidate, the *strong* schedule
+    /// ([`FitParams::strong_schedule`]: the given one with 1.5× the two-way weight); three
+    /// times the work of one schedule (the `"accurate"` preset).
+    ScanDistanceWide,
 }
+
+/// The names of the candidate schedules, in [`FitParams::candidate_schedules`] order.
+pub const SCHEDULE_NAMES: [&str; 3] = ["given", "sharp", "strong"];
 
 /// Distance (in target bounding-box diagonals) beyond which an unaligned template is refused.
 pub const FAR_AWAY: f64 = 1.0;
@@ -235,18 +242,56 @@ impl FitParams {
         }
     }
 
-    /// A named preset: `"default"` (the most accurate configuration measured, see
-    /// docs/method.md), `"paper"` ([`FitParams::paper`]) or `"tracking"`
-    /// ([`FitParams::tracking`]).
+    /// The third candidate of [`Selection::ScanDistanceWide`]: these parameters with 1.5× the
+    /// two-way weight (2 → 3), which pulls the template harder into scan regions it does not
+    /// cover yet (docs/method.md).
+    pub fn strong_schedule(&self) -> Self {
+        Self {
+            two_way: 1.5 * self.two_way,
+            selection: Selection::Single,
+            ..self.clone()
+        }
+    }
+
+    /// The schedules a fit runs: the given one alone ([`Selection::Single`], or NRGa), or the
+    /// candidates of schedule selection, named by [`SCHEDULE_NAMES`].
+    pub fn candidate_schedules(&self) -> Vec<Self> {
+        let given = Self {
+            selection: Selection::Single,
+            ..self.clone()
+        };
+        match self.selection {
+            _ if self.method != Method::FoldMatch => vec![given],
+            Selection::Single => vec![given],
+            Selection::ScanDistance => vec![given, self.sharp_schedule()],
+            Selection::ScanDistanceWide => {
+                vec![given, self.sharp_schedule(), self.strong_schedule()]
+            }
+        }
+    }
+
+    /// The default with a third candidate schedule ([`Selection::ScanDistanceWide`]): closer
+    /// to the truth on the harness at 1.5× the default's time (the `"accurate"` preset).
+    pub fn accurate() -> Self {
+        Self {
+            selection: Selection::ScanDistanceWide,
+            ..Self::default()
+        }
+    }
+
+    /// A named preset: `"default"` (the most accurate configuration for its cost, see
+    /// docs/method.md), `"accurate"` ([`FitParams::accurate`]), `"paper"`
+    /// ([`FitParams::paper`]) or `"tracking"` ([`FitParams::tracking`]).
     pub fn preset(name: &str) -> Result<Self> {
         match name {
             "default" => Ok(Self::default()),
+            "accurate" => Ok(Self::accurate()),
             "paper" => Ok(Self::paper()),
             "tracking" => Ok(Self::tracking()),
             other => Err(FoldMatchError::parameter(
                 "preset",
                 other,
-                "one of default, paper, tracking",
+                "one of default, accurate, paper, tracking",
             )),
         }
     }
@@ -523,11 +568,12 @@ pub struct Diagnostics {
     /// k-d tree queries of the two-way attraction (a scan point's nearest template vertex; N
     /// per iteration with `knn_cache` off).
     pub two_way_queries: usize,
-    /// Which schedule produced the result: `"given"` (the parameters as given) or `"sharp"`
-    /// ([`FitParams::sharp_schedule`], chosen by [`Selection::ScanDistance`]).
+    /// Which schedule produced the result: `"given"` (the parameters as given), `"sharp"`
+    /// ([`FitParams::sharp_schedule`]) or `"strong"` ([`FitParams::strong_schedule`]), the
+    /// latter two chosen by schedule selection ([`Selection`]).
     pub schedule: String,
-    /// Under [`Selection::ScanDistance`]: the mean scan→fit distance (user units) of the given
-    /// and of the sharp schedule's fit; empty otherwise.
+    /// Under schedule selection: the mean scan→fit distance (user units) of each candidate's
+    /// fit, in [`SCHEDULE_NAMES`] order; empty otherwise.
     pub candidate_scan_distances: Vec<f64>,
 }
 
@@ -669,10 +715,11 @@ pub fn deformation_model(
 /// * `observer` — called after every iteration; returning `false` stops the fit, which then
 ///   returns what it has (with `diagnostics.stopped_by_callback`).
 ///
-/// Under [`Selection::ScanDistance`] (the default) the given and the sharp schedule are fitted
-/// side by side, in lockstep (each iteration of both runs concurrently, then one progress
-/// report, so progress counts ξ iterations and a stop applies to both), sharing the setup; the
-/// fit closer to the scan is returned.
+/// Under schedule selection ([`Selection::ScanDistance`], the default: the given and the sharp
+/// schedule; [`Selection::ScanDistanceWide`]: also the strong one) the candidates are fitted
+/// side by side, in lockstep (each iteration of every run concurrently, then one progress
+/// report, so progress counts ξ iterations and a stop applies to all), sharing the setup; the
+/// fit closest to the scan is returned.
 pub fn fit(
     template_vertices: &[[f64; 3]],
     template_faces: &[[u32; 3]],
@@ -682,16 +729,7 @@ pub fn fit(
     observer: &mut (dyn FnMut(&Progress) -> bool + Send),
 ) -> Result<FitResult> {
     params.validate()?;
-    let select = params.selection == Selection::ScanDistance && params.method == Method::FoldMatch;
-    let schedules = if select {
-        let given = FitParams {
-            selection: Selection::Single,
-            ..params.clone()
-        };
-        vec![given, params.sharp_schedule()]
-    } else {
-        vec![params.clone()]
-    };
+    let schedules = params.candidate_schedules();
     let clock = std::time::Instant::now();
     let prepared = Prepared::new(
         template_vertices,
@@ -712,36 +750,35 @@ pub fn fit(
         let total = clock.elapsed().as_secs_f64();
         r.diagnostics.wall_seconds = [setup, iterations, total - setup - iterations];
     };
-    if !select {
+    if results.len() == 1 {
         let mut only = results.pop().expect("one run");
         walls(&mut only);
         return Ok(only);
     }
-    let sharp = results.pop().expect("two runs");
-    let given = results.pop().expect("two runs");
-    let scan_distance = |r: &FitResult| {
-        let d = crate::metrics::nearest_distances(target, &r.vertices);
-        d.iter().sum::<f64>() / d.len() as f64
-    };
-    let distances = vec![scan_distance(&given), scan_distance(&sharp)];
-    let sharp_wins = distances[1] < distances[0];
-    let (mut chosen, other) = if sharp_wins {
-        (sharp, given)
-    } else {
-        (given, sharp)
-    };
+    let distances: Vec<f64> = results
+        .iter()
+        .map(|r| {
+            let d = crate::metrics::nearest_distances(target, &r.vertices);
+            d.iter().sum::<f64>() / d.len() as f64
+        })
+        .collect();
+    // The first minimum: ties keep the earlier (given) schedule.
+    let best = (1..distances.len()).fold(0, |b, i| if distances[i] < distances[b] { i } else { b });
+    let mut chosen = results.swap_remove(best);
     chosen.params = params.clone();
     let d = &mut chosen.diagnostics;
-    d.schedule = if sharp_wins { "sharp" } else { "given" }.into();
+    d.schedule = SCHEDULE_NAMES[best].into();
     d.candidate_scan_distances = distances;
-    d.knn_queries += other.diagnostics.knn_queries;
-    d.two_way_queries += other.diagnostics.two_way_queries;
-    d.stage_seconds.add(&other.diagnostics.stage_seconds);
+    for other in &results {
+        d.knn_queries += other.diagnostics.knn_queries;
+        d.two_way_queries += other.diagnostics.two_way_queries;
+        d.stage_seconds.add(&other.diagnostics.stage_seconds);
+    }
     walls(&mut chosen);
     Ok(chosen)
 }
 
-/// Steps every run in lockstep (concurrently when there are two) and reports each iteration
+/// Steps every run in lockstep (concurrently when there are several) and reports each iteration
 /// once, with the first still-running schedule's figures; a `false` from the observer stops
 /// them all.
 fn drive(
@@ -755,10 +792,16 @@ fn drive(
             [one] => one.step(prepared)?,
             [a, b] => {
                 let (ra, rb) = rayon::join(|| a.step(prepared), || b.step(prepared));
-                let (ra, rb) = (ra?, rb?);
-                ra.or(rb)
+                ra?.or(rb?)
             }
-            _ => unreachable!("one or two schedules"),
+            [a, b, c] => {
+                let (ra, (rb, rc)) = rayon::join(
+                    || a.step(prepared),
+                    || rayon::join(|| b.step(prepared), || c.step(prepared)),
+                );
+                ra?.or(rb?).or(rc?)
+            }
+            _ => unreachable!("one to three schedules"),
         };
         let Some(record) = record else {
             break; // every run has converged
@@ -1324,6 +1367,55 @@ mod tests {
                 .unwrap_err()
                 .to_string()
                 .contains("coarse_levels"));
+        }
+    }
+
+    #[test]
+    fn wide_selection_returns_the_closest_of_three_candidates() {
+        let (v, f, x) = grid_case();
+        let accurate = FitParams {
+            iterations: 20,
+            ..FitParams::accurate()
+        };
+        assert_eq!(
+            FitParams::preset("accurate").unwrap(),
+            FitParams::accurate()
+        );
+        let candidates = accurate.candidate_schedules();
+        assert_eq!(candidates.len(), SCHEDULE_NAMES.len());
+        // Given, sharp, strong: the strong one differs from the given only in its weight.
+        assert_eq!(candidates[1], accurate.sharp_schedule());
+        assert_eq!(candidates[2].two_way, 1.5 * accurate.two_way);
+        assert_eq!(
+            FitParams {
+                two_way: accurate.two_way,
+                ..candidates[2].clone()
+            },
+            candidates[0]
+        );
+        let chosen = fit_simple(&v, &f, &x, None, &accurate).unwrap();
+        let alone: Vec<FitResult> = candidates
+            .iter()
+            .map(|p| fit_simple(&v, &f, &x, None, p).unwrap())
+            .collect();
+        let dist = |r: &FitResult| {
+            let d = crate::metrics::nearest_distances(&x, &r.vertices);
+            d.iter().sum::<f64>() / d.len() as f64
+        };
+        let d: Vec<f64> = alone.iter().map(dist).collect();
+        assert_eq!(chosen.diagnostics.candidate_scan_distances, d);
+        let best = (0..3).min_by(|&a, &b| d[a].total_cmp(&d[b])).unwrap();
+        assert_eq!(chosen.vertices, alone[best].vertices);
+        assert_eq!(chosen.diagnostics.schedule, SCHEDULE_NAMES[best]);
+        // One schedule for NRGa and for a single selection.
+        for p in [
+            FitParams {
+                method: Method::Nrga,
+                ..accurate.clone()
+            },
+            FitParams::tracking(),
+        ] {
+            assert_eq!(p.candidate_schedules().len(), 1);
         }
     }
 

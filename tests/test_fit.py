@@ -243,6 +243,29 @@ def test_knn_cache_changes_nothing(case):
         assert cached.diagnostics[key] < 0.7 * fresh.diagnostics[key], key
 
 
+def test_accurate_preset_keeps_the_closest_of_three_schedules(case):
+    """preset="accurate" fits the given, sharp and strong (1.5× two-way) schedules and keeps
+    the one with the lowest brute-force scan→fit distance; each equals its single run."""
+    v, f, x = case["template_vertices"], case["faces"], case["scan"]
+    r = fm.fit(v, f, x, preset="accurate", iterations=20)
+    alone = [
+        fm.fit(v, f, x, iterations=20, selection="single"),
+        fm.fit(v, f, x, iterations=20, selection="single", two_way=1.0, coarse_fraction=0.3,
+               anneal=1.0, anneal_fraction=0.0),
+        fm.fit(v, f, x, iterations=20, selection="single", two_way=3.0),
+    ]
+
+    def scan_distance(y):
+        return float(np.sqrt(((x[:, None, :] - y[None, :, :]) ** 2).sum(-1).min(1)).mean())
+
+    d = [scan_distance(a.vertices) for a in alone]
+    np.testing.assert_allclose(r.diagnostics["candidate_scan_distances"], d, rtol=1e-12)
+    best = int(np.argmin(d))
+    assert r.diagnostics["schedule"] == ["given", "sharp", "strong"][best]
+    np.testing.assert_array_equal(r.vertices, alone[best].vertices)
+    assert r.params["selection"] == "scan_distance_wide"
+
+
 def test_wall_seconds_split_the_call(case):
     """Setup, iterations and finish are timed inside the call: non-negative, within the wall
     time measured around it; the iterations take the largest part of a 40-iteration fit."""

@@ -211,11 +211,13 @@ def fit(
         The scan.
     target_faces : (F, 3) int, optional
         Scan triangles, when the scan is a mesh (only used for its Gaussian curvature).
-    preset : {"default", "paper", "tracking"}
+    preset : {"default", "accurate", "paper", "tracking"}
         Where unset parameters come from: ``"default"`` (:data:`DEFAULT_PARAMS`, the most
-        accurate configuration measured), ``"paper"`` (:data:`PAPER_PARAMS`, the method as
-        the paper describes it) or ``"tracking"`` (the default without softening annealing,
-        for a fit warm-started close to its scan, e.g. the previous frame of a sequence).
+        accurate configuration for its cost), ``"accurate"`` (the default with a third
+        candidate schedule, ``selection="scan_distance_wide"``: closer to the truth on the
+        harness, 1.5× the time), ``"paper"`` (:data:`PAPER_PARAMS`, the method as the paper
+        describes it) or ``"tracking"`` (the default without softening annealing, for a fit
+        warm-started close to its scan, e.g. the previous frame of a sequence).
     method : {"foldmatch", "nrga"}
         FoldMatch (default) or the NRGa point-based baseline.
     iterations : int
@@ -278,13 +280,14 @@ def fit(
     anneal, anneal_fraction : float, float
         Softening annealing: ε starts at ``anneal × ε`` and decreases linearly to ε over the
         first ``anneal_fraction`` of the iterations (3, 0.6; 1: constant, the paper's reading).
-    selection : {"scan_distance", "single"}
+    selection : {"scan_distance", "scan_distance_wide", "single"}
         ``"scan_distance"`` (default) also fits with the *sharp* schedule (two-way 1, coarse
         30 %, constant softening) and returns the fit closer to the scan (mean scan→fit
-        distance; twice the work, the two runs advancing side by side in lockstep, so the
-        callback still sees ξ iterations and a stop applies to both);
-        ``diagnostics["schedule"]`` says which (``"given"`` or
-        ``"sharp"``) and ``diagnostics["candidate_scan_distances"]`` gives both distances.
+        distance; twice the work, the runs advancing side by side in lockstep, so the
+        callback still sees ξ iterations and a stop applies to all);
+        ``"scan_distance_wide"`` adds the *strong* schedule (1.5× the two-way weight);
+        ``diagnostics["schedule"]`` says which won (``"given"``, ``"sharp"`` or ``"strong"``)
+        and ``diagnostics["candidate_scan_distances"]`` gives every candidate's distance.
         ``"single"`` runs the given schedule only (the paper and tracking presets).
     callback : callable, optional
         Called after every iteration with a dict (``iteration``, ``iterations``,
