@@ -555,7 +555,7 @@ pub struct Diagnostics {
     /// The normalized frame used.
     pub frame: Option<Frame>,
     /// Seconds per stage of the iterations, summed over the schedules run (under schedule
-    /// selection the two runs overlap in time, so the stages add up to more than the wall time
+    /// selection the runs overlap in time, so the stages add up to more than the wall time
     /// of the iterations; their shares are what they are).
     pub stage_seconds: StageTimes,
     /// Wall-clock seconds of the fit's three parts: `[setup, iterations, finish]` (validation,
