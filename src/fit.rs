@@ -745,34 +745,41 @@ pub fn fit(
     let setup = clock.elapsed().as_secs_f64();
     drive(&prepared, &mut runs, params.iterations, observer)?;
     let iterations = clock.elapsed().as_secs_f64() - setup;
-    let mut results: Vec<FitResult> = runs.into_iter().map(|r| r.finish(&prepared)).collect();
+    // Only the chosen run is finished (its wrinkle fields are a whole Eq. 4–8 pass); the
+    // candidates are compared on their fitted vertices alone.
+    let mut vertices: Vec<Vec<[f64; 3]>> =
+        runs.iter().map(|r| r.user_vertices(&prepared)).collect();
     let walls = |r: &mut FitResult| {
         let total = clock.elapsed().as_secs_f64();
         r.diagnostics.wall_seconds = [setup, iterations, total - setup - iterations];
     };
-    if results.len() == 1 {
-        let mut only = results.pop().expect("one run");
+    if runs.len() == 1 {
+        let mut only = runs
+            .pop()
+            .expect("one run")
+            .finish(&prepared, vertices.pop().expect("one run"));
         walls(&mut only);
         return Ok(only);
     }
-    let distances: Vec<f64> = results
+    let distances: Vec<f64> = vertices
         .iter()
-        .map(|r| {
-            let d = crate::metrics::nearest_distances(target, &r.vertices);
+        .map(|v| {
+            let d = crate::metrics::nearest_distances(target, v);
             d.iter().sum::<f64>() / d.len() as f64
         })
         .collect();
     // The first minimum: ties keep the earlier (given) schedule.
     let best = (1..distances.len()).fold(0, |b, i| if distances[i] < distances[b] { i } else { b });
-    let mut chosen = results.swap_remove(best);
+    let winner = runs.swap_remove(best);
+    let mut chosen = winner.finish(&prepared, vertices.swap_remove(best));
     chosen.params = params.clone();
     let d = &mut chosen.diagnostics;
     d.schedule = SCHEDULE_NAMES[best].into();
     d.candidate_scan_distances = distances;
-    for other in &results {
+    for other in &runs {
         d.knn_queries += other.diagnostics.knn_queries;
         d.two_way_queries += other.diagnostics.two_way_queries;
-        d.stage_seconds.add(&other.diagnostics.stage_seconds);
+        d.stage_seconds.add(&other.ws.times);
     }
     walls(&mut chosen);
     Ok(chosen)
@@ -1160,9 +1167,16 @@ impl ScheduleRun {
         Ok(Some(record))
     }
 
-    /// The result in the user's frame, with the wrinkle-vector fields of the last step and of
-    /// the whole motion.
-    fn finish(mut self, prepared: &Prepared) -> FitResult {
+    /// The current vertices in the user's frame.
+    fn user_vertices(&self, prepared: &Prepared) -> Vec<[f64; 3]> {
+        let mut v = self.pos.clone();
+        prepared.frame.inverse_in_place(&mut v);
+        v
+    }
+
+    /// The result (`vertices`: [`ScheduleRun::user_vertices`]), with the wrinkle-vector fields
+    /// of the last step and of the whole motion.
+    fn finish(mut self, prepared: &Prepared, vertices: Vec<[f64; 3]>) -> FitResult {
         let params = &self.params;
         let m = self.pos.len();
         self.diagnostics.stage_seconds = self.ws.times;
@@ -1185,10 +1199,8 @@ impl ScheduleRun {
         };
         deformation_model(&prepared.start, &self.pos, &acc_topo, params, &mut self.ws);
         let wvf_accumulated = self.ws.wvf;
-
-        prepared.frame.inverse_in_place(&mut self.pos);
         FitResult {
-            vertices: self.pos,
+            vertices,
             wvf,
             wvf_accumulated,
             iterations: self.history.len(),
