@@ -71,14 +71,14 @@ pub enum Selection {
     /// from every scan point to its nearest fitted vertex). FoldMatch only; twice the work,
     /// the two runs side by side (concurrently, sharing the setup).
     ScanDistance,
-    /// Like [`Selection::ScanDistance`] with a third candidate, the *strong* schedule
-    /// ([`FitParams::strong_schedule`]: the given one with 1.5× the two-way weight); three
+    /// Like [`Selection::ScanDistance`] with a third candidate, the *moderate* schedule
+    /// ([`FitParams::moderate_schedule`]: the given one with ⅔ of the two-way weight); three
     /// times the work of one schedule (the `"accurate"` preset).
     ScanDistanceWide,
 }
 
 /// The names of the candidate schedules, in [`FitParams::candidate_schedules`] order.
-pub const SCHEDULE_NAMES: [&str; 3] = ["given", "sharp", "strong"];
+pub const SCHEDULE_NAMES: [&str; 3] = ["given", "sharp", "moderate"];
 
 /// Distance (in target bounding-box diagonals) beyond which an unaligned template is refused.
 pub const FAR_AWAY: f64 = 1.0;
@@ -184,7 +184,7 @@ impl Default for FitParams {
             use_curvature: true,
             prealign: Prealign::None,
             snapshot_every: 0,
-            two_way: 2.0,
+            two_way: 3.0,
             rigid_fraction: 0.3,
             coarse_fraction: 0.5,
             coarse_rings: 8,
@@ -217,9 +217,11 @@ impl FitParams {
 
     /// The default without softening annealing, for a fit that starts close to its scan
     /// (warm-started frames of a sequence): annealing is a far-start device and, with few
-    /// iterations per frame, leaves too little time at the final ε (docs/method.md).
+    /// iterations per frame, leaves too little time at the final ε (docs/method.md). Its
+    /// two-way weight stays at 2, the value it was measured with on sequences.
     pub fn tracking() -> Self {
         Self {
+            two_way: 2.0,
             anneal: 1.0,
             anneal_fraction: 0.0,
             selection: Selection::Single,
@@ -242,12 +244,13 @@ impl FitParams {
         }
     }
 
-    /// The third candidate of [`Selection::ScanDistanceWide`]: these parameters with 1.5× the
-    /// two-way weight (2 → 3), which pulls the template harder into scan regions it does not
-    /// cover yet (docs/method.md).
-    pub fn strong_schedule(&self) -> Self {
+    /// The third candidate of [`Selection::ScanDistanceWide`]: these parameters with ⅔ of the
+    /// two-way weight (3 → 2, the given schedule of the default before 2026-11-22's second
+    /// change), which pulls less hard on scan regions the template does not cover yet
+    /// (docs/method.md).
+    pub fn moderate_schedule(&self) -> Self {
         Self {
-            two_way: 1.5 * self.two_way,
+            two_way: self.two_way / 1.5,
             selection: Selection::Single,
             ..self.clone()
         }
@@ -265,13 +268,14 @@ impl FitParams {
             Selection::Single => vec![given],
             Selection::ScanDistance => vec![given, self.sharp_schedule()],
             Selection::ScanDistanceWide => {
-                vec![given, self.sharp_schedule(), self.strong_schedule()]
+                vec![given, self.sharp_schedule(), self.moderate_schedule()]
             }
         }
     }
 
-    /// The default with a third candidate schedule ([`Selection::ScanDistanceWide`]): closer
-    /// to the truth on the harness at 1.5× the default's time (the `"accurate"` preset).
+    /// The default with a third candidate schedule ([`Selection::ScanDistanceWide`]): a
+    /// slightly lower f_R on the harness at 1.5× the default's time (the `"accurate"` preset,
+    /// docs/method.md).
     pub fn accurate() -> Self {
         Self {
             selection: Selection::ScanDistanceWide,
@@ -569,7 +573,7 @@ pub struct Diagnostics {
     /// per iteration with `knn_cache` off).
     pub two_way_queries: usize,
     /// Which schedule produced the result: `"given"` (the parameters as given), `"sharp"`
-    /// ([`FitParams::sharp_schedule`]) or `"strong"` ([`FitParams::strong_schedule`]), the
+    /// ([`FitParams::sharp_schedule`]) or `"moderate"` ([`FitParams::moderate_schedule`]), the
     /// latter two chosen by schedule selection ([`Selection`]).
     pub schedule: String,
     /// Under schedule selection: the mean scan→fit distance (user units) of each candidate's
@@ -716,7 +720,7 @@ pub fn deformation_model(
 ///   returns what it has (with `diagnostics.stopped_by_callback`).
 ///
 /// Under schedule selection ([`Selection::ScanDistance`], the default: the given and the sharp
-/// schedule; [`Selection::ScanDistanceWide`]: also the strong one) the candidates are fitted
+/// schedule; [`Selection::ScanDistanceWide`]: also the moderate one) the candidates are fitted
 /// side by side, in lockstep (each iteration of every run concurrently, then one progress
 /// report, so progress counts ξ iterations and a stop applies to all), sharing the setup; the
 /// fit closest to the scan is returned.
@@ -1395,9 +1399,9 @@ mod tests {
         );
         let candidates = accurate.candidate_schedules();
         assert_eq!(candidates.len(), SCHEDULE_NAMES.len());
-        // Given, sharp, strong: the strong one differs from the given only in its weight.
+        // Given, sharp, moderate: the moderate one differs from the given only in its weight.
         assert_eq!(candidates[1], accurate.sharp_schedule());
-        assert_eq!(candidates[2].two_way, 1.5 * accurate.two_way);
+        assert_eq!(candidates[2].two_way, accurate.two_way / 1.5);
         assert_eq!(
             FitParams {
                 two_way: accurate.two_way,

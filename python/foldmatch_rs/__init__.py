@@ -260,7 +260,8 @@ def fit(
         Keep the vertex positions every this many iterations (0: none).
     two_way : float
         Weight of the two-way attraction: every scan point also pulls its nearest template
-        vertex (2.0; 0 is the paper's one-way attraction; FoldMatch only).
+        vertex (3.0; the tracking preset 2.0; 0 is the paper's one-way attraction; FoldMatch
+        only).
     rigid_fraction : float
         Rigid phase: this fraction of the iterations comes first and moves the whole template
         rigidly under the N-body forces (0.3; FoldMatch only).
@@ -285,8 +286,8 @@ def fit(
         30 %, constant softening) and returns the fit closer to the scan (mean scan→fit
         distance; twice the work, the runs advancing side by side in lockstep, so the
         callback still sees ξ iterations and a stop applies to all);
-        ``"scan_distance_wide"`` adds the *strong* schedule (1.5× the two-way weight);
-        ``diagnostics["schedule"]`` says which won (``"given"``, ``"sharp"`` or ``"strong"``)
+        ``"scan_distance_wide"`` adds the *moderate* schedule (⅔ of the two-way weight);
+        ``diagnostics["schedule"]`` says which won (``"given"``, ``"sharp"`` or ``"moderate"``)
         and ``diagnostics["candidate_scan_distances"]`` gives every candidate's distance.
         ``"single"`` runs the given schedule only (the paper and tracking presets).
     callback : callable, optional
