@@ -71,14 +71,14 @@ pub enum Selection {
     /// from every scan point to its nearest fitted vertex). FoldMatch only; twice the work,
     /// the two runs side by side (concurrently, sharing the setup).
     ScanDistance,
-    /// Like [`Selection::ScanDistance`] with a third candidate, the *moderate* schedule
-    /// ([`FitParams::moderate_schedule`]: the given one with ⅔ of the two-way weight); three
-    /// times the work of one schedule (the `"accurate"` preset).
+    /// Like [`Selection::ScanDistance`] with a third candidate, the *gentle* schedule
+    /// ([`FitParams::gentle_schedule`]: the given one with ⅔ of the two-way weight and a
+    /// longer annealing); three times the work of one schedule (the `"accurate"` preset).
     ScanDistanceWide,
 }
 
 /// The names of the candidate schedules, in [`FitParams::candidate_schedules`] order.
-pub const SCHEDULE_NAMES: [&str; 3] = ["given", "sharp", "moderate"];
+pub const SCHEDULE_NAMES: [&str; 3] = ["given", "sharp", "gentle"];
 
 /// Distance (in target bounding-box diagonals) beyond which an unaligned template is refused.
 pub const FAR_AWAY: f64 = 1.0;
@@ -245,12 +245,13 @@ impl FitParams {
     }
 
     /// The third candidate of [`Selection::ScanDistanceWide`]: these parameters with ⅔ of the
-    /// two-way weight (3 → 2, the given schedule of the default before 2026-11-22's second
-    /// change), which pulls less hard on scan regions the template does not cover yet
-    /// (docs/method.md).
-    pub fn moderate_schedule(&self) -> Self {
+    /// two-way weight (3 → 2) and the softening annealed over at least 80 % of the iterations
+    /// (60 % in the default): long-range pulls for longer, a gentler pull on scan regions the
+    /// template does not cover yet (docs/method.md).
+    pub fn gentle_schedule(&self) -> Self {
         Self {
             two_way: self.two_way / 1.5,
+            anneal_fraction: self.anneal_fraction.max(0.8),
             selection: Selection::Single,
             ..self.clone()
         }
@@ -268,13 +269,13 @@ impl FitParams {
             Selection::Single => vec![given],
             Selection::ScanDistance => vec![given, self.sharp_schedule()],
             Selection::ScanDistanceWide => {
-                vec![given, self.sharp_schedule(), self.moderate_schedule()]
+                vec![given, self.sharp_schedule(), self.gentle_schedule()]
             }
         }
     }
 
-    /// The default with a third candidate schedule ([`Selection::ScanDistanceWide`]): a
-    /// slightly lower f_R on the harness at 1.5× the default's time (the `"accurate"` preset,
+    /// The default with a third candidate schedule ([`Selection::ScanDistanceWide`]): closer
+    /// to the truth on the harness at 1.5× the default's time (the `"accurate"` preset,
     /// docs/method.md).
     pub fn accurate() -> Self {
         Self {
@@ -573,7 +574,7 @@ pub struct Diagnostics {
     /// per iteration with `knn_cache` off).
     pub two_way_queries: usize,
     /// Which schedule produced the result: `"given"` (the parameters as given), `"sharp"`
-    /// ([`FitParams::sharp_schedule`]) or `"moderate"` ([`FitParams::moderate_schedule`]), the
+    /// ([`FitParams::sharp_schedule`]) or `"gentle"` ([`FitParams::gentle_schedule`]), the
     /// latter two chosen by schedule selection ([`Selection`]).
     pub schedule: String,
     /// Under schedule selection: the mean scan→fit distance (user units) of each candidate's
@@ -720,7 +721,7 @@ pub fn deformation_model(
 ///   returns what it has (with `diagnostics.stopped_by_callback`).
 ///
 /// Under schedule selection ([`Selection::ScanDistance`], the default: the given and the sharp
-/// schedule; [`Selection::ScanDistanceWide`]: also the moderate one) the candidates are fitted
+/// schedule; [`Selection::ScanDistanceWide`]: also the gentle one) the candidates are fitted
 /// side by side, in lockstep (each iteration of every run concurrently, then one progress
 /// report, so progress counts ξ iterations and a stop applies to all), sharing the setup; the
 /// fit closest to the scan is returned.
@@ -1399,12 +1400,15 @@ mod tests {
         );
         let candidates = accurate.candidate_schedules();
         assert_eq!(candidates.len(), SCHEDULE_NAMES.len());
-        // Given, sharp, moderate: the moderate one differs from the given only in its weight.
+        // Given, sharp, gentle: the gentle one differs from the given only in its weight and
+        // its annealing's length.
         assert_eq!(candidates[1], accurate.sharp_schedule());
         assert_eq!(candidates[2].two_way, accurate.two_way / 1.5);
+        assert_eq!(candidates[2].anneal_fraction, 0.8);
         assert_eq!(
             FitParams {
                 two_way: accurate.two_way,
+                anneal_fraction: accurate.anneal_fraction,
                 ..candidates[2].clone()
             },
             candidates[0]

@@ -286,8 +286,9 @@ def fit(
         30 %, constant softening) and returns the fit closer to the scan (mean scan→fit
         distance; twice the work, the runs advancing side by side in lockstep, so the
         callback still sees ξ iterations and a stop applies to all);
-        ``"scan_distance_wide"`` adds the *moderate* schedule (⅔ of the two-way weight);
-        ``diagnostics["schedule"]`` says which won (``"given"``, ``"sharp"`` or ``"moderate"``)
+        ``"scan_distance_wide"`` adds the *gentle* schedule (⅔ of the two-way weight, softening
+        annealed over 80 % of the iterations); ``diagnostics["schedule"]`` says which won
+        (``"given"``, ``"sharp"`` or ``"gentle"``)
         and ``diagnostics["candidate_scan_distances"]`` gives every candidate's distance.
         ``"single"`` runs the given schedule only (the paper and tracking presets).
     callback : callable, optional

@@ -329,9 +329,9 @@ pub enum PrealignArg {
 #[command(next_help_heading = "Fit parameters")]
 pub struct ParamArgs {
     /// Starting values of every parameter: `default` (the most accurate configuration for its
-    /// cost), `accurate` (the default with a third candidate schedule: slightly closer to the
-    /// truth, 1.5× the time), `paper` (the paper's method with only the converging readings)
-    /// or `tracking` (the default without softening annealing, for warm-started fits)
+    /// cost), `accurate` (the default with a third candidate schedule: closer to the truth,
+    /// 1.5× the time), `paper` (the paper's method with only the converging readings) or
+    /// `tracking` (the default without softening annealing, for warm-started fits)
     /// [default: default; for `sequence`: tracking].
     #[arg(long, value_name = "NAME")]
     pub preset: Option<String>,
