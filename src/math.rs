@@ -177,7 +177,18 @@ pub fn rotation_newton(m: &Mat3) -> Option<Mat3> {
             return None;
         }
         // X⁻ᵀ = cof(X) / det X.
-        let inv_t = cofactor(&x) / det;
+        let cof = Mat3::new(
+            x[(1, 1)] * x[(2, 2)] - x[(1, 2)] * x[(2, 1)],
+            x[(1, 2)] * x[(2, 0)] - x[(1, 0)] * x[(2, 2)],
+            x[(1, 0)] * x[(2, 1)] - x[(1, 1)] * x[(2, 0)],
+            x[(0, 2)] * x[(2, 1)] - x[(0, 1)] * x[(2, 2)],
+            x[(0, 0)] * x[(2, 2)] - x[(0, 2)] * x[(2, 0)],
+            x[(0, 1)] * x[(2, 0)] - x[(0, 0)] * x[(2, 1)],
+            x[(0, 1)] * x[(1, 2)] - x[(0, 2)] * x[(1, 1)],
+            x[(0, 2)] * x[(1, 0)] - x[(0, 0)] * x[(1, 2)],
+            x[(0, 0)] * x[(1, 1)] - x[(0, 1)] * x[(1, 0)],
+        );
+        let inv_t = cof / det;
         let gamma = if scaled {
             (inv_t.norm() / x.norm()).sqrt()
         } else {
@@ -197,51 +208,11 @@ pub fn rotation_newton(m: &Mat3) -> Option<Mat3> {
     None
 }
 
-/// The cofactor matrix `cof X = det(X) X⁻ᵀ`, defined for a singular `X` too.
-#[inline]
-pub fn cofactor(x: &Mat3) -> Mat3 {
-    Mat3::new(
-        x[(1, 1)] * x[(2, 2)] - x[(1, 2)] * x[(2, 1)],
-        x[(1, 2)] * x[(2, 0)] - x[(1, 0)] * x[(2, 2)],
-        x[(1, 0)] * x[(2, 1)] - x[(1, 1)] * x[(2, 0)],
-        x[(0, 2)] * x[(2, 1)] - x[(0, 1)] * x[(2, 2)],
-        x[(0, 0)] * x[(2, 2)] - x[(0, 2)] * x[(2, 0)],
-        x[(0, 1)] * x[(2, 0)] - x[(0, 0)] * x[(2, 1)],
-        x[(0, 1)] * x[(1, 2)] - x[(0, 2)] * x[(1, 1)],
-        x[(0, 2)] * x[(1, 0)] - x[(0, 0)] * x[(1, 2)],
-        x[(0, 0)] * x[(1, 1)] - x[(0, 1)] * x[(1, 0)],
-    )
-}
-
-/// [`nearest_rotation`] of a nearly rank-2 `m` (σ₃ ≪ σ₂: the covariance of a flat or nearly
-/// flat neighborhood, where [`rotation_newton`] refuses) by the Newton iteration on the
-/// *completed* matrix `m̃ = m + t cof m`, `t = ‖m‖/‖cof m‖`; `None` outside its conditions.
-///
-/// With `m = U Σ Vᵀ` and `d = det U det V`, `cof m = d U diag(σ₂σ₃, σ₁σ₃, σ₁σ₂) Vᵀ`, so `m̃`
-/// has m's singular vectors and the diagonal `σ₁ + t d σ₂σ₃, σ₂ + t d σ₁σ₃, σ₃ + t d σ₁σ₂`.
-/// When `3‖m‖³ |det m| < ‖cof m‖³` the first two entries are positive and the third has the
-/// sign of `d` (σ₂² ≥ ‖cof m‖²/(3‖m‖²) bounds `t σ₁σ₃ < σ₂`), so the polar factor of `m̃` is
-/// `U diag(1, 1, d) Vᵀ`: exactly m's nearest rotation, now from a well-conditioned matrix
-/// (σ₃ replaced by about ‖m‖). The determinant's sign never enters, so a round-off sign of a
-/// zero determinant is harmless.
-pub fn rotation_completed(m: &Mat3) -> Option<Mat3> {
-    let cof = cofactor(m);
-    let (norm, cof_norm) = (m.norm(), cof.norm());
-    let det = m.determinant();
-    if !(cof_norm > 0.0 && cof_norm.is_finite() && 3.0 * norm.powi(3) * det.abs() < cof_norm.powi(3))
-    {
-        return None;
-    }
-    rotation_newton(&(m + (norm / cof_norm) * cof))
-}
-
-/// [`nearest_rotation`] by [`rotation_newton`] where it applies (or, for a nearly rank-2
-/// input, [`rotation_completed`]), else by the eigen-decomposition.
+/// [`nearest_rotation`] by [`rotation_newton`] where it applies, else by the
+/// eigen-decomposition.
 #[inline]
 pub fn nearest_rotation_fast(m: &Mat3) -> Mat3 {
-    rotation_newton(m)
-        .or_else(|| rotation_completed(m))
-        .unwrap_or_else(|| nearest_rotation(m))
+    rotation_newton(m).unwrap_or_else(|| nearest_rotation(m))
 }
 
 /// [`polar`] with the rotation from [`rotation_newton`] and `U = Rᵀ H` (symmetrized) where the
@@ -547,43 +518,6 @@ mod tests {
         );
         assert!(rotation_newton(&Mat3::from_diagonal(&Vec3::new(1.0, 1.0, -1.0))).is_none());
         assert!(rotation_newton(&Mat3::zeros()).is_none());
-    }
-
-    #[test]
-    fn completed_newton_rotation_matches_eigen_path_on_flat_covariances() {
-        // U diag(σ₁, σ₂, σ₃) Vᵀ with σ₃ = 0 or tiny, either sign of det, σ₁ = σ₂ included
-        // (a round neighborhood), as the Kabsch covariance of a flat ring is.
-        let mut rng = ChaCha8Rng::seed_from_u64(23);
-        let mut rotation = || {
-            *nalgebra::Rotation3::from_euler_angles(
-                rng.random::<f64>() * 6.0,
-                rng.random::<f64>() * 3.0,
-                rng.random::<f64>() * 6.0,
-            )
-            .matrix()
-        };
-        let mut used = 0;
-        for i in 0..3000 {
-            let (u, v) = (rotation(), rotation());
-            let s1 = 1.0 + (i % 5) as f64;
-            let s2 = if i % 4 == 0 { s1 } else { s1 * (0.2 + 0.8 * (i % 7) as f64 / 7.0) };
-            let s3 = [0.0, 1e-15, 1e-9, 1e-5, 1e-3][i % 5] * s2;
-            let sign = if i % 2 == 0 { 1.0 } else { -1.0 };
-            let m = u * Mat3::from_diagonal(&Vec3::new(s1, s2, sign * s3)) * v.transpose();
-            let exact = nearest_rotation(&m);
-            let completed = rotation_completed(&m).expect("a nearly rank-2 input");
-            assert_relative_eq!(completed, exact, epsilon = 1e-12);
-            assert_relative_eq!(completed.determinant(), 1.0, epsilon = 1e-12);
-            assert_relative_eq!(nearest_rotation_fast(&m), exact, epsilon = 1e-12);
-            used += usize::from(rotation_newton(&m).is_none());
-        }
-        // Most of these are inputs the plain Newton iteration refuses.
-        assert!(used > 1500, "{used}");
-        // Outside its conditions: rank 1, and a full-rank reflection.
-        let rank1 = Vec3::new(1.0, 2.0, 0.5) * Vec3::new(0.3, -1.0, 2.0).transpose();
-        assert!(rotation_completed(&rank1).is_none());
-        assert!(rotation_completed(&Mat3::from_diagonal(&Vec3::new(1.0, 1.0, -1.0))).is_none());
-        assert!(rotation_completed(&Mat3::zeros()).is_none());
     }
 
     #[test]
