@@ -137,6 +137,12 @@ pub struct FitParams {
     pub coarse_fraction: f64,
     /// Radius (graph distance) of the neighborhoods of the coarse phase.
     pub coarse_rings: usize,
+    /// Rigid phase on a sample: the N-body forces (and the two-way attraction's pulls) are
+    /// computed for every `rigid_sample`-th template vertex only, and the one Kabsch fit of
+    /// those vertices moves the whole template (1: every vertex). The rigid phase only needs
+    /// the one rigid motion, so 4 (the default) costs no accuracy on the harness and cuts
+    /// the phase's k-NN, two-way and force work by about 4× (docs/method.md).
+    pub rigid_sample: usize,
     /// Levels of the coarse phase: its iterations are split evenly into this many levels, level
     /// `l` using neighborhoods of radius `max(1, coarse_rings / 2^l)` (1: one radius throughout),
     /// so the pieces that move rigidly shrink as the fit proceeds, like the decreasing
@@ -189,6 +195,7 @@ impl Default for FitParams {
             coarse_fraction: 0.5,
             coarse_rings: 8,
             coarse_levels: 1,
+            rigid_sample: 4,
             knn_cache: true,
             matrix_series: true,
             anneal: 3.0,
@@ -218,10 +225,12 @@ impl FitParams {
     /// The default without softening annealing, for a fit that starts close to its scan
     /// (warm-started frames of a sequence): annealing is a far-start device and, with few
     /// iterations per frame, leaves too little time at the final ε (docs/method.md). Its
-    /// two-way weight stays at 2, the value it was measured with on sequences.
+    /// two-way weight (2) and its rigid phase on every vertex are the values it was measured
+    /// with on sequences.
     pub fn tracking() -> Self {
         Self {
             two_way: 2.0,
+            rigid_sample: 1,
             anneal: 1.0,
             anneal_fraction: 0.0,
             selection: Selection::Single,
@@ -274,12 +283,13 @@ impl FitParams {
         }
     }
 
-    /// The default with a third candidate schedule ([`Selection::ScanDistanceWide`]): closer
-    /// to the truth on the harness at 1.5× the default's time (the `"accurate"` preset,
-    /// docs/method.md).
+    /// The default with a third candidate schedule ([`Selection::ScanDistanceWide`]) and the
+    /// rigid phase on every vertex: closer to the truth on the harness at about twice the
+    /// default's time (the `"accurate"` preset, docs/method.md).
     pub fn accurate() -> Self {
         Self {
             selection: Selection::ScanDistanceWide,
+            rigid_sample: 1,
             ..Self::default()
         }
     }
@@ -431,6 +441,13 @@ impl FitParams {
                 "coarse_levels",
                 self.coarse_levels,
                 "must be in 1..=4",
+            ));
+        }
+        if !(1..=64).contains(&self.rigid_sample) {
+            return Err(FoldMatchError::parameter(
+                "rigid_sample",
+                self.rigid_sample,
+                "must be in 1..=64",
             ));
         }
         if !(1..=32).contains(&self.coarse_rings) {
@@ -981,20 +998,134 @@ impl Prepared {
     }
 }
 
+/// The motion model's side of an iteration (§2) for a set of template points: their target
+/// neighborhoods Γᵏ_X, the two-way attraction's pulls and the Eq. 2–3 proposal, with every
+/// buffer allocated once.
+struct Attraction {
+    nn_idx: Vec<u32>,
+    nn_d2: Vec<f64>,
+    nn_cache: Option<NeighborCache>,
+    /// The two-way attraction's state (`None`: one-way attraction).
+    reverse: Option<(nbody::ReverseAttraction, Vec<[f64; 3]>)>,
+    /// The N-body proposal for every point.
+    proposed: Vec<[f64; 3]>,
+}
+
+impl Attraction {
+    /// Buffers for `m` template points over a scan of `n` points, `k` neighbours each.
+    fn new(m: usize, n: usize, k: usize, params: &FitParams) -> Self {
+        let reverse = (params.two_way > 0.0 && params.method == Method::FoldMatch).then(|| {
+            (
+                nbody::ReverseAttraction::new(m, n, params.knn_cache),
+                vec![[0.0; 3]; m],
+            )
+        });
+        Self {
+            nn_idx: vec![0u32; m * k],
+            nn_d2: vec![0.0; m * k],
+            nn_cache: params.knn_cache.then(|| NeighborCache::new(m, k, n)),
+            reverse,
+            proposed: vec![[0.0; 3]; m],
+        }
+    }
+
+    /// Γᵏ_X of the points `pos`, the two-way pulls on them, and the Eq. 2–3 step: velocities
+    /// `vel` updated, proposed positions in `self.proposed`.
+    fn propose(
+        &mut self,
+        prepared: &Prepared,
+        params: &FitParams,
+        it: usize,
+        pos: &[[f64; 3]],
+        vel: &mut [[f64; 3]],
+        t: &mut StageTimes,
+        diagnostics: &mut Diagnostics,
+    ) {
+        let k = prepared.k;
+        let (scan, kappa) = (&prepared.scan, &prepared.kappa);
+        let (nn_idx, nn_d2) = (&mut self.nn_idx, &mut self.nn_d2);
+        diagnostics.knn_queries += timed(&mut t.knn, || match self.nn_cache.as_mut() {
+            Some(cache) => cache.query(&prepared.index, pos, nn_idx, nn_d2),
+            None => {
+                prepared.index.nearest_all(pos, k, nn_idx, nn_d2);
+                pos.len()
+            }
+        });
+        let nbody_params = annealed(params, it);
+        let extra = match self.reverse.as_mut() {
+            Some((reverse, force)) => {
+                let forward = TargetNeighbours {
+                    indices: nn_idx,
+                    dist2: nn_d2,
+                    k,
+                };
+                diagnostics.two_way_queries += timed(&mut t.two_way, || {
+                    reverse.compute(
+                        pos,
+                        scan,
+                        kappa,
+                        forward,
+                        params.two_way,
+                        &nbody_params,
+                        force,
+                    )
+                });
+                Some(force.as_slice())
+            }
+            None => None,
+        };
+        timed(&mut t.nbody, || {
+            nbody::step(
+                pos,
+                vel,
+                nn_idx,
+                k,
+                scan,
+                kappa,
+                &nbody_params,
+                extra,
+                &mut self.proposed,
+            )
+        });
+    }
+}
+
+/// The rigid phase on a sample of the template ([`FitParams::rigid_sample`]): every s-th
+/// vertex, its copied positions and velocities, and its own [`Attraction`].
+struct RigidSample {
+    vertices: Vec<u32>,
+    /// `0..vertices.len()`: the sample's own indices, for the Kabsch fit.
+    indices: Vec<u32>,
+    pos: Vec<[f64; 3]>,
+    vel: Vec<[f64; 3]>,
+    attraction: Attraction,
+}
+
+impl RigidSample {
+    fn new(m: usize, n: usize, k: usize, params: &FitParams) -> Self {
+        let vertices: Vec<u32> = (0..m as u32).step_by(params.rigid_sample).collect();
+        let s = vertices.len();
+        Self {
+            vertices,
+            indices: (0..s as u32).collect(),
+            pos: vec![[0.0; 3]; s],
+            vel: vec![[0.0; 3]; s],
+            attraction: Attraction::new(s, n, k, params),
+        }
+    }
+}
+
 /// One schedule's fit in progress: its state and every per-vertex buffer, allocated once.
 struct ScheduleRun {
     params: FitParams,
     pos: Vec<[f64; 3]>,
     vel: Vec<[f64; 3]>,
-    proposed: Vec<[f64; 3]>,
     next: Vec<[f64; 3]>,
     disp: Vec<f64>,
-    nn_idx: Vec<u32>,
-    nn_d2: Vec<f64>,
-    nn_cache: Option<NeighborCache>,
+    attraction: Attraction,
     ws: Workspace,
-    /// The two-way attraction's state (`None`: one-way attraction).
-    reverse: Option<(nbody::ReverseAttraction, Vec<[f64; 3]>)>,
+    /// The rigid phase's vertex sample and its buffers (`None`: every vertex).
+    rigid_sample: Option<Box<RigidSample>>,
     rigid_iterations: usize,
     coarse_iterations: usize,
     iteration: usize,
@@ -1009,23 +1140,16 @@ impl ScheduleRun {
     fn new(prepared: &Prepared, params: FitParams) -> Self {
         let (m, n, k) = (prepared.start.len(), prepared.scan.len(), prepared.k);
         let (rigid_iterations, coarse_iterations) = params.phase_iterations();
-        let reverse = (params.two_way > 0.0 && params.method == Method::FoldMatch).then(|| {
-            (
-                nbody::ReverseAttraction::new(m, n, params.knn_cache),
-                vec![[0.0; 3]; m],
-            )
-        });
+        let rigid_sample = (params.rigid_sample > 1 && rigid_iterations > 0)
+            .then(|| Box::new(RigidSample::new(m, n, k, &params)));
         Self {
             pos: prepared.start.clone(),
             vel: vec![[0.0; 3]; m],
-            proposed: vec![[0.0; 3]; m],
             next: vec![[0.0; 3]; m],
             disp: vec![0.0; m],
-            nn_idx: vec![0u32; m * k],
-            nn_d2: vec![0.0; m * k],
-            nn_cache: params.knn_cache.then(|| NeighborCache::new(m, k, n)),
+            attraction: Attraction::new(m, n, k, &params),
             ws: Workspace::new(m),
-            reverse,
+            rigid_sample,
             rigid_iterations,
             coarse_iterations,
             iteration: 0,
@@ -1045,60 +1169,44 @@ impl ScheduleRun {
         self.iteration += 1;
         let it = self.iteration;
         let params = &self.params;
-        let (m, k) = (self.pos.len(), prepared.k);
-        let (scan, kappa) = (&prepared.scan, &prepared.kappa);
+        let m = self.pos.len();
         let t = &mut self.ws.times;
-        let (pos, nn_idx, nn_d2) = (&self.pos, &mut self.nn_idx, &mut self.nn_d2);
-        self.diagnostics.knn_queries += timed(&mut t.knn, || match self.nn_cache.as_mut() {
-            Some(cache) => cache.query(&prepared.index, pos, nn_idx, nn_d2),
+        let rigid = it <= self.rigid_iterations;
+        match self.rigid_sample.as_deref_mut().filter(|_| rigid) {
+            Some(sample) => {
+                for (i, &v) in sample.vertices.iter().enumerate() {
+                    sample.pos[i] = self.pos[v as usize];
+                    sample.vel[i] = self.vel[v as usize];
+                }
+                let (pos, vel) = (&sample.pos, &mut sample.vel);
+                sample
+                    .attraction
+                    .propose(prepared, params, it, pos, vel, t, &mut self.diagnostics);
+                for (i, &v) in sample.vertices.iter().enumerate() {
+                    self.vel[v as usize] = sample.vel[i];
+                }
+            }
             None => {
-                prepared.index.nearest_all(pos, k, nn_idx, nn_d2);
-                m
+                let (pos, vel) = (&self.pos, &mut self.vel);
+                self.attraction
+                    .propose(prepared, params, it, pos, vel, t, &mut self.diagnostics);
             }
-        });
-        let nbody_params = annealed(params, it);
-        let extra = match self.reverse.as_mut() {
-            Some((reverse, force)) => {
-                let forward = TargetNeighbours {
-                    indices: nn_idx,
-                    dist2: nn_d2,
-                    k,
-                };
-                self.diagnostics.two_way_queries += timed(&mut t.two_way, || {
-                    reverse.compute(
-                        pos,
-                        scan,
-                        kappa,
-                        forward,
-                        params.two_way,
-                        &nbody_params,
-                        force,
-                    )
-                });
-                Some(force.as_slice())
-            }
-            None => None,
-        };
-        timed(&mut t.nbody, || {
-            nbody::step(
-                pos,
-                &mut self.vel,
-                nn_idx,
-                k,
-                scan,
-                kappa,
-                &nbody_params,
-                extra,
-                &mut self.proposed,
-            )
-        });
+        }
         let update_start = std::time::Instant::now();
-        let (old, new, next) = (&self.pos, &self.proposed, &mut self.next);
+        let (old, new, next) = (&self.pos, &self.attraction.proposed, &mut self.next);
         let degenerate = match params.method {
-            _ if it <= self.rigid_iterations => {
-                let all = &prepared.all_vertices;
-                let (c_old, c_new) = ring_centroids(all, old, new);
-                let r = kabsch(all, old, new, &c_old, &c_new, params.matrix_series);
+            _ if rigid => {
+                // One Kabsch fit of every vertex's (or the sample's) old → proposed positions.
+                let (all, fit_old, fit_new) = match self.rigid_sample.as_deref() {
+                    Some(sample) => (
+                        &sample.indices[..],
+                        &sample.pos[..],
+                        &sample.attraction.proposed[..],
+                    ),
+                    None => (&prepared.all_vertices[..], &old[..], &new[..]),
+                };
+                let (c_old, c_new) = ring_centroids(all, fit_old, fit_new);
+                let r = kabsch(all, fit_old, fit_new, &c_old, &c_new, params.matrix_series);
                 next.par_iter_mut().enumerate().for_each(|(v, out)| {
                     *out = transform_vertex(&r, &vec3(&old[v]), &c_old, &c_new).into();
                 });
@@ -1384,6 +1492,68 @@ mod tests {
                 .unwrap_err()
                 .to_string()
                 .contains("coarse_levels"));
+        }
+    }
+
+    #[test]
+    fn rigid_sample_moves_the_template_rigidly_by_the_sample_fit() {
+        let (v, f) = crate::synthetic::grid_sheet(8, 8, 1.0, 1.0);
+        let x: Vec<[f64; 3]> = v
+            .iter()
+            .map(|p| [p[0], p[1], 0.05 * (4.0 * p[0]).sin() + 0.1])
+            .collect();
+        let rigid_only = FitParams {
+            iterations: 6,
+            rigid_fraction: 1.0,
+            coarse_fraction: 0.0,
+            selection: Selection::Single,
+            ..FitParams::default()
+        };
+        let with = |rigid_sample| {
+            fit_simple(
+                &v,
+                &f,
+                &x,
+                None,
+                &FitParams {
+                    rigid_sample,
+                    ..rigid_only.clone()
+                },
+            )
+            .unwrap()
+            .vertices
+        };
+        let dist = |a: &[f64; 3], b: &[f64; 3]| (vec3(a) - vec3(b)).norm();
+        // A quarter of the vertices drives the fit: the template still moves rigidly (every
+        // pairwise distance kept), but not as the fit driven by every vertex does.
+        let (quarter, full) = (with(4), with(1));
+        for i in 0..v.len() {
+            for j in 0..i {
+                assert!((dist(&quarter[i], &quarter[j]) - dist(&v[i], &v[j])).abs() < 1e-12);
+            }
+        }
+        let apart = (0..v.len())
+            .map(|i| dist(&quarter[i], &full[i]))
+            .fold(0.0, f64::max);
+        assert!(apart > 1e-9, "{apart}");
+        // 64 ≥ M: the sample is vertex 0 alone, whose Kabsch fit has no rotation, so every
+        // vertex moves by the same translation, the one the N-body step proposes for vertex 0.
+        let one = with(64);
+        let shift = vec3(&one[0]) - vec3(&v[0]);
+        assert!(shift.norm() > 1e-6);
+        for i in 0..v.len() {
+            assert!((vec3(&one[i]) - vec3(&v[i]) - shift).norm() < 1e-12);
+        }
+        for bad in [0, 65] {
+            let p = FitParams {
+                rigid_sample: bad,
+                ..rigid_only.clone()
+            };
+            assert!(p
+                .validate()
+                .unwrap_err()
+                .to_string()
+                .contains("rigid_sample"));
         }
     }
 

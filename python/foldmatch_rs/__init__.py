@@ -191,6 +191,7 @@ def fit(
     coarse_fraction: Optional[float] = None,
     coarse_rings: Optional[int] = None,
     coarse_levels: Optional[int] = None,
+    rigid_sample: Optional[int] = None,
     knn_cache: Optional[bool] = None,
     matrix_series: Optional[bool] = None,
     anneal: Optional[float] = None,
@@ -215,7 +216,7 @@ def fit(
         Where unset parameters come from: ``"default"`` (:data:`DEFAULT_PARAMS`, the most
         accurate configuration for its cost), ``"accurate"`` (the default with a third
         candidate schedule, ``selection="scan_distance_wide"``: closer to the truth on the
-        harness, 1.5× the time), ``"paper"`` (:data:`PAPER_PARAMS`, the method as the paper
+        harness, about 2× the time), ``"paper"`` (:data:`PAPER_PARAMS`, the method as the paper
         describes it) or ``"tracking"`` (the default without softening annealing, for a fit
         warm-started close to its scan, e.g. the previous frame of a sequence).
     method : {"foldmatch", "nrga"}
@@ -271,6 +272,10 @@ def fit(
     coarse_levels : int
         Split the coarse phase into this many levels, level ``l`` with radius
         ``max(1, coarse_rings // 2**l)`` (1: one radius throughout).
+    rigid_sample : int
+        Rigid phase on a sample: only every ``rigid_sample``-th template vertex feels the
+        N-body and two-way forces, and their one Kabsch fit moves the whole template (1: every
+        vertex; 1..=64).
     knn_cache : bool
         Re-use earlier k-NN candidates, and the two-way attraction's nearest-vertex queries,
         where that is provably exact (True; same results; ``diagnostics["knn_queries"]`` and
@@ -327,7 +332,7 @@ def fit(
         tolerance=tolerance, use_curvature=use_curvature, prealign=prealign,
         snapshot_every=snapshot_every, two_way=two_way, rigid_fraction=rigid_fraction,
         coarse_fraction=coarse_fraction, coarse_rings=coarse_rings,
-        coarse_levels=coarse_levels,
+        coarse_levels=coarse_levels, rigid_sample=rigid_sample,
         anneal=anneal, anneal_fraction=anneal_fraction, selection=selection, knn_cache=knn_cache,
         matrix_series=matrix_series,
     )

@@ -330,7 +330,7 @@ pub enum PrealignArg {
 pub struct ParamArgs {
     /// Starting values of every parameter: `default` (the most accurate configuration for its
     /// cost), `accurate` (the default with a third candidate schedule: closer to the truth,
-    /// 1.5× the time), `paper` (the paper's method with only the converging readings) or
+    /// 2× the time), `paper` (the paper's method with only the converging readings) or
     /// `tracking` (the default without softening annealing, for warm-started fits)
     /// [default: default; for `sequence`: tracking].
     #[arg(long, value_name = "NAME")]
