@@ -73,9 +73,10 @@ LEVERS = {
     "one allocation each, K = 28 here, 64 at 1M points); the candidate cache (2K candidates, "
     "re-used while the re-ranked K-th is closer than d_c − δ) answers nearly all of the fine "
     "phase, but in the rigid and coarse phases (80 of the 100 iterations) vertices move past "
-    "their margin every few iterations, and re-ranking 2K candidates is itself ~40 % of the "
-    "stage. Closing: a cheaper exact query (a uniform grid over the scan, whose K-NN radii "
-    "are nearly uniform, or kiddo 6's fixed-size result buffers)",
+    "their margin every few iterations (the rigid phase now queries every 4th vertex only, "
+    "`rigid_sample`), and re-ranking 2K candidates is itself ~40 % of the stage. Closing: a "
+    "cheaper exact query (a uniform grid over the scan, whose K-NN radii are nearly uniform, "
+    "or kiddo 6's fixed-size result buffers)",
     "two_way": "two-way attraction: a scan point's nearest template vertex comes from the "
     "inverted forward k-NN lists when certified (closer than the smallest K-th neighbour "
     "distance: ~100 % once the template lies on the scan), else from a k-d tree query; in "
@@ -94,8 +95,10 @@ LEVERS = {
     "rotation": "ψ-stretch/rotation: the ψ-modified stretch needs the eigenvectors of nearly "
     "isotropic U (Jacobi kept: a closed form is ill-conditioned there and would change results "
     "beyond 1e-9); the rotation solve already uses Newton polar iterations",
-    "update": "update: the coarse phase's 8-ring Kabsch fits (~145 ring members per vertex); "
-    "prefix sums of ring moments over the BFS layers would cut them",
+    "update": "update: the coarse phase's 8-ring Kabsch fits (~145 ring members per vertex, "
+    "≈30 flops each: the covariance sums are the cost, measured by callgrind; a Newton path "
+    "for the flat rings' rank-2 covariances was tried and saved nothing); precomputed "
+    "per-vertex moment products would halve the flops at some round-off",
     "setup": "setup: curvature of the scan, the scan tree and the coarse 8-ring BFS (shared "
     "by both schedules); the final wrinkle fields and the selection's scan distances",
 }
