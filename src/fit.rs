@@ -143,6 +143,10 @@ pub struct FitParams {
     /// the one rigid motion, so 4 (the default) costs no accuracy on the harness and cuts
     /// the phase's k-NN, two-way and force work by about 4× (docs/method.md).
     pub rigid_sample: usize,
+    /// Coarse phase on a sample: the forces are computed for every `coarse_sample`-th vertex
+    /// only, and every vertex moves by the Kabsch fit of the sampled members of its coarse
+    /// ring (1: every vertex; more needs coarse rings of radius ≥ 3 at every level).
+    pub coarse_sample: usize,
     /// Levels of the coarse phase: its iterations are split evenly into this many levels, level
     /// `l` using neighborhoods of radius `max(1, coarse_rings / 2^l)` (1: one radius throughout),
     /// so the pieces that move rigidly shrink as the fit proceeds, like the decreasing
@@ -196,6 +200,7 @@ impl Default for FitParams {
             coarse_rings: 8,
             coarse_levels: 1,
             rigid_sample: 4,
+            coarse_sample: 1,
             knn_cache: true,
             matrix_series: true,
             anneal: 3.0,
@@ -441,6 +446,20 @@ impl FitParams {
                 "coarse_levels",
                 self.coarse_levels,
                 "must be in 1..=4",
+            ));
+        }
+        if !(1..=64).contains(&self.coarse_sample) {
+            return Err(FoldMatchError::parameter(
+                "coarse_sample",
+                self.coarse_sample,
+                "must be in 1..=64",
+            ));
+        }
+        if self.coarse_sample > 1 && (self.coarse_rings >> (self.coarse_levels.max(1) - 1)) < 3 {
+            return Err(FoldMatchError::parameter(
+                "coarse_sample",
+                self.coarse_sample,
+                "needs coarse rings of radius >= 3 at every level (coarse_rings / 2^(coarse_levels-1))",
             ));
         }
         if !(1..=64).contains(&self.rigid_sample) {
@@ -868,6 +887,9 @@ struct Prepared {
     rings: Neighborhoods,
     /// The coarse phase's neighborhoods, one per level (empty when no schedule has one).
     coarse_levels: Vec<Neighborhoods>,
+    /// Under `coarse_sample` = s > 1: per level, the sampled members of every vertex's coarse
+    /// ring, as indices into the sample (vertex u ≡ 0 mod s is sample u / s).
+    coarse_sampled: Vec<Neighborhoods>,
     /// Every vertex index (the rigid phase's "ring"; empty when no schedule has one).
     all_vertices: Vec<u32>,
     /// The diagnostics every run starts from.
@@ -960,6 +982,26 @@ impl Prepared {
         } else {
             Vec::new()
         };
+        let stride = params.coarse_sample;
+        let coarse_sampled = if stride > 1 {
+            coarse_levels
+                .iter()
+                .map(|rings: &Neighborhoods| {
+                    Neighborhoods::from_rows(
+                        (0..m)
+                            .map(|v| {
+                                let ring = rings.of(v).iter();
+                                ring.filter(|&&u| u as usize % stride == 0)
+                                    .map(|&u| u / stride as u32)
+                                    .collect()
+                            })
+                            .collect(),
+                    )
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
 
         let diagnostics = Diagnostics {
             target_neighbours: k,
@@ -984,6 +1026,7 @@ impl Prepared {
             incidence,
             rings,
             coarse_levels,
+            coarse_sampled,
             all_vertices,
             diagnostics,
         })
@@ -1090,9 +1133,11 @@ impl Attraction {
     }
 }
 
-/// The rigid phase on a sample of the template ([`FitParams::rigid_sample`]): every s-th
-/// vertex, its copied positions and velocities, and its own [`Attraction`].
-struct RigidSample {
+/// A phase run on a sample of the template ([`FitParams::rigid_sample`],
+/// [`FitParams::coarse_sample`]): every s-th vertex, its copied positions and velocities, and
+/// its own [`Attraction`].
+struct PhaseSample {
+    stride: usize,
     vertices: Vec<u32>,
     /// `0..vertices.len()`: the sample's own indices, for the Kabsch fit.
     indices: Vec<u32>,
@@ -1101,11 +1146,12 @@ struct RigidSample {
     attraction: Attraction,
 }
 
-impl RigidSample {
-    fn new(m: usize, n: usize, k: usize, params: &FitParams) -> Self {
-        let vertices: Vec<u32> = (0..m as u32).step_by(params.rigid_sample).collect();
+impl PhaseSample {
+    fn new(m: usize, n: usize, k: usize, stride: usize, params: &FitParams) -> Self {
+        let vertices: Vec<u32> = (0..m as u32).step_by(stride).collect();
         let s = vertices.len();
         Self {
+            stride,
             vertices,
             indices: (0..s as u32).collect(),
             pos: vec![[0.0; 3]; s],
@@ -1124,8 +1170,10 @@ struct ScheduleRun {
     disp: Vec<f64>,
     attraction: Attraction,
     ws: Workspace,
-    /// The rigid phase's vertex sample and its buffers (`None`: every vertex).
-    rigid_sample: Option<Box<RigidSample>>,
+    /// The phases' vertex samples and their buffers (one per distinct stride).
+    samples: Vec<PhaseSample>,
+    /// Which of `samples` the rigid and the coarse phase use (`None`: every vertex).
+    phase_sample: [Option<usize>; 2],
     rigid_iterations: usize,
     coarse_iterations: usize,
     iteration: usize,
@@ -1140,8 +1188,21 @@ impl ScheduleRun {
     fn new(prepared: &Prepared, params: FitParams) -> Self {
         let (m, n, k) = (prepared.start.len(), prepared.scan.len(), prepared.k);
         let (rigid_iterations, coarse_iterations) = params.phase_iterations();
-        let rigid_sample = (params.rigid_sample > 1 && rigid_iterations > 0)
-            .then(|| Box::new(RigidSample::new(m, n, k, &params)));
+        let mut samples: Vec<PhaseSample> = Vec::new();
+        let mut phase_sample = [None, None];
+        let wanted = [
+            (params.rigid_sample, rigid_iterations),
+            (params.coarse_sample, coarse_iterations),
+        ];
+        for (slot, (stride, iterations)) in phase_sample.iter_mut().zip(wanted) {
+            if stride > 1 && iterations > 0 {
+                let same = samples.iter().position(|s| s.stride == stride);
+                *slot = Some(same.unwrap_or_else(|| {
+                    samples.push(PhaseSample::new(m, n, k, stride, &params));
+                    samples.len() - 1
+                }));
+            }
+        }
         Self {
             pos: prepared.start.clone(),
             vel: vec![[0.0; 3]; m],
@@ -1149,7 +1210,8 @@ impl ScheduleRun {
             disp: vec![0.0; m],
             attraction: Attraction::new(m, n, k, &params),
             ws: Workspace::new(m),
-            rigid_sample,
+            samples,
+            phase_sample,
             rigid_iterations,
             coarse_iterations,
             iteration: 0,
@@ -1172,7 +1234,13 @@ impl ScheduleRun {
         let m = self.pos.len();
         let t = &mut self.ws.times;
         let rigid = it <= self.rigid_iterations;
-        match self.rigid_sample.as_deref_mut().filter(|_| rigid) {
+        let coarse = !rigid && it <= self.rigid_iterations + self.coarse_iterations;
+        let sampled = match (rigid, coarse) {
+            (true, _) => self.phase_sample[0],
+            (_, true) => self.phase_sample[1],
+            _ => None,
+        };
+        match sampled.map(|i| &mut self.samples[i]) {
             Some(sample) => {
                 for (i, &v) in sample.vertices.iter().enumerate() {
                     sample.pos[i] = self.pos[v as usize];
@@ -1197,7 +1265,7 @@ impl ScheduleRun {
         let degenerate = match params.method {
             _ if rigid => {
                 // One Kabsch fit of every vertex's (or the sample's) old → proposed positions.
-                let (all, fit_old, fit_new) = match self.rigid_sample.as_deref() {
+                let (all, fit_old, fit_new) = match sampled.map(|i| &self.samples[i]) {
                     Some(sample) => (
                         &sample.indices[..],
                         &sample.pos[..],
@@ -1212,11 +1280,22 @@ impl ScheduleRun {
                 });
                 0
             }
-            _ if it <= self.rigid_iterations + self.coarse_iterations => {
+            _ if coarse => {
                 let levels = &prepared.coarse_levels;
                 let level =
                     (it - self.rigid_iterations - 1) * levels.len() / self.coarse_iterations;
-                kabsch_update(&levels[level], old, new, params.matrix_series, next);
+                match sampled.map(|i| &self.samples[i]) {
+                    // Each vertex moves by the fit of its ring's sampled members.
+                    Some(sample) => kabsch_update(
+                        &prepared.coarse_sampled[level],
+                        &sample.pos,
+                        &sample.attraction.proposed,
+                        old,
+                        params.matrix_series,
+                        next,
+                    ),
+                    None => kabsch_update(&levels[level], old, new, old, params.matrix_series, next),
+                }
                 0
             }
             Method::FoldMatch => {
@@ -1232,7 +1311,7 @@ impl ScheduleRun {
                 d
             }
             Method::Nrga => {
-                kabsch_update(&prepared.rings, old, new, params.matrix_series, next);
+                kabsch_update(&prepared.rings, old, new, old, params.matrix_series, next);
                 0
             }
         };
@@ -1325,19 +1404,22 @@ impl ScheduleRun {
     }
 }
 
-/// Moves every vertex by the Kabsch rigid fit of its neighborhood's motion `old → new`
-/// (the NRGa update, and the coarse phase); `fast` as in [`kabsch`].
+/// Moves every vertex `v` (at `old[v]`) by the Kabsch rigid fit of its neighborhood's motion
+/// `ring_old → ring_new` (the NRGa update, and the coarse phase; the ring members index
+/// `ring_old`/`ring_new`, which are `old` and the proposal, or a phase sample's); `fast` as in
+/// [`kabsch`].
 fn kabsch_update(
     rings: &Neighborhoods,
+    ring_old: &[[f64; 3]],
+    ring_new: &[[f64; 3]],
     old: &[[f64; 3]],
-    new: &[[f64; 3]],
     fast: bool,
     next: &mut [[f64; 3]],
 ) {
     next.par_iter_mut().enumerate().for_each(|(v, out)| {
         let ring = rings.of(v);
-        let (c_old, c_new) = ring_centroids(ring, old, new);
-        let r = kabsch(ring, old, new, &c_old, &c_new, fast);
+        let (c_old, c_new) = ring_centroids(ring, ring_old, ring_new);
+        let r = kabsch(ring, ring_old, ring_new, &c_old, &c_new, fast);
         *out = transform_vertex(&r, &vec3(&old[v]), &c_old, &c_new).into();
     });
 }
@@ -1554,6 +1636,63 @@ mod tests {
                 .unwrap_err()
                 .to_string()
                 .contains("rigid_sample"));
+        }
+    }
+
+    #[test]
+    fn coarse_sample_with_whole_mesh_rings_is_the_rigid_sample() {
+        // Coarse rings reaching the whole 8×8 grid (graph diameter 14 < 32): every vertex's
+        // sampled ring is the whole sample, so a coarse-only fit on every 4th vertex is the
+        // rigid-only fit on every 4th vertex, up to the order of the sums.
+        let (v, f) = crate::synthetic::grid_sheet(8, 8, 1.0, 1.0);
+        let x: Vec<[f64; 3]> = v
+            .iter()
+            .map(|p| [p[0], p[1], 0.05 * (4.0 * p[0]).sin() + 0.1])
+            .collect();
+        let base = FitParams {
+            iterations: 6,
+            coarse_rings: 32,
+            selection: Selection::Single,
+            ..FitParams::default()
+        };
+        let run = |p: FitParams| fit_simple(&v, &f, &x, None, &p).unwrap().vertices;
+        let coarse = run(FitParams {
+            rigid_fraction: 0.0,
+            coarse_fraction: 1.0,
+            coarse_sample: 4,
+            ..base.clone()
+        });
+        let rigid = run(FitParams {
+            rigid_fraction: 1.0,
+            coarse_fraction: 0.0,
+            rigid_sample: 4,
+            ..base.clone()
+        });
+        let every = run(FitParams {
+            rigid_fraction: 0.0,
+            coarse_fraction: 1.0,
+            ..base.clone()
+        });
+        let gap = |a: &[[f64; 3]], b: &[[f64; 3]]| {
+            a.iter()
+                .zip(b)
+                .map(|(p, q)| (vec3(p) - vec3(q)).norm())
+                .fold(0.0, f64::max)
+        };
+        assert!(gap(&coarse, &rigid) < 1e-12, "{}", gap(&coarse, &rigid));
+        assert!(gap(&coarse, &every) > 1e-9, "the sample changed nothing");
+        for (bad, rings, levels) in [(0, 8, 1), (65, 8, 1), (2, 4, 2), (2, 2, 1)] {
+            let p = FitParams {
+                coarse_sample: bad,
+                coarse_rings: rings,
+                coarse_levels: levels,
+                ..base.clone()
+            };
+            assert!(p
+                .validate()
+                .unwrap_err()
+                .to_string()
+                .contains("coarse_sample"));
         }
     }
 

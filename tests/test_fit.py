@@ -373,3 +373,7 @@ def test_rigid_sample_moves_the_template_rigidly(case):
     for bad in (0, 65):
         with pytest.raises(fm.InvalidParameterError, match="rigid_sample"):
             fm.fit(v, f, x, iterations=2, rigid_sample=bad)
+        with pytest.raises(fm.InvalidParameterError, match="coarse_sample"):
+            fm.fit(v, f, x, iterations=2, coarse_sample=bad)
+    with pytest.raises(fm.InvalidParameterError, match="coarse_sample"):
+        fm.fit(v, f, x, iterations=2, coarse_sample=2, coarse_rings=2)

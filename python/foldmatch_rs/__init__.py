@@ -192,6 +192,7 @@ def fit(
     coarse_rings: Optional[int] = None,
     coarse_levels: Optional[int] = None,
     rigid_sample: Optional[int] = None,
+    coarse_sample: Optional[int] = None,
     knn_cache: Optional[bool] = None,
     matrix_series: Optional[bool] = None,
     anneal: Optional[float] = None,
@@ -276,6 +277,10 @@ def fit(
         Rigid phase on a sample: only every ``rigid_sample``-th template vertex feels the
         N-body and two-way forces, and their one Kabsch fit moves the whole template (1: every
         vertex; 1..=64).
+    coarse_sample : int
+        Coarse phase on a sample: only every ``coarse_sample``-th vertex feels the forces, and
+        every vertex moves by the Kabsch fit of its coarse ring's sampled members (1: every
+        vertex; 1..=64; more needs coarse rings of radius ≥ 3 at every level).
     knn_cache : bool
         Re-use earlier k-NN candidates, and the two-way attraction's nearest-vertex queries,
         where that is provably exact (True; same results; ``diagnostics["knn_queries"]`` and
@@ -332,7 +337,7 @@ def fit(
         tolerance=tolerance, use_curvature=use_curvature, prealign=prealign,
         snapshot_every=snapshot_every, two_way=two_way, rigid_fraction=rigid_fraction,
         coarse_fraction=coarse_fraction, coarse_rings=coarse_rings,
-        coarse_levels=coarse_levels, rigid_sample=rigid_sample,
+        coarse_levels=coarse_levels, rigid_sample=rigid_sample, coarse_sample=coarse_sample,
         anneal=anneal, anneal_fraction=anneal_fraction, selection=selection, knn_cache=knn_cache,
         matrix_series=matrix_series,
     )
