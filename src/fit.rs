@@ -22,7 +22,10 @@ use crate::nbody::{self, NBodyParams};
 use crate::normalize::Frame;
 use crate::regularize::{regularize, Regularization, RegularizeBuffers};
 use crate::rings::{n_rings, Neighborhoods};
-use crate::rotation::{kabsch, ring_centroids, solve_rotation, transform_vertex};
+use crate::rotation::{
+    covariance_rotation, kabsch, point_moments, ring_centroids, ring_fit_from_moments,
+    solve_rotation, transform_vertex, PointMoments,
+};
 use crate::wrinkle::modified_stretch;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -652,6 +655,8 @@ pub struct Workspace {
     pub wvf: Vec<[f64; 3]>,
     /// Solved rotation R_k* of every vertex.
     pub rotation: Vec<Mat3>,
+    /// Per-point moments of the Kabsch fits of the coarse phase and NRGa.
+    moments: Vec<PointMoments>,
     /// Seconds spent per stage so far.
     pub times: StageTimes,
 }
@@ -669,6 +674,7 @@ impl Workspace {
             reg_stretch: vec![Mat3::identity(); m],
             wvf: vec![[0.0; 3]; m],
             rotation: vec![Mat3::identity(); m],
+            moments: vec![[0.0; 15]; m],
             times: StageTimes::default(),
         }
     }
@@ -991,7 +997,7 @@ impl Prepared {
                         (0..m)
                             .map(|v| {
                                 let ring = rings.of(v).iter();
-                                ring.filter(|&&u| u as usize % stride == 0)
+                                ring.filter(|&&u| (u as usize).is_multiple_of(stride))
                                     .map(|&u| u / stride as u32)
                                     .collect()
                             })
@@ -1074,6 +1080,7 @@ impl Attraction {
 
     /// Γᵏ_X of the points `pos`, the two-way pulls on them, and the Eq. 2–3 step: velocities
     /// `vel` updated, proposed positions in `self.proposed`.
+    #[allow(clippy::too_many_arguments)] // the stage inputs, and the two accumulators
     fn propose(
         &mut self,
         prepared: &Prepared,
@@ -1292,9 +1299,18 @@ impl ScheduleRun {
                         &sample.attraction.proposed,
                         old,
                         params.matrix_series,
+                        params.matrix_series.then_some(&mut self.ws.moments),
                         next,
                     ),
-                    None => kabsch_update(&levels[level], old, new, old, params.matrix_series, next),
+                    None => kabsch_update(
+                        &levels[level],
+                        old,
+                        new,
+                        old,
+                        params.matrix_series,
+                        params.matrix_series.then_some(&mut self.ws.moments),
+                        next,
+                    ),
                 }
                 0
             }
@@ -1311,7 +1327,8 @@ impl ScheduleRun {
                 d
             }
             Method::Nrga => {
-                kabsch_update(&prepared.rings, old, new, old, params.matrix_series, next);
+                let fast = params.matrix_series;
+                kabsch_update(&prepared.rings, old, new, old, fast, None, next);
                 0
             }
         };
@@ -1407,15 +1424,33 @@ impl ScheduleRun {
 /// Moves every vertex `v` (at `old[v]`) by the Kabsch rigid fit of its neighborhood's motion
 /// `ring_old → ring_new` (the NRGa update, and the coarse phase; the ring members index
 /// `ring_old`/`ring_new`, which are `old` and the proposal, or a phase sample's); `fast` as in
-/// [`kabsch`].
+/// [`kabsch`]. With `moments` (the coarse phase's large rings, under `matrix_series`) the
+/// centroids and covariances come from per-point moments in one pass
+/// ([`ring_fit_from_moments`]: half the flops, equal to round-off), else from two passes.
 fn kabsch_update(
     rings: &Neighborhoods,
     ring_old: &[[f64; 3]],
     ring_new: &[[f64; 3]],
     old: &[[f64; 3]],
     fast: bool,
+    moments: Option<&mut Vec<PointMoments>>,
     next: &mut [[f64; 3]],
 ) {
+    if let Some(moments) = moments {
+        // One pass of 15 sums per ring member from per-point moments (equal to round-off).
+        let moments = &mut moments[..ring_old.len()];
+        moments
+            .par_iter_mut()
+            .zip(ring_old.par_iter().zip(ring_new.par_iter()))
+            .for_each(|(m, (o, n))| *m = point_moments(o, n));
+        let moments = &*moments;
+        next.par_iter_mut().enumerate().for_each(|(v, out)| {
+            let (c_old, c_new, cov) = ring_fit_from_moments(rings.of(v), moments);
+            let r = covariance_rotation(&cov, fast);
+            *out = transform_vertex(&r, &vec3(&old[v]), &c_old, &c_new).into();
+        });
+        return;
+    }
     next.par_iter_mut().enumerate().for_each(|(v, out)| {
         let ring = rings.of(v);
         let (c_old, c_new) = ring_centroids(ring, ring_old, ring_new);
