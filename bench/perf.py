@@ -96,9 +96,9 @@ LEVERS = {
     "isotropic U (Jacobi kept: a closed form is ill-conditioned there and would change results "
     "beyond 1e-9); the rotation solve already uses Newton polar iterations",
     "update": "update: the coarse phase's 8-ring Kabsch fits (~145 ring members per vertex, "
-    "≈30 flops each: the covariance sums are the cost, measured by callgrind; a Newton path "
-    "for the flat rings' rank-2 covariances was tried and saved nothing); precomputed "
-    "per-vertex moment products would halve the flops at some round-off",
+    "now 15 sums each from per-point moments, half the flops of the two-pass fit); what is "
+    "left is the ring gathers themselves and the nearest rotations (a Newton path for the "
+    "flat rings' rank-2 covariances was tried and saved nothing)",
     "setup": "setup: curvature of the scan, the scan tree and the coarse 8-ring BFS (shared "
     "by both schedules); the final wrinkle fields and the selection's scan distances",
 }
