@@ -655,7 +655,7 @@ pub struct Workspace {
     pub wvf: Vec<[f64; 3]>,
     /// Solved rotation R_k* of every vertex.
     pub rotation: Vec<Mat3>,
-    /// Per-point moments of the Kabsch fits of the coarse phase and NRGa.
+    /// Per-point moments of the coarse phase's Kabsch fits ([`ring_fit_from_moments`]).
     moments: Vec<PointMoments>,
     /// Seconds spent per stage so far.
     pub times: StageTimes,
@@ -1291,27 +1291,18 @@ impl ScheduleRun {
                 let levels = &prepared.coarse_levels;
                 let level =
                     (it - self.rigid_iterations - 1) * levels.len() / self.coarse_iterations;
-                match sampled.map(|i| &self.samples[i]) {
-                    // Each vertex moves by the fit of its ring's sampled members.
-                    Some(sample) => kabsch_update(
+                // Each vertex moves by the fit of its ring (or of the ring's sampled members).
+                let (rings, ring_old, ring_new) = match sampled.map(|i| &self.samples[i]) {
+                    Some(sample) => (
                         &prepared.coarse_sampled[level],
-                        &sample.pos,
-                        &sample.attraction.proposed,
-                        old,
-                        params.matrix_series,
-                        params.matrix_series.then_some(&mut self.ws.moments),
-                        next,
+                        &sample.pos[..],
+                        &sample.attraction.proposed[..],
                     ),
-                    None => kabsch_update(
-                        &levels[level],
-                        old,
-                        new,
-                        old,
-                        params.matrix_series,
-                        params.matrix_series.then_some(&mut self.ws.moments),
-                        next,
-                    ),
-                }
+                    None => (&levels[level], &old[..], &new[..]),
+                };
+                let fast = params.matrix_series;
+                let moments = fast.then_some(&mut self.ws.moments);
+                kabsch_update(rings, ring_old, ring_new, old, fast, moments, next);
                 0
             }
             Method::FoldMatch => {
@@ -1612,13 +1603,19 @@ mod tests {
         }
     }
 
-    #[test]
-    fn rigid_sample_moves_the_template_rigidly_by_the_sample_fit() {
+    /// An 8×8 grid (64 vertices, graph diameter 14) and a wavy target above it.
+    fn small_grid_case() -> Case {
         let (v, f) = crate::synthetic::grid_sheet(8, 8, 1.0, 1.0);
-        let x: Vec<[f64; 3]> = v
+        let x = v
             .iter()
             .map(|p| [p[0], p[1], 0.05 * (4.0 * p[0]).sin() + 0.1])
             .collect();
+        (v, f, x)
+    }
+
+    #[test]
+    fn rigid_sample_moves_the_template_rigidly_by_the_sample_fit() {
+        let (v, f, x) = small_grid_case();
         let rigid_only = FitParams {
             iterations: 6,
             rigid_fraction: 1.0,
@@ -1679,11 +1676,7 @@ mod tests {
         // Coarse rings reaching the whole 8×8 grid (graph diameter 14 < 32): every vertex's
         // sampled ring is the whole sample, so a coarse-only fit on every 4th vertex is the
         // rigid-only fit on every 4th vertex, up to the order of the sums.
-        let (v, f) = crate::synthetic::grid_sheet(8, 8, 1.0, 1.0);
-        let x: Vec<[f64; 3]> = v
-            .iter()
-            .map(|p| [p[0], p[1], 0.05 * (4.0 * p[0]).sin() + 0.1])
-            .collect();
+        let (v, f, x) = small_grid_case();
         let base = FitParams {
             iterations: 6,
             coarse_rings: 32,
