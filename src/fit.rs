@@ -16,15 +16,15 @@ use crate::curvature::{gaussian_curvature_mesh, gaussian_curvature_points};
 use crate::deformation::deformation_gradient;
 use crate::error::{FoldMatchError, Result};
 use crate::knn::{neighborhood_size, NeighborCache, PointIndex, TargetNeighbours};
-use crate::math::{vec3, Mat3, Vec3};
+use crate::math::{nearest_rotation_with, vec3, Mat3, Vec3};
 use crate::mesh::{clean_faces, validate_faces, validate_points, vertex_normals, VertexFaces};
 use crate::nbody::{self, NBodyParams};
 use crate::normalize::Frame;
 use crate::regularize::{regularize, Regularization, RegularizeBuffers};
 use crate::rings::{n_rings, Neighborhoods};
 use crate::rotation::{
-    covariance_rotation, kabsch, point_moments, ring_centroids, ring_fit_from_moments,
-    solve_rotation, transform_vertex, PointMoments,
+    kabsch, point_moments, ring_centroids, ring_fit_from_moments, solve_rotation, transform_vertex,
+    PointMoments,
 };
 use crate::wrinkle::modified_stretch;
 use rayon::prelude::*;
@@ -1437,7 +1437,7 @@ fn kabsch_update(
         let moments = &*moments;
         next.par_iter_mut().enumerate().for_each(|(v, out)| {
             let (c_old, c_new, cov) = ring_fit_from_moments(rings.of(v), moments);
-            let r = covariance_rotation(&cov, fast);
+            let r = nearest_rotation_with(&cov, fast);
             *out = transform_vertex(&r, &vec3(&old[v]), &c_old, &c_new).into();
         });
         return;
@@ -1538,16 +1538,32 @@ mod tests {
         }
     }
 
-    /// A 13 × 13 sheet (vertices, faces) and a wavy, lifted copy of its vertices as the scan.
+    /// A sheet (vertices, faces) and a wavy copy of its vertices lifted by `lift` as the scan.
     type Case = (Vec<[f64; 3]>, Vec<[u32; 3]>, Vec<[f64; 3]>);
 
-    fn grid_case() -> Case {
-        let (v, f) = crate::synthetic::grid_sheet(13, 13, 1.0, 1.0);
+    fn wavy_grid_case(side: usize, lift: f64) -> Case {
+        let (v, f) = crate::synthetic::grid_sheet(side, side, 1.0, 1.0);
         let target = v
             .iter()
-            .map(|p| [p[0], p[1], 0.05 * (4.0 * p[0]).sin() + 0.02])
+            .map(|p| [p[0], p[1], 0.05 * (4.0 * p[0]).sin() + lift])
             .collect();
         (v, f, target)
+    }
+
+    /// A 13 × 13 sheet and its scan.
+    fn grid_case() -> Case {
+        wavy_grid_case(13, 0.02)
+    }
+
+    /// An 8×8 grid (64 vertices, graph diameter 14) and a scan above it.
+    fn small_grid_case() -> Case {
+        wavy_grid_case(8, 0.1)
+    }
+
+    /// `params` fail validation with an error naming `field`.
+    fn assert_refused(params: &FitParams, field: &str) {
+        let err = params.validate().unwrap_err().to_string();
+        assert!(err.contains(field), "{err}");
     }
 
     #[test]
@@ -1591,26 +1607,14 @@ mod tests {
         .unwrap();
         assert_ne!(a.vertices, b.vertices);
         for bad in [0, 5] {
-            let p = FitParams {
-                coarse_levels: bad,
-                ..base.clone()
-            };
-            assert!(p
-                .validate()
-                .unwrap_err()
-                .to_string()
-                .contains("coarse_levels"));
+            assert_refused(
+                &FitParams {
+                    coarse_levels: bad,
+                    ..base.clone()
+                },
+                "coarse_levels",
+            );
         }
-    }
-
-    /// An 8×8 grid (64 vertices, graph diameter 14) and a wavy target above it.
-    fn small_grid_case() -> Case {
-        let (v, f) = crate::synthetic::grid_sheet(8, 8, 1.0, 1.0);
-        let x = v
-            .iter()
-            .map(|p| [p[0], p[1], 0.05 * (4.0 * p[0]).sin() + 0.1])
-            .collect();
-        (v, f, x)
     }
 
     #[test]
@@ -1659,15 +1663,13 @@ mod tests {
             assert!((vec3(&one[i]) - vec3(&v[i]) - shift).norm() < 1e-12);
         }
         for bad in [0, 65] {
-            let p = FitParams {
-                rigid_sample: bad,
-                ..rigid_only.clone()
-            };
-            assert!(p
-                .validate()
-                .unwrap_err()
-                .to_string()
-                .contains("rigid_sample"));
+            assert_refused(
+                &FitParams {
+                    rigid_sample: bad,
+                    ..rigid_only.clone()
+                },
+                "rigid_sample",
+            );
         }
     }
 
@@ -1710,17 +1712,15 @@ mod tests {
         assert!(gap(&coarse, &rigid) < 1e-12, "{}", gap(&coarse, &rigid));
         assert!(gap(&coarse, &every) > 1e-9, "the sample changed nothing");
         for (bad, rings, levels) in [(0, 8, 1), (65, 8, 1), (2, 4, 2), (2, 2, 1)] {
-            let p = FitParams {
-                coarse_sample: bad,
-                coarse_rings: rings,
-                coarse_levels: levels,
-                ..base.clone()
-            };
-            assert!(p
-                .validate()
-                .unwrap_err()
-                .to_string()
-                .contains("coarse_sample"));
+            assert_refused(
+                &FitParams {
+                    coarse_sample: bad,
+                    coarse_rings: rings,
+                    coarse_levels: levels,
+                    ..base.clone()
+                },
+                "coarse_sample",
+            );
         }
     }
 

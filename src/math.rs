@@ -215,6 +215,16 @@ pub fn nearest_rotation_fast(m: &Mat3) -> Mat3 {
     rotation_newton(m).unwrap_or_else(|| nearest_rotation(m))
 }
 
+/// [`nearest_rotation_fast`] when `fast` (the `matrix_series` paths), else [`nearest_rotation`].
+#[inline]
+pub fn nearest_rotation_with(m: &Mat3, fast: bool) -> Mat3 {
+    if fast {
+        nearest_rotation_fast(m)
+    } else {
+        nearest_rotation(m)
+    }
+}
+
 /// [`polar`] with the rotation from [`rotation_newton`] and `U = Rᵀ H` (symmetrized) where the
 /// Newton iteration applies, else by the eigen-decomposition.
 pub fn polar_fast(h: &Mat3) -> Polar {

@@ -6,18 +6,13 @@
 //! For NRGa (SPEC §2.11) the rotation is the Kabsch fit of the neighborhood's old to new
 //! positions instead.
 
-use crate::math::{nearest_rotation, nearest_rotation_fast, vec3, Mat3, Vec3};
+use crate::math::{nearest_rotation_with, vec3, Mat3, Vec3};
 
 /// Solves Eq. 8: the rotation closest to `h` once the stretch `u_hat` is factored out
-/// (`fast`: by [`nearest_rotation_fast`], equal to round-off).
+/// (`fast`: by [`crate::math::nearest_rotation_fast`], equal to round-off).
 #[inline]
 pub fn solve_rotation(h: &Mat3, u_hat: &Mat3, fast: bool) -> Mat3 {
-    let m = h * u_hat.transpose();
-    if fast {
-        nearest_rotation_fast(&m)
-    } else {
-        nearest_rotation(&m)
-    }
+    nearest_rotation_with(&(h * u_hat.transpose()), fast)
 }
 
 /// Centroids of `ring` in `old` and `new` positions.
@@ -42,7 +37,7 @@ pub fn transform_vertex(rotation: &Mat3, y: &Vec3, c_old: &Vec3, c_new: &Vec3) -
 /// Kabsch rotation of the neighborhood: the rotation best mapping `old − Ȳ` onto `new − Ȳ'`.
 /// With `fast`, the nearest rotation of the covariance comes from the Newton polar iteration
 /// where it applies (a full-rank covariance: a curved neighborhood), agreeing with the
-/// eigen-decomposition to round-off ([`nearest_rotation_fast`]); a flat neighborhood's
+/// eigen-decomposition to round-off ([`crate::math::nearest_rotation_fast`]); a flat neighborhood's
 /// rank-2 covariance takes the eigen-decomposition either way.
 pub fn kabsch(
     ring: &[u32],
@@ -56,17 +51,7 @@ pub fn kabsch(
     for &j in ring {
         cov += (vec3(&new[j as usize]) - c_new) * (vec3(&old[j as usize]) - c_old).transpose();
     }
-    covariance_rotation(&cov, fast)
-}
-
-/// The Kabsch rotation of a neighborhood's covariance `Σ (new − Ȳ')(old − Ȳ)ᵀ`.
-#[inline]
-pub fn covariance_rotation(cov: &Mat3, fast: bool) -> Mat3 {
-    if fast {
-        nearest_rotation_fast(cov)
-    } else {
-        nearest_rotation(cov)
-    }
+    nearest_rotation_with(&cov, fast)
 }
 
 /// One point's moments for [`ring_fit_from_moments`]: its old position, its new position and
@@ -167,7 +152,7 @@ mod tests {
         assert_relative_eq!(m_new, c_new, epsilon = 1e-15);
         assert_relative_eq!(m_cov, cov, epsilon = 1e-12 * cov.norm());
         assert_relative_eq!(
-            covariance_rotation(&m_cov, true),
+            nearest_rotation_with(&m_cov, true),
             kabsch(&ring, &old, &new, &c_old, &c_new, false),
             epsilon = 1e-11
         );
