@@ -153,8 +153,8 @@ pub struct NeighborCache {
     k: usize,
     c: usize,
     anchors: Vec<[f64; 3]>,
-    /// The c candidates of every point, in the order of their last known distance (so the
-    /// next re-ranking starts nearly sorted).
+    /// The c candidates of every point, its last known k nearest first and in order (so the
+    /// next re-ranking starts nearly sorted), then the others.
     candidates: Vec<u32>,
     /// Per point: the distance of the c-th nearest candidate at its anchor.
     anchor_radius: Vec<f64>,
@@ -199,8 +199,9 @@ impl NeighborCache {
                 let mut ranked = [(0.0f64, 0u32); MAX_CACHED];
                 let ranked = &mut ranked[..c];
                 let mut exact = false;
+                let mut farthest = f64::INFINITY;
                 if *state > 0 {
-                    rerank(index, q, cand, ranked);
+                    farthest = rerank(index, q, cand, k, ranked);
                     let moved = (0..3)
                         .map(|a| (q[a] - anchor[a]).powi(2))
                         .sum::<f64>()
@@ -216,11 +217,7 @@ impl NeighborCache {
                     // The old candidates all lie within the re-ranked c-th distance of the new
                     // position, so the c nearest points do too: a bounded search finds the
                     // same points, faster.
-                    let bound2 = if *state > 0 {
-                        ranked[c - 1].0 * (1.0 + 1e-9)
-                    } else {
-                        f64::INFINITY
-                    };
+                    let bound2 = farthest * (1.0 + 1e-9);
                     let mut found_d2 = [0.0f64; MAX_CACHED];
                     let found_d2 = &mut found_d2[..c];
                     if !(bound2.is_finite() && index.nearest_within_into(q, bound2, cand, found_d2))
@@ -230,7 +227,7 @@ impl NeighborCache {
                     *radius = found_d2[c - 1].sqrt();
                     *anchor = *q;
                     *state = 2;
-                    rerank(index, q, cand, ranked);
+                    rerank(index, q, cand, k, ranked);
                 }
                 for (slot, &(_, j)) in cand.iter_mut().zip(ranked.iter()) {
                     *slot = j;
@@ -244,25 +241,52 @@ impl NeighborCache {
     }
 }
 
-/// Ranks the candidates `cand` by their squared distance to `q` (ties by index) into `ranked`:
-/// an insertion sort, as the stored order is the last iteration's ranking and the points move
-/// little between iterations (nearly sorted input, ~c steps).
+/// Ranks the candidates `cand` by their squared distance to `q` (ties by index): on return
+/// `ranked[..k]` holds the `k` nearest in order and `ranked[k..]` the others in no particular
+/// order; returns the largest squared distance of all (the c-th in order).
+///
+/// The stored order starts with the last iteration's `k` nearest, in order, and the points move
+/// little between iterations: an insertion sort of that head is ~k steps, and each tail
+/// candidate costs one comparison with the k-th unless it enters the head. (Sorting all c
+/// candidates cost ~c² moves where a point's far candidates reorder as it moves.)
 #[inline]
-fn rerank(index: &PointIndex, q: &[f64; 3], cand: &[u32], ranked: &mut [(f64, u32)]) {
+fn rerank(
+    index: &PointIndex,
+    q: &[f64; 3],
+    cand: &[u32],
+    k: usize,
+    ranked: &mut [(f64, u32)],
+) -> f64 {
+    let mut farthest = 0.0f64;
     for (slot, &j) in ranked.iter_mut().zip(cand.iter()) {
         let p = index.point(j);
-        *slot = ((0..3).map(|a| (q[a] - p[a]).powi(2)).sum::<f64>(), j);
+        let d2 = (0..3).map(|a| (q[a] - p[a]).powi(2)).sum::<f64>();
+        if d2 > farthest {
+            farthest = d2;
+        }
+        *slot = (d2, j);
     }
     let before = |a: &(f64, u32), b: &(f64, u32)| a.0 < b.0 || (a.0 == b.0 && a.1 < b.1);
-    for i in 1..ranked.len() {
-        let item = ranked[i];
-        let mut at = i;
-        while at > 0 && before(&item, &ranked[at - 1]) {
-            ranked[at] = ranked[at - 1];
+    let (head, tail) = ranked.split_at_mut(k);
+    let insert = |head: &mut [(f64, u32)], item: (f64, u32), from: usize| {
+        let mut at = from;
+        while at > 0 && before(&item, &head[at - 1]) {
+            head[at] = head[at - 1];
             at -= 1;
         }
-        ranked[at] = item;
+        head[at] = item;
+    };
+    for i in 1..k {
+        insert(head, head[i], i);
     }
+    for slot in tail.iter_mut() {
+        if before(slot, &head[k - 1]) {
+            let evicted = head[k - 1];
+            insert(head, *slot, k - 1);
+            *slot = evicted;
+        }
+    }
+    farthest
 }
 
 /// The K nearest scan points of every template point (Γᵏ_X), as [`PointIndex::nearest_all`]
