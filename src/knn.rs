@@ -101,15 +101,6 @@ impl PointIndex {
         (nn.item as u32, nn.distance)
     }
 
-    /// The nearest indexed point of every query, in parallel, written to `nearest`.
-    pub fn nearest_one_all(&self, queries: &[[f64; 3]], nearest: &mut [u32]) {
-        assert_eq!(nearest.len(), queries.len());
-        nearest
-            .par_iter_mut()
-            .zip(queries.par_iter())
-            .for_each(|(n, q)| *n = self.nearest_one(q).0);
-    }
-
     /// The `k` nearest points of every query, in parallel: row `q` of the (len(queries) × k)
     /// row-major outputs belongs to `queries[q]`.
     pub fn nearest_all(
@@ -131,6 +122,164 @@ impl PointIndex {
             .zip(dist2.par_chunks_mut(k))
             .zip(queries.par_iter())
             .for_each(|((idx, d2), q)| self.nearest_into(q, idx, d2));
+    }
+}
+
+/// Points per leaf of a [`BoxTree`].
+const BOX_LEAF: usize = 8;
+
+/// A k-d tree with a tight bounding box per node, for the nearest template point of scan
+/// points (the two-way attraction's queries), rebuilt in place as the template moves.
+///
+/// A k-d tree that prunes by its split planes alone (kiddo's) only sees how far a query lies
+/// *along the split axes*: for a query at height h above a flat patch of template, every leaf
+/// within lateral distance h of it looks close enough, and a query far from the template scans
+/// O((h / spacing)²) points. Box distances count the height too, so a query visits the few
+/// leaves around its foot point wherever it is (on the million-point case most of the reverse
+/// queries are such far points: scan regions the template has not reached yet).
+///
+/// Median splits along each node's longest box side; the node layout depends only on the
+/// number of points, so both halves are built in parallel into their own parts of the node
+/// array. Ties go to the lower index, as in [`brute_force_nearest`].
+#[derive(Clone, Debug, Default)]
+pub struct BoxTree {
+    /// The points in tree order, with their indices.
+    entries: Vec<([f64; 3], u32)>,
+    nodes: Vec<BoxNode>,
+}
+
+#[derive(Clone, Copy, Debug, Default)]
+struct BoxNode {
+    lo: [f64; 3],
+    hi: [f64; 3],
+    /// The node's range of `entries`.
+    start: u32,
+    end: u32,
+    /// Index of the right child (the left child is the next node); 0 for a leaf.
+    right: u32,
+}
+
+/// Nodes of a [`BoxTree`] over `n` points.
+fn box_nodes(n: usize) -> usize {
+    if n <= BOX_LEAF {
+        1
+    } else {
+        1 + box_nodes(n / 2) + box_nodes(n - n / 2)
+    }
+}
+
+/// Squared distance from `q` to the box `[lo, hi]` (0 inside).
+#[inline]
+fn box_distance2(q: &[f64; 3], lo: &[f64; 3], hi: &[f64; 3]) -> f64 {
+    (0..3)
+        .map(|a| (lo[a] - q[a]).max(q[a] - hi[a]).max(0.0).powi(2))
+        .sum()
+}
+
+impl BoxTree {
+    /// Rebuilds the tree over `points` (non-empty), re-using its buffers.
+    pub fn rebuild(&mut self, points: &[[f64; 3]]) {
+        assert!(!points.is_empty() && points.len() < u32::MAX as usize);
+        self.entries.clear();
+        self.entries
+            .extend(points.iter().enumerate().map(|(i, p)| (*p, i as u32)));
+        self.nodes
+            .resize(box_nodes(points.len()), BoxNode::default());
+        build_box_node(&mut self.entries, 0, &mut self.nodes, 0);
+    }
+
+    /// The nearest point of `q`: (index, squared distance), ties to the lower index.
+    pub fn nearest_one(&self, q: &[f64; 3]) -> (u32, f64) {
+        let mut best = (u32::MAX, f64::INFINITY);
+        // Depth ≤ log2(n / BOX_LEAF) + 1 and one pending sibling per level.
+        let mut stack = [(0u32, 0.0f64); 64];
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let (at, d2) = stack[top];
+            if d2 > best.1 {
+                continue;
+            }
+            let node = &self.nodes[at as usize];
+            if node.right == 0 {
+                for (p, id) in &self.entries[node.start as usize..node.end as usize] {
+                    let d2 = (0..3).map(|a| (p[a] - q[a]).powi(2)).sum::<f64>();
+                    if d2 < best.1 || (d2 == best.1 && *id < best.0) {
+                        best = (*id, d2);
+                    }
+                }
+                continue;
+            }
+            let (left, right) = (at + 1, node.right);
+            let dl = box_distance2(
+                q,
+                &self.nodes[left as usize].lo,
+                &self.nodes[left as usize].hi,
+            );
+            let dr = box_distance2(
+                q,
+                &self.nodes[right as usize].lo,
+                &self.nodes[right as usize].hi,
+            );
+            // The nearer child on top, visited first.
+            let (near, far) = if dl <= dr {
+                ((left, dl), (right, dr))
+            } else {
+                ((right, dr), (left, dl))
+            };
+            stack[top] = far;
+            stack[top + 1] = near;
+            top += 2;
+        }
+        best
+    }
+}
+
+/// Builds the node `nodes[0]` (number `base` of the tree) over `entries` (which start at
+/// `offset` in the tree's order), its subtrees after it.
+fn build_box_node(
+    entries: &mut [([f64; 3], u32)],
+    offset: usize,
+    nodes: &mut [BoxNode],
+    base: usize,
+) {
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for (p, _) in entries.iter() {
+        for a in 0..3 {
+            lo[a] = lo[a].min(p[a]);
+            hi[a] = hi[a].max(p[a]);
+        }
+    }
+    let n = entries.len();
+    let mut node = BoxNode {
+        lo,
+        hi,
+        start: offset as u32,
+        end: (offset + n) as u32,
+        right: 0,
+    };
+    if n <= BOX_LEAF {
+        nodes[0] = node;
+        return;
+    }
+    let axis = (0..3)
+        .max_by(|&a, &b| (hi[a] - lo[a]).total_cmp(&(hi[b] - lo[b])))
+        .unwrap_or(0);
+    let half = n / 2;
+    entries.select_nth_unstable_by(half, |a, b| a.0[axis].total_cmp(&b.0[axis]));
+    let left_nodes = box_nodes(half);
+    let right = base + 1 + left_nodes;
+    node.right = right as u32;
+    nodes[0] = node;
+    let (left_part, right_part) = nodes[1..].split_at_mut(left_nodes);
+    let (left_entries, right_entries) = entries.split_at_mut(half);
+    let mut left = || build_box_node(left_entries, offset, left_part, base + 1);
+    let mut right = || build_box_node(right_entries, offset + half, right_part, right);
+    if n > 4096 {
+        rayon::join(left, right);
+    } else {
+        left();
+        right();
     }
 }
 
@@ -311,13 +460,15 @@ pub struct TargetNeighbours<'a> {
 /// points that did list x, the nearest one (ties by index) is therefore x's nearest template
 /// point whenever it is closer than ρ_min — the k-d tree's answer up to exactly tied distances.
 /// Scan points without that certificate (none listed them, as when the template is still far
-/// from the scan, or the nearest listing point is not close enough) are queried against a k-d
-/// tree over the template, built only in iterations that need one. Inverting the lists is one
-/// pass over M·K entries instead of N tree queries.
+/// from the scan, or the nearest listing point is not close enough) are queried against a
+/// [`BoxTree`] over the template, rebuilt (in place) only in iterations that need one.
+/// Inverting the lists is one pass over M·K entries instead of N tree queries.
 #[derive(Clone, Debug, Default)]
 pub struct ReverseNearest {
     /// Per scan point: the smallest squared distance from a template point listing it.
     best_d2: Vec<f64>,
+    /// Over the template, for the scan points without a certificate.
+    tree: BoxTree,
 }
 
 impl ReverseNearest {
@@ -325,26 +476,54 @@ impl ReverseNearest {
     pub fn new(n: usize) -> Self {
         Self {
             best_d2: vec![0.0; n],
+            tree: BoxTree::default(),
         }
     }
 
     /// Writes to `nearest[j]` the index of the template point (of `template`) nearest to
-    /// `scan[j]`, given the exact forward lists of these template positions. Returns the number
-    /// of scan points queried against a k-d tree.
+    /// `scan[j]`: from `forward`, the exact forward lists of these template positions, where
+    /// certified, else (and without `forward`, for every scan point) from a tree over the
+    /// template. Returns the number of scan points queried against the tree.
     pub fn query(
         &mut self,
         template: &[[f64; 3]],
         scan: &[[f64; 3]],
-        forward: TargetNeighbours<'_>,
+        forward: Option<TargetNeighbours<'_>>,
         nearest: &mut [u32],
     ) -> usize {
+        assert_eq!(nearest.len(), scan.len());
+        let rho2_min = match forward {
+            Some(lists) => self.invert(template.len(), lists, nearest),
+            None => {
+                self.best_d2.fill(f64::INFINITY);
+                0.0
+            }
+        };
+        // The margin keeps round-off from certifying a tie.
+        let certified = |d2: f64| d2 < rho2_min * (1.0 - 1e-12);
+        let fresh = self.best_d2.iter().filter(|&&d2| !certified(d2)).count();
+        if fresh > 0 {
+            self.tree.rebuild(template);
+            let tree = &self.tree;
+            nearest
+                .par_iter_mut()
+                .zip(self.best_d2.par_iter())
+                .zip(scan.par_iter())
+                .filter(|((_, &d2), _)| !certified(d2))
+                .for_each(|((n, _), x)| *n = tree.nearest_one(x).0);
+        }
+        fresh
+    }
+
+    /// The nearest listing template point of every scan point (`nearest`, its squared distance
+    /// in `best_d2`; `u32::MAX` and ∞ where none lists it), and the smallest ρ² of the lists.
+    fn invert(&mut self, m: usize, forward: TargetNeighbours<'_>, nearest: &mut [u32]) -> f64 {
         let TargetNeighbours {
             indices: forward_idx,
             dist2: forward_d2,
             k,
         } = forward;
-        assert_eq!(nearest.len(), scan.len());
-        assert_eq!(forward_idx.len(), template.len() * k);
+        assert_eq!(forward_idx.len(), m * k);
         self.best_d2.fill(f64::INFINITY);
         nearest.fill(u32::MAX);
         // Template points in increasing order and a strict `<`: ties go to the lower index.
@@ -360,23 +539,10 @@ impl ReverseNearest {
                 }
             }
         }
-        let rho2_min = forward_d2
+        forward_d2
             .chunks_exact(k)
             .map(|row| row[k - 1])
-            .fold(f64::INFINITY, f64::min);
-        // The margin keeps round-off from certifying a tie.
-        let certified = |d2: f64| d2 < rho2_min * (1.0 - 1e-12);
-        let fresh = self.best_d2.iter().filter(|&&d2| !certified(d2)).count();
-        if fresh > 0 {
-            let tree = PointIndex::new(template);
-            nearest
-                .par_iter_mut()
-                .zip(self.best_d2.par_iter())
-                .zip(scan.par_iter())
-                .filter(|((_, &d2), _)| !certified(d2))
-                .for_each(|((n, _), x)| *n = tree.nearest_one(x).0);
-        }
-        fresh
+            .fold(f64::INFINITY, f64::min)
     }
 }
 
@@ -476,7 +642,13 @@ mod tests {
                 dist2: &d2,
                 k,
             };
-            let fresh = reverse.query(&template, &scan, lists, &mut got);
+            let fresh = reverse.query(&template, &scan, Some(lists), &mut got);
+            let mut from_tree = vec![0; scan.len()];
+            assert_eq!(
+                reverse.query(&template, &scan, None, &mut from_tree),
+                scan.len()
+            );
+            assert_eq!(from_tree, got, "height {height}: the tree alone");
             let tree = PointIndex::new(&template);
             for (j, x) in scan.iter().enumerate() {
                 let (want, want_d2) = brute_force_nearest(&template, x, 1);
@@ -490,6 +662,36 @@ mod tests {
             certified[0] < certified[3] && certified[3] > 3 * scan.len() / 4,
             "{certified:?}"
         );
+    }
+
+    #[test]
+    fn box_tree_equals_brute_force_near_and_far() {
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        // A flat patch with duplicated points (ties go to the lower index), queried on it and
+        // from far above it, as the two-way attraction's scan points query the template.
+        let mut pts: Vec<[f64; 3]> = (0..1500)
+            .map(|_| [rng.random(), rng.random(), 0.001 * rng.random::<f64>()])
+            .collect();
+        pts.extend_from_within(100..140);
+        let mut tree = BoxTree::default();
+        for round in 0..2 {
+            tree.rebuild(&pts[..pts.len() - 300 * round]);
+            let live = &pts[..pts.len() - 300 * round];
+            for (i, height) in (0..400).map(|i| (i, [0.0, 0.01, 0.3, 5.0][i % 4])) {
+                let q = if i % 7 == 0 {
+                    live[i % 1200]
+                } else {
+                    [rng.random(), rng.random(), height]
+                };
+                let (want, want_d2) = brute_force_nearest(live, &q, 1);
+                assert_eq!(tree.nearest_one(&q), (want[0], want_d2[0]), "query {q:?}");
+            }
+        }
+        // One point, and points in one spot.
+        tree.rebuild(&[[1.0, 2.0, 3.0]]);
+        assert_eq!(tree.nearest_one(&[0.0; 3]), (0, 14.0));
+        tree.rebuild(&[[0.5; 3]; 20]);
+        assert_eq!(tree.nearest_one(&[0.0; 3]).0, 0);
     }
 
     #[test]

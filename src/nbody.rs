@@ -3,7 +3,7 @@
 //! converging readings of SPEC §2.3–2.4; each literal reading of the paper stays reachable
 //! through [`ForceNumerator`], [`ForceSum`] and [`DampingMode`].
 
-use crate::knn::{PointIndex, ReverseNearest, TargetNeighbours};
+use crate::knn::{ReverseNearest, TargetNeighbours};
 use crate::math::{vec3, Vec3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -185,7 +185,8 @@ pub fn step(
 /// so the result is the same for any thread count.
 #[derive(Clone, Debug, Default)]
 pub struct ReverseAttraction {
-    queries: Option<ReverseNearest>,
+    queries: ReverseNearest,
+    from_forward: bool,
     nearest: Vec<u32>,
     offsets: Vec<usize>,
     heads: Vec<usize>,
@@ -195,10 +196,11 @@ pub struct ReverseAttraction {
 impl ReverseAttraction {
     /// Scratch for a template of `m` points and a scan of `n` points; `from_forward` derives
     /// the nearest template points from the forward k-NN lists where that is exact
-    /// ([`ReverseNearest`]), else every scan point queries a k-d tree over the template.
+    /// ([`ReverseNearest`]), else every scan point queries a tree over the template.
     pub fn new(m: usize, n: usize, from_forward: bool) -> Self {
         Self {
-            queries: from_forward.then(|| ReverseNearest::new(n)),
+            queries: ReverseNearest::new(n),
+            from_forward,
             nearest: vec![0; n],
             offsets: vec![0; m + 1],
             heads: vec![0; m],
@@ -220,13 +222,10 @@ impl ReverseAttraction {
         p: &NBodyParams,
         out: &mut [[f64; 3]],
     ) -> usize {
-        let fresh = match self.queries.as_mut() {
-            Some(reverse) => reverse.query(positions, target, forward, &mut self.nearest),
-            None => {
-                PointIndex::new(positions).nearest_one_all(target, &mut self.nearest);
-                target.len()
-            }
-        };
+        let forward = self.from_forward.then_some(forward);
+        let fresh = self
+            .queries
+            .query(positions, target, forward, &mut self.nearest);
         // Counting sort of the scan points by nearest template point (stable: scan order).
         self.offsets.iter_mut().for_each(|o| *o = 0);
         for &k in &self.nearest {
