@@ -15,7 +15,7 @@
 use crate::curvature::{gaussian_curvature_mesh, gaussian_curvature_points};
 use crate::deformation::deformation_gradient;
 use crate::error::{FoldMatchError, Result};
-use crate::knn::{neighborhood_size, NeighborCache, PointIndex, TargetNeighbours};
+use crate::knn::{morton_order, neighborhood_size, NeighborCache, PointIndex, TargetNeighbours};
 use crate::math::{nearest_rotation_with, vec3, Mat3, Vec3};
 use crate::mesh::{clean_faces, validate_faces, validate_points, vertex_normals, VertexFaces};
 use crate::nbody::{self, NBodyParams};
@@ -881,6 +881,7 @@ fn drive(
 struct Prepared {
     faces: Vec<[u32; 3]>,
     frame: Frame,
+    /// The scan in the normalized frame, in [`morton_order`].
     scan: Vec<[f64; 3]>,
     /// The template in the normalized frame, after any pre-alignment.
     start: Vec<[f64; 3]>,
@@ -954,15 +955,19 @@ impl Prepared {
             Prealign::None => {}
         }
 
-        // Target side: k-d tree, K, curvature.
+        // Target side, in space-filling-curve order ([`morton_order`]; only round-off depends
+        // on the scan's order): k-d tree, K, curvature (a mesh's, of the given order).
+        let order = morton_order(&scan);
+        let mesh_kappa = target_faces
+            .filter(|f| params.use_curvature && !f.is_empty())
+            .map(|tf| gaussian_curvature_mesh(&scan, tf));
+        let scan: Vec<[f64; 3]> = order.iter().map(|&j| scan[j as usize]).collect();
         let index = PointIndex::new(&scan);
         let k = neighborhood_size(params.rho, scan.len(), params.k_min, params.k_max);
-        let (kappa, curvature_source) = if !params.use_curvature {
-            (vec![0.0; scan.len()], "off")
-        } else if let Some(tf) = target_faces.filter(|f| !f.is_empty()) {
-            (gaussian_curvature_mesh(&scan, tf), "mesh")
-        } else {
-            (gaussian_curvature_points(&scan, &index), "point_cloud")
+        let (kappa, curvature_source) = match mesh_kappa {
+            _ if !params.use_curvature => (vec![0.0; scan.len()], "off"),
+            Some(kappa) => (order.iter().map(|&j| kappa[j as usize]).collect(), "mesh"),
+            None => (gaussian_curvature_points(&scan, &index), "point_cloud"),
         };
 
         // Template side: incidence, neighborhoods, the phases' neighborhoods.
@@ -1773,6 +1778,67 @@ mod tests {
             FitParams::tracking(),
         ] {
             assert_eq!(p.candidate_schedules().len(), 1);
+        }
+    }
+
+    #[test]
+    fn the_scan_order_changes_the_fit_only_by_round_off() {
+        // The fit keeps the scan in Morton order; given in any other order, only the order of
+        // the sums differs. The scan is a mesh (the folded vertices with noise, which breaks
+        // the exact distance ties of a grid: those go to the lower index of the internal order),
+        // fitted with its faces re-indexed (the mesh curvature follows its points) and without.
+        let case = crate::synthetic::folded_sheet(&crate::synthetic::SheetSpec {
+            nx: 24,
+            ny: 24,
+            noise: 0.002,
+            ..Default::default()
+        });
+        let x = &case.scan;
+        let n = x.len();
+        // A scrambled order: position i holds point (i · 7919) mod n (7919 is prime to n).
+        let perm: Vec<usize> = (0..n).map(|i| i * 7919 % n).collect();
+        let mut inverse = vec![0u32; n];
+        for (i, &j) in perm.iter().enumerate() {
+            inverse[j] = i as u32;
+        }
+        let shuffled: Vec<[f64; 3]> = perm.iter().map(|&j| x[j]).collect();
+        let faces = &case.faces;
+        let shuffled_faces: Vec<[u32; 3]> = faces
+            .iter()
+            .map(|f| f.map(|j| inverse[j as usize]))
+            .collect();
+        let t = &case.template_vertices;
+        for params in [FitParams::default(), FitParams::paper()] {
+            let params = FitParams {
+                iterations: 40,
+                ..params
+            };
+            for mesh in [false, true] {
+                let (a, b) = if mesh {
+                    (
+                        fit_simple(t, faces, x, Some(faces), &params).unwrap(),
+                        fit_simple(t, faces, &shuffled, Some(&shuffled_faces), &params).unwrap(),
+                    )
+                } else {
+                    (
+                        fit_simple(t, faces, x, None, &params).unwrap(),
+                        fit_simple(t, faces, &shuffled, None, &params).unwrap(),
+                    )
+                };
+                let moved = a
+                    .vertices
+                    .iter()
+                    .zip(t)
+                    .map(|(p, q)| (vec3(p) - vec3(q)).norm())
+                    .fold(0.0, f64::max);
+                let apart = a
+                    .vertices
+                    .iter()
+                    .zip(&b.vertices)
+                    .map(|(p, q)| (vec3(p) - vec3(q)).norm())
+                    .fold(0.0, f64::max);
+                assert!(moved > 0.01 && apart < 1e-9 * moved, "{apart} of {moved}");
+            }
         }
     }
 

