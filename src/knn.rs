@@ -6,9 +6,11 @@ use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 use std::num::NonZero;
 
-/// A k-d tree over a fixed point set (the scan, or the template for NRGa neighborhoods).
+/// A k-d tree over a fixed point set (the scan, or the template for NRGa neighborhoods), and a
+/// [`BoxTree`] over the same points for the ball queries of [`NeighborCache`] re-queries.
 pub struct PointIndex {
     tree: ImmutableKdTree<f64, 3>,
+    boxes: BoxTree,
     points: Vec<[f64; 3]>,
 }
 
@@ -21,8 +23,11 @@ pub fn neighborhood_size(rho: f64, n: usize, k_min: usize, k_max: usize) -> usiz
 impl PointIndex {
     /// Builds the tree over `points` (must be non-empty).
     pub fn new(points: &[[f64; 3]]) -> Self {
+        let mut boxes = BoxTree::default();
+        boxes.rebuild(points);
         Self {
             tree: ImmutableKdTree::new_from_slice(points),
+            boxes,
             points: points.to_vec(),
         }
     }
@@ -56,41 +61,45 @@ impl PointIndex {
         }
     }
 
-    /// Like [`PointIndex::nearest_into`], searching only within squared distance `radius2`;
-    /// returns `false` (and leaves the outputs untouched) when fewer than `indices.len()`
-    /// points lie that close.
+    /// Like [`PointIndex::nearest_into`], searching only within squared distance `radius2`,
+    /// except that only the first `head` of the outputs are in order (the others follow in no
+    /// particular order); returns `false` (and leaves the outputs untouched) when fewer than
+    /// `indices.len()` points lie that close. `found` is scratch.
     ///
-    /// Collects every point of the ball unsorted and selects the `k` nearest (ties by index),
-    /// which is several times faster than kiddo's bounded-heap `nearest_n_within` when the
-    /// ball holds not many more than `k` points, as in [`NeighborCache`] re-queries (2K
-    /// candidates measured faster than 3K/2 or 3K on the paper-sized case: fewer re-queries
-    /// against a longer re-ranking). kiddo 5 returns a fresh `Vec` per query, as its
-    /// `nearest_n` does.
+    /// Collects every point of the ball from the [`BoxTree`] (whose box distances prune for a
+    /// query far off the scan's surface, where kiddo's split planes do not: on the
+    /// million-point case the re-queries of template points still far from the scan took
+    /// ~20 µs each) and selects the nearest (ties by index), which is several times faster
+    /// than a bounded heap when the ball holds not many more than the points wanted, as in
+    /// [`NeighborCache`] re-queries (2K candidates measured faster than 3K/2 or 3K on the
+    /// paper-sized case: fewer re-queries against a longer re-ranking; 3K again on the
+    /// quarter-size large case).
     pub fn nearest_within_into(
         &self,
         query: &[f64; 3],
         radius2: f64,
+        head: usize,
         indices: &mut [u32],
         dist2: &mut [f64],
+        found: &mut Vec<(f64, u32)>,
     ) -> bool {
-        let k = indices.len();
-        let mut found = self
-            .tree
-            .within_unsorted::<SquaredEuclidean>(query, radius2);
-        if found.len() < k {
+        let c = indices.len();
+        found.clear();
+        self.boxes.within(query, radius2, found);
+        if found.len() < c {
             return false;
         }
-        let by_distance = |a: &kiddo::NearestNeighbour<f64, u64>,
-                           b: &kiddo::NearestNeighbour<f64, u64>| {
-            a.distance.total_cmp(&b.distance).then(a.item.cmp(&b.item))
-        };
-        if found.len() > k {
-            found.select_nth_unstable_by(k - 1, by_distance);
+        let by_distance = |a: &(f64, u32), b: &(f64, u32)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
+        if found.len() > c {
+            found.select_nth_unstable_by(c - 1, by_distance);
         }
-        found[..k].sort_unstable_by(by_distance);
-        for (slot, nn) in found[..k].iter().enumerate() {
-            indices[slot] = nn.item as u32;
-            dist2[slot] = nn.distance;
+        if head < c {
+            found[..c].select_nth_unstable_by(head, by_distance);
+        }
+        found[..head].sort_unstable_by(by_distance);
+        for (slot, &(d2, j)) in found[..c].iter().enumerate() {
+            indices[slot] = j;
+            dist2[slot] = d2;
         }
         true
     }
@@ -235,6 +244,38 @@ impl BoxTree {
     }
 }
 
+impl BoxTree {
+    /// Appends every point within squared distance `radius2` of `q` to `out`, unordered:
+    /// (squared distance, index).
+    pub fn within(&self, q: &[f64; 3], radius2: f64, out: &mut Vec<(f64, u32)>) {
+        let mut stack = [0u32; 64];
+        let mut top = 0;
+        if box_distance2(q, &self.nodes[0].lo, &self.nodes[0].hi) <= radius2 {
+            top = 1;
+        }
+        while top > 0 {
+            top -= 1;
+            let node = &self.nodes[stack[top] as usize];
+            if node.right == 0 {
+                for (p, id) in &self.entries[node.start as usize..node.end as usize] {
+                    let d2 = (0..3).map(|a| (p[a] - q[a]).powi(2)).sum::<f64>();
+                    if d2 <= radius2 {
+                        out.push((d2, *id));
+                    }
+                }
+                continue;
+            }
+            for child in [stack[top] + 1, node.right] {
+                let b = &self.nodes[child as usize];
+                if box_distance2(q, &b.lo, &b.hi) <= radius2 {
+                    stack[top] = child;
+                    top += 1;
+                }
+            }
+        }
+    }
+}
+
 /// Builds the node `nodes[0]` (number `base` of the tree) over `entries` (which start at
 /// `offset` in the tree's order), its subtrees after it.
 fn build_box_node(
@@ -344,48 +385,58 @@ impl NeighborCache {
             .zip(self.state.par_iter_mut())
             .zip(indices.par_chunks_mut(k).zip(dist2.par_chunks_mut(k)))
             .zip(queries.par_iter())
-            .for_each(|(((((anchor, cand), radius), state), (idx, d2)), q)| {
-                let mut ranked = [(0.0f64, 0u32); MAX_CACHED];
-                let ranked = &mut ranked[..c];
-                let mut exact = false;
-                let mut farthest = f64::INFINITY;
-                if *state > 0 {
-                    farthest = rerank(index, q, cand, k, ranked);
-                    let moved = (0..3)
-                        .map(|a| (q[a] - anchor[a]).powi(2))
-                        .sum::<f64>()
-                        .sqrt();
-                    // Every non-candidate is at least `radius − moved` away; the margin keeps
-                    // round-off from admitting a tie.
-                    let outside = (*radius - moved) * (1.0 - 1e-9);
-                    exact = whole_set || (outside > 0.0 && ranked[k - 1].0 < outside * outside);
-                }
-                if exact {
-                    *state = 1;
-                } else {
-                    // The old candidates all lie within the re-ranked c-th distance of the new
-                    // position, so the c nearest points do too: a bounded search finds the
-                    // same points, faster.
-                    let bound2 = farthest * (1.0 + 1e-9);
-                    let mut found_d2 = [0.0f64; MAX_CACHED];
-                    let found_d2 = &mut found_d2[..c];
-                    if !(bound2.is_finite() && index.nearest_within_into(q, bound2, cand, found_d2))
-                    {
-                        index.nearest_into(q, cand, found_d2);
+            .for_each_init(
+                || Vec::with_capacity(4 * c),
+                |found, (((((anchor, cand), radius), state), (idx, d2)), q)| {
+                    let mut ranked = [(0.0f64, 0u32); MAX_CACHED];
+                    let ranked = &mut ranked[..c];
+                    let mut exact = false;
+                    let mut farthest = f64::INFINITY;
+                    if *state > 0 {
+                        farthest = rerank(index, q, cand, k, ranked);
+                        let moved = (0..3)
+                            .map(|a| (q[a] - anchor[a]).powi(2))
+                            .sum::<f64>()
+                            .sqrt();
+                        // Every non-candidate is at least `radius − moved` away; the margin
+                        // keeps round-off from admitting a tie.
+                        let outside = (*radius - moved) * (1.0 - 1e-9);
+                        exact = whole_set || (outside > 0.0 && ranked[k - 1].0 < outside * outside);
                     }
-                    *radius = found_d2[c - 1].sqrt();
-                    *anchor = *q;
-                    *state = 2;
-                    rerank(index, q, cand, k, ranked);
-                }
-                for (slot, &(_, j)) in cand.iter_mut().zip(ranked.iter()) {
-                    *slot = j;
-                }
-                for (s, &(d, j)) in ranked[..k].iter().enumerate() {
-                    idx[s] = j;
-                    d2[s] = d;
-                }
-            });
+                    if exact {
+                        *state = 1;
+                    } else {
+                        // The old candidates all lie within the re-ranked c-th distance of the
+                        // new position, so the c nearest points do too: a bounded search finds
+                        // the same points, faster. Either way the k nearest come first, in
+                        // order, as `rerank` leaves them.
+                        let bound2 = farthest * (1.0 + 1e-9);
+                        let mut found_d2 = [0.0f64; MAX_CACHED];
+                        let found_d2 = &mut found_d2[..c];
+                        if !(bound2.is_finite()
+                            && index.nearest_within_into(q, bound2, k, cand, found_d2, found))
+                        {
+                            index.nearest_into(q, cand, found_d2);
+                        }
+                        let reach2 = found_d2.iter().copied().fold(0.0, f64::max);
+                        *radius = reach2.sqrt();
+                        *anchor = *q;
+                        *state = 2;
+                        for (slot, (&d, &j)) in
+                            ranked.iter_mut().zip(found_d2.iter().zip(cand.iter()))
+                        {
+                            *slot = (d, j);
+                        }
+                    }
+                    for (slot, &(_, j)) in cand.iter_mut().zip(ranked.iter()) {
+                        *slot = j;
+                    }
+                    for (s, &(d, j)) in ranked[..k].iter().enumerate() {
+                        idx[s] = j;
+                        d2[s] = d;
+                    }
+                },
+            );
         self.state.iter().filter(|&&s| s == 2).count()
     }
 }
@@ -728,6 +779,14 @@ mod tests {
                 };
                 let (want, want_d2) = brute_force_nearest(live, &q, 1);
                 assert_eq!(tree.nearest_one(&q), (want[0], want_d2[0]), "query {q:?}");
+                // The ball through the 30th nearest: those 30, and ties beyond them.
+                let (near, near_d2) = brute_force_nearest(live, &q, 30);
+                let mut ball = Vec::new();
+                tree.within(&q, near_d2[29], &mut ball);
+                ball.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+                let ids: Vec<u32> = ball.iter().map(|b| b.1).collect();
+                assert_eq!(&ids[..30], &near[..], "query {q:?}");
+                assert!(ball[30..].iter().all(|b| b.0 == near_d2[29]));
             }
         }
         // One point, and points in one spot.
