@@ -199,7 +199,14 @@ impl BoxTree {
 
     /// The nearest point of `q`: (index, squared distance), ties to the lower index.
     pub fn nearest_one(&self, q: &[f64; 3]) -> (u32, f64) {
-        let mut best = (u32::MAX, f64::INFINITY);
+        self.nearest_one_from(q, (u32::MAX, f64::INFINITY))
+    }
+
+    /// Like [`BoxTree::nearest_one`], given one point `(index, squared distance)` known to be
+    /// that close: the search prunes by it from the start (the nearest point of the last
+    /// iteration, a few spacings off at most). The same answer, ties included.
+    pub fn nearest_one_from(&self, q: &[f64; 3], known: (u32, f64)) -> (u32, f64) {
+        let mut best = known;
         // Depth ≤ log2(n / BOX_LEAF) + 1 and one pending sibling per level.
         let mut stack = [(0u32, 0.0f64); 64];
         let mut top = 1;
@@ -520,6 +527,9 @@ pub struct ReverseNearest {
     best_d2: Vec<f64>,
     /// Over the template, for the scan points without a certificate.
     tree: BoxTree,
+    /// Per scan point: its nearest template point of the last call (`u32::MAX`: none yet), a
+    /// known distance to start the tree search from.
+    last: Vec<u32>,
 }
 
 impl ReverseNearest {
@@ -528,6 +538,7 @@ impl ReverseNearest {
         Self {
             best_d2: vec![0.0; n],
             tree: BoxTree::default(),
+            last: vec![u32::MAX; n],
         }
     }
 
@@ -556,13 +567,25 @@ impl ReverseNearest {
         if fresh > 0 {
             self.tree.rebuild(template);
             let tree = &self.tree;
+            // The search starts from a template point known to be that close: the nearest
+            // listing one, else the last call's answer.
             nearest
                 .par_iter_mut()
                 .zip(self.best_d2.par_iter())
-                .zip(scan.par_iter())
+                .zip(scan.par_iter().zip(self.last.par_iter()))
                 .filter(|((_, &d2), _)| !certified(d2))
-                .for_each(|((n, _), x)| *n = tree.nearest_one(x).0);
+                .for_each(|((n, &d2), (x, &last))| {
+                    let known = if *n != u32::MAX {
+                        (*n, d2)
+                    } else if let Some(p) = template.get(last as usize) {
+                        (last, (0..3).map(|a| (p[a] - x[a]).powi(2)).sum())
+                    } else {
+                        (u32::MAX, f64::INFINITY)
+                    };
+                    *n = tree.nearest_one_from(x, known).0;
+                });
         }
+        self.last.copy_from_slice(nearest);
         fresh
     }
 
@@ -779,6 +802,10 @@ mod tests {
                 };
                 let (want, want_d2) = brute_force_nearest(live, &q, 1);
                 assert_eq!(tree.nearest_one(&q), (want[0], want_d2[0]), "query {q:?}");
+                // Started from any point at its distance (here: one of the 40 duplicates).
+                let p = live[120];
+                let known = (120, (0..3).map(|a| (p[a] - q[a]).powi(2)).sum());
+                assert_eq!(tree.nearest_one_from(&q, known), (want[0], want_d2[0]));
                 // The ball through the 30th nearest: those 30, and ties beyond them.
                 let (near, near_d2) = brute_force_nearest(live, &q, 30);
                 let mut ball = Vec::new();
