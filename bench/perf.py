@@ -69,22 +69,25 @@ STAGE_NAMES = {
 }
 #: What would make each stage cheaper (for the "missed targets" analysis).
 LEVERS = {
-    "knn": "k-NN: a fresh query costs several µs (kiddo 5's `within_unsorted` / `nearest_n`, "
-    "one allocation each, K = 28 here, 64 at 1M points); the candidate cache (2K candidates, "
-    "re-used while the re-ranked K-th is closer than d_c − δ) answers nearly all of the fine "
-    "phase, but in the rigid and coarse phases (80 of the 100 iterations) vertices move past "
-    "their margin every few iterations (the rigid phase now queries every 4th vertex only, "
-    "`rigid_sample`), and re-ranking 2K candidates is itself ~40 % of the stage. Closing: a "
-    "cheaper exact query (a uniform grid over the scan, whose K-NN radii are nearly uniform, "
-    "or kiddo 6's fixed-size result buffers)",
+    "knn": "k-NN: the candidate cache (2K candidates, re-used while the re-ranked K-th is "
+    "closer than d_c − δ) answers nearly all of the fine phase; the rest are ball queries on a "
+    "box-pruned tree over the scan (kiddo's split-plane pruning cost ~20 µs per re-query for "
+    "template points off the scan's surface at 1M points). In the rigid and coarse phases a "
+    "template point far off the surface (height h ≫ ρ) sees all its candidates at ≈ h, so its "
+    "margin d_c − d_K is tiny and it re-queries nearly every iteration (25 % of the "
+    "vertex-iterations at 1M points); re-ranking the 2K candidates is memory-bound. Closing: "
+    "fewer re-queries for far points (a bound on the far candidates' forces instead of their "
+    "exact ranking), a result-changing option",
     "two_way": "two-way attraction: a scan point's nearest template vertex comes from the "
     "inverted forward k-NN lists when certified (closer than the smallest K-th neighbour "
-    "distance: ~100 % once the template lies on the scan), else from a k-d tree query; in "
-    "the rigid and early coarse phases most of the scan is not yet covered (≈80 % queried). "
-    "A local certificate (per-cell minimum ρ on a grid over the template) was tried: 15–17 % "
-    "fewer tree queries, no measurable wall-time change (the uncertified scan points are "
-    "mostly farther from the template than a cell), so not kept. Closing: a cheaper exact "
-    "query for those points (the template moves little in the fine phase but a lot before)",
+    "distance: ~100 % once the template lies on the scan), else from a box-tree query "
+    "started from a known template point; the rigid phase (every 4th vertex, the flat "
+    "template still far from the folded scan: ~95 % of the scan uncertified) makes most of "
+    "them. Tried and not kept: local certificates (a per-cell minimum ρ on a grid; a near set "
+    "of the template points with ρ below the 10 % quantile offering themselves within τ): "
+    "11–17 % fewer queries, no wall-time gain; a parallel inversion of the lists: no gain "
+    "(the two candidate schedules already fill both cores). Closing: a scan sample for the "
+    "rigid phase's reverse pulls (result-changing, like `rigid_sample`)",
     "nbody": "force: f64x4 SIMD over the K neighbors, neighbors' coordinates and κ gathered "
     "once per vertex",
     "gradient": "gradients: already closed-form eigenvalues and a direct inverse where B is "
