@@ -72,8 +72,8 @@ impl PointIndex {
     /// ~20 µs each) and selects the nearest (ties by index), which is several times faster
     /// than a bounded heap when the ball holds not many more than the points wanted, as in
     /// [`NeighborCache`] re-queries (2K candidates measured faster than 3K/2 or 3K on the
-    /// paper-sized case: fewer re-queries against a longer re-ranking; 3K again on the
-    /// quarter-size large case).
+    /// paper-sized case: fewer re-queries against a longer re-ranking; within ±3 % of both on
+    /// the quarter-size large case).
     pub fn nearest_within_into(
         &self,
         query: &[f64; 3],
@@ -137,8 +137,9 @@ impl PointIndex {
 /// Points per leaf of a [`BoxTree`].
 const BOX_LEAF: usize = 32;
 
-/// A k-d tree with a tight bounding box per node, for the nearest template point of scan
-/// points (the two-way attraction's queries), rebuilt in place as the template moves.
+/// A k-d tree with a tight bounding box per node: for the nearest template point of scan
+/// points (the two-way attraction's queries; rebuilt in place as the template moves) and for
+/// the ball queries of [`NeighborCache`] re-queries over the scan.
 ///
 /// A k-d tree that prunes by its split planes alone (kiddo's) only sees how far a query lies
 /// *along the split axes*: for a query at height h above a flat patch of template, every leaf
@@ -175,6 +176,13 @@ fn box_nodes(n: usize) -> usize {
     } else {
         1 + box_nodes(n / 2) + box_nodes(n - n / 2)
     }
+}
+
+/// Squared Euclidean distance, summed over x, y, z in order (every query of this module uses it,
+/// so equal distances compare equal wherever they are computed).
+#[inline]
+fn squared_distance(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    (0..3).map(|i| (a[i] - b[i]).powi(2)).sum()
 }
 
 /// Squared distance from `q` to the box `[lo, hi]` (0 inside).
@@ -219,7 +227,7 @@ impl BoxTree {
             let node = &self.nodes[at as usize];
             if node.right == 0 {
                 for (p, id) in &self.entries[node.start as usize..node.end as usize] {
-                    let d2 = (0..3).map(|a| (p[a] - q[a]).powi(2)).sum::<f64>();
+                    let d2 = squared_distance(p, q);
                     if d2 < best.1 || (d2 == best.1 && *id < best.0) {
                         best = (*id, d2);
                     }
@@ -265,7 +273,7 @@ impl BoxTree {
             let node = &self.nodes[stack[top] as usize];
             if node.right == 0 {
                 for (p, id) in &self.entries[node.start as usize..node.end as usize] {
-                    let d2 = (0..3).map(|a| (p[a] - q[a]).powi(2)).sum::<f64>();
+                    let d2 = squared_distance(p, q);
                     if d2 <= radius2 {
                         out.push((d2, *id));
                     }
@@ -401,10 +409,7 @@ impl NeighborCache {
                     let mut farthest = f64::INFINITY;
                     if *state > 0 {
                         farthest = rerank(index, q, cand, k, ranked);
-                        let moved = (0..3)
-                            .map(|a| (q[a] - anchor[a]).powi(2))
-                            .sum::<f64>()
-                            .sqrt();
+                        let moved = squared_distance(q, anchor).sqrt();
                         // Every non-candidate is at least `radius − moved` away; the margin
                         // keeps round-off from admitting a tie.
                         let outside = (*radius - moved) * (1.0 - 1e-9);
@@ -467,7 +472,7 @@ fn rerank(
     let mut farthest = 0.0f64;
     for (slot, &j) in ranked.iter_mut().zip(cand.iter()) {
         let p = index.point(j);
-        let d2 = (0..3).map(|a| (q[a] - p[a]).powi(2)).sum::<f64>();
+        let d2 = squared_distance(q, p);
         if d2 > farthest {
             farthest = d2;
         }
@@ -558,6 +563,7 @@ impl ReverseNearest {
             Some(lists) => self.invert(template.len(), lists, nearest),
             None => {
                 self.best_d2.fill(f64::INFINITY);
+                nearest.fill(u32::MAX);
                 0.0
             }
         };
@@ -578,7 +584,7 @@ impl ReverseNearest {
                     let known = if *n != u32::MAX {
                         (*n, d2)
                     } else if let Some(p) = template.get(last as usize) {
-                        (last, (0..3).map(|a| (p[a] - x[a]).powi(2)).sum())
+                        (last, squared_distance(p, x))
                     } else {
                         (u32::MAX, f64::INFINITY)
                     };
@@ -674,7 +680,7 @@ pub fn brute_force_nearest(
         .iter()
         .enumerate()
         .map(|(i, p)| {
-            let d2 = (0..3).map(|a| (p[a] - query[a]).powi(2)).sum::<f64>();
+            let d2 = squared_distance(p, query);
             (d2, i as u32)
         })
         .collect();
@@ -804,7 +810,7 @@ mod tests {
                 assert_eq!(tree.nearest_one(&q), (want[0], want_d2[0]), "query {q:?}");
                 // Started from any point at its distance (here: one of the 40 duplicates).
                 let p = live[120];
-                let known = (120, (0..3).map(|a| (p[a] - q[a]).powi(2)).sum());
+                let known = (120, squared_distance(&p, &q));
                 assert_eq!(tree.nearest_one_from(&q, known), (want[0], want_d2[0]));
                 // The ball through the 30th nearest: those 30, and ties beyond them.
                 let (near, near_d2) = brute_force_nearest(live, &q, 30);
@@ -838,7 +844,7 @@ mod tests {
             o.windows(2)
                 .map(|w| {
                     let (a, b) = (pts[w[0] as usize], pts[w[1] as usize]);
-                    (0..3).map(|i| (a[i] - b[i]).powi(2)).sum::<f64>().sqrt()
+                    squared_distance(&a, &b).sqrt()
                 })
                 .sum::<f64>()
                 / (o.len() - 1) as f64
