@@ -1,5 +1,6 @@
 //! Stage timing of one fit on a generated paper-sized case (≈13K template vertices, ≈14K
-//! scan points): `cargo run --profile profiling --example timing -- [side] [scan] [preset]`.
+//! scan points): `cargo run --profile profiling --example timing -- [side] [scan] [preset]
+//! [json]`, where the optional JSON object overrides the preset's parameters.
 use foldmatch::fit::{fit_simple, FitParams};
 use foldmatch::synthetic::{folded_sheet, SheetSpec};
 
@@ -7,7 +8,11 @@ fn main() {
     let args: Vec<String> = std::env::args().collect();
     let side: usize = args.get(1).map_or(115, |s| s.parse().unwrap());
     let scan: usize = args.get(2).map_or(14_400, |s| s.parse().unwrap());
-    let params = FitParams::preset(args.get(3).map_or("default", String::as_str)).unwrap();
+    let preset = FitParams::preset(args.get(3).map_or("default", String::as_str)).unwrap();
+    let params = match args.get(4) {
+        Some(json) => FitParams::from_json_over(json, preset).unwrap(),
+        None => preset,
+    };
     let case = folded_sheet(&SheetSpec {
         nx: side,
         ny: side,

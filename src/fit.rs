@@ -26,7 +26,7 @@ use crate::rotation::{
     kabsch, point_moments, ring_centroids, ring_fit_from_moments, solve_rotation, transform_vertex,
     PointMoments,
 };
-use crate::wrinkle::modified_stretch;
+use crate::wrinkle::{modified_stretch, stretch_stays_positive};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -82,6 +82,10 @@ pub enum Selection {
 
 /// The names of the candidate schedules, in [`FitParams::candidate_schedules`] order.
 pub const SCHEDULE_NAMES: [&str; 3] = ["given", "sharp", "gentle"];
+
+/// Scan points per rigid-phase vertex below which the automatic
+/// [`FitParams::rigid_scan_sample`] does not sample the scan.
+pub const RIGID_SCAN_POINTS_PER_VERTEX: usize = 8;
 
 /// Distance (in target bounding-box diagonals) beyond which an unaligned template is refused.
 pub const FAR_AWAY: f64 = 1.0;
@@ -146,6 +150,15 @@ pub struct FitParams {
     /// the one rigid motion, so 4 (the default) costs no accuracy on the harness and cuts
     /// the phase's k-NN, two-way and force work by about 4× (docs/method.md).
     pub rigid_sample: usize,
+    /// Rigid phase's two-way attraction on a scan sample: only every `rigid_scan_sample`-th
+    /// scan point (in the fit's space-filling-curve order, so the sample is spread evenly)
+    /// pulls its nearest template vertex. The pulls on a vertex are a mean over the scan
+    /// points choosing it, which the sample estimates; the rigid phase reduces them to one
+    /// rigid motion. 0 (the default): automatic, the largest stride leaving
+    /// [`RIGID_SCAN_POINTS_PER_VERTEX`] scan points per vertex of the rigid phase's sample
+    /// (1 — every point — unless the scan has more than that many times as many points,
+    /// e.g. 4 for a 1M-point scan under a 100K-vertex template); 1: every scan point.
+    pub rigid_scan_sample: usize,
     /// Coarse phase on a sample: the forces are computed for every `coarse_sample`-th vertex
     /// only, and every vertex moves by the Kabsch fit of the sampled members of its coarse
     /// ring (1: every vertex; more needs coarse rings of radius ≥ 3 at every level).
@@ -203,6 +216,7 @@ impl Default for FitParams {
             coarse_rings: 8,
             coarse_levels: 1,
             rigid_sample: 4,
+            rigid_scan_sample: 0,
             coarse_sample: 1,
             knn_cache: true,
             matrix_series: true,
@@ -316,6 +330,18 @@ impl FitParams {
                 other,
                 "one of default, accurate, paper, tracking",
             )),
+        }
+    }
+
+    /// The stride of the rigid phase's scan sample ([`FitParams::rigid_scan_sample`]) for a
+    /// template of `m` vertices and a scan of `n` points.
+    pub fn rigid_scan_stride(&self, m: usize, n: usize) -> usize {
+        match self.rigid_scan_sample {
+            0 => {
+                let vertices = m.div_ceil(self.rigid_sample.max(1)).max(1);
+                (n / (RIGID_SCAN_POINTS_PER_VERTEX * vertices)).clamp(1, 64)
+            }
+            s => s,
         }
     }
 
@@ -463,6 +489,13 @@ impl FitParams {
                 "coarse_sample",
                 self.coarse_sample,
                 "needs coarse rings of radius >= 3 at every level (coarse_rings / 2^(coarse_levels-1))",
+            ));
+        }
+        if self.rigid_scan_sample > 64 {
+            return Err(FoldMatchError::parameter(
+                "rigid_scan_sample",
+                self.rigid_scan_sample,
+                "must be in 0..=64 (0: automatic)",
             ));
         }
         if !(1..=64).contains(&self.rigid_sample) {
@@ -651,8 +684,10 @@ pub struct Workspace {
     reg: RegularizeBuffers,
     reg_rotation: Vec<Mat3>,
     reg_stretch: Vec<Mat3>,
-    /// Wrinkle vector of every vertex from the last [`deformation_model`] call.
+    /// Wrinkle vector of every vertex from the last [`deformation_model`] call (Eq. 6–7).
     pub wvf: Vec<[f64; 3]>,
+    /// Whether the last deformation step left `wvf` to [`Workspace::fill_wrinkle_field`].
+    wvf_stale: bool,
     /// Solved rotation R_k* of every vertex.
     pub rotation: Vec<Mat3>,
     /// Per-point moments of the coarse phase's Kabsch fits ([`ring_fit_from_moments`]).
@@ -673,10 +708,25 @@ impl Workspace {
             reg_rotation: vec![Mat3::identity(); m],
             reg_stretch: vec![Mat3::identity(); m],
             wvf: vec![[0.0; 3]; m],
+            wvf_stale: false,
             rotation: vec![Mat3::identity(); m],
             moments: vec![[0.0; 15]; m],
             times: StageTimes::default(),
         }
+    }
+
+    /// The wrinkle-vector field (Eq. 6–7) of the last deformation step, from its regularized
+    /// stretches, if that step left it stale.
+    pub fn fill_wrinkle_field(&mut self, params: &FitParams) {
+        if !std::mem::take(&mut self.wvf_stale) {
+            return;
+        }
+        let start = std::time::Instant::now();
+        let stretch = &self.reg_stretch;
+        self.wvf.par_iter_mut().enumerate().for_each(|(k, w)| {
+            *w = modified_stretch(&stretch[k], params.psi).wrinkle.into();
+        });
+        self.times.rotation += start.elapsed().as_secs_f64();
     }
 }
 
@@ -693,6 +743,28 @@ pub struct TemplateTopology<'a> {
 /// Runs Eq. 4–8 on the motion `old → new`: fills `ws.rotation` (R_k*) and `ws.wvf`, and returns
 /// the number of rank-deficient gradients.
 pub fn deformation_model(
+    old: &[[f64; 3]],
+    new: &[[f64; 3]],
+    topo: &TemplateTopology<'_>,
+    params: &FitParams,
+    ws: &mut Workspace,
+) -> usize {
+    let degenerate = deformation_rotations(old, new, topo, params, ws);
+    ws.fill_wrinkle_field(params);
+    degenerate
+}
+
+/// [`deformation_model`] without the wrinkle-vector field, which only the last iteration's
+/// state needs (the fit computes it once from `ws`'s regularized stretches when it finishes,
+/// [`Workspace::fill_wrinkle_field`]): fills `ws.rotation` and marks `ws.wvf` stale.
+///
+/// Eq. 8's rotation is the polar factor of `H̄ Ûᵀ = R̄ Ū Û`. With the regularized gradient as
+/// its source (the default), Ū and Û share their eigenvectors, so `Ū Û` is symmetric and,
+/// where every ψ-modified eigenvalue stays positive ([`stretch_stays_positive`]), positive
+/// definite: the polar factor is then `R̄` itself, and the Procrustes solve and the
+/// ψ-stretch's eigen-decomposition are skipped (under `matrix_series`; equal to round-off, the
+/// solve's own Newton error). Elsewhere, and with `matrix_series` off, both are computed.
+fn deformation_rotations(
     old: &[[f64; 3]],
     new: &[[f64; 3]],
     topo: &TemplateTopology<'_>,
@@ -736,21 +808,23 @@ pub fn deformation_model(
     });
     timed(&mut times.rotation, || {
         let (raw, reg_r, reg_u) = (&ws.raw, &ws.reg_rotation, &ws.reg_stretch);
-        ws.rotation
-            .par_iter_mut()
-            .zip(ws.wvf.par_iter_mut())
-            .enumerate()
-            .for_each(|(k, (rot, w))| {
-                let m = modified_stretch(&reg_u[k], params.psi);
-                *w = m.wrinkle.into();
-                let h = match params.rotation_source {
-                    RotationSource::Regularized => reg_r[k] * reg_u[k],
-                    RotationSource::Raw => raw[k],
-                };
-                *rot = solve_rotation(&h, &m.stretch, params.matrix_series);
-            });
+        let shortcut =
+            params.matrix_series && params.rotation_source == RotationSource::Regularized;
+        ws.rotation.par_iter_mut().enumerate().for_each(|(k, rot)| {
+            if shortcut && stretch_stays_positive(&reg_u[k], params.psi) {
+                *rot = reg_r[k];
+                return;
+            }
+            let m = modified_stretch(&reg_u[k], params.psi);
+            let h = match params.rotation_source {
+                RotationSource::Regularized => reg_r[k] * reg_u[k],
+                RotationSource::Raw => raw[k],
+            };
+            *rot = solve_rotation(&h, &m.stretch, params.matrix_series);
+        });
     });
     ws.times = times;
+    ws.wvf_stale = true;
     ws.degenerate.iter().filter(|&&d| d).count()
 }
 
@@ -1066,11 +1140,20 @@ struct Attraction {
 }
 
 impl Attraction {
-    /// Buffers for `m` template points over a scan of `n` points, `k` neighbours each.
-    fn new(m: usize, n: usize, k: usize, params: &FitParams) -> Self {
+    /// Buffers for `m` template points over the prepared scan, the two-way attraction's pulls
+    /// from every `scan_stride`-th scan point.
+    fn new(m: usize, prepared: &Prepared, params: &FitParams, scan_stride: usize) -> Self {
+        let (n, k) = (prepared.scan.len(), prepared.k);
         let reverse = (params.two_way > 0.0 && params.method == Method::FoldMatch).then(|| {
+            let (scan, kappa, from_forward) = (&prepared.scan, &prepared.kappa, params.knn_cache);
             (
-                nbody::ReverseAttraction::new(m, n, params.knn_cache),
+                nbody::ReverseAttraction::with_scan_stride(
+                    m,
+                    scan,
+                    kappa,
+                    scan_stride,
+                    from_forward,
+                ),
                 vec![[0.0; 3]; m],
             )
         });
@@ -1146,10 +1229,11 @@ impl Attraction {
 }
 
 /// A phase run on a sample of the template ([`FitParams::rigid_sample`],
-/// [`FitParams::coarse_sample`]): every s-th vertex, its copied positions and velocities, and
-/// its own [`Attraction`].
+/// [`FitParams::coarse_sample`]) or of the scan ([`FitParams::rigid_scan_sample`]): every s-th
+/// vertex, its copied positions and velocities, and its own [`Attraction`].
 struct PhaseSample {
     stride: usize,
+    scan_stride: usize,
     vertices: Vec<u32>,
     /// `0..vertices.len()`: the sample's own indices, for the Kabsch fit.
     indices: Vec<u32>,
@@ -1159,16 +1243,18 @@ struct PhaseSample {
 }
 
 impl PhaseSample {
-    fn new(m: usize, n: usize, k: usize, stride: usize, params: &FitParams) -> Self {
+    fn new(prepared: &Prepared, stride: usize, scan_stride: usize, params: &FitParams) -> Self {
+        let m = prepared.start.len();
         let vertices: Vec<u32> = (0..m as u32).step_by(stride).collect();
         let s = vertices.len();
         Self {
             stride,
+            scan_stride,
             vertices,
             indices: (0..s as u32).collect(),
             pos: vec![[0.0; 3]; s],
             vel: vec![[0.0; 3]; s],
-            attraction: Attraction::new(s, n, k, params),
+            attraction: Attraction::new(s, prepared, params, scan_stride),
         }
     }
 }
@@ -1198,19 +1284,25 @@ struct ScheduleRun {
 
 impl ScheduleRun {
     fn new(prepared: &Prepared, params: FitParams) -> Self {
-        let (m, n, k) = (prepared.start.len(), prepared.scan.len(), prepared.k);
+        let (m, n) = (prepared.start.len(), prepared.scan.len());
         let (rigid_iterations, coarse_iterations) = params.phase_iterations();
         let mut samples: Vec<PhaseSample> = Vec::new();
         let mut phase_sample = [None, None];
         let wanted = [
-            (params.rigid_sample, rigid_iterations),
-            (params.coarse_sample, coarse_iterations),
+            (
+                params.rigid_sample,
+                params.rigid_scan_stride(m, n),
+                rigid_iterations,
+            ),
+            (params.coarse_sample, 1, coarse_iterations),
         ];
-        for (slot, (stride, iterations)) in phase_sample.iter_mut().zip(wanted) {
-            if stride > 1 && iterations > 0 {
-                let same = samples.iter().position(|s| s.stride == stride);
+        for (slot, (stride, scan_stride, iterations)) in phase_sample.iter_mut().zip(wanted) {
+            if (stride > 1 || scan_stride > 1) && iterations > 0 {
+                let same = samples
+                    .iter()
+                    .position(|s| (s.stride, s.scan_stride) == (stride, scan_stride));
                 *slot = Some(same.unwrap_or_else(|| {
-                    samples.push(PhaseSample::new(m, n, k, stride, &params));
+                    samples.push(PhaseSample::new(prepared, stride, scan_stride, &params));
                     samples.len() - 1
                 }));
             }
@@ -1220,7 +1312,7 @@ impl ScheduleRun {
             vel: vec![[0.0; 3]; m],
             next: vec![[0.0; 3]; m],
             disp: vec![0.0; m],
-            attraction: Attraction::new(m, n, k, &params),
+            attraction: Attraction::new(m, prepared, &params, 1),
             ws: Workspace::new(m),
             samples,
             phase_sample,
@@ -1313,7 +1405,7 @@ impl ScheduleRun {
             Method::FoldMatch => {
                 let ws = &mut self.ws;
                 let before = ws.times.model();
-                let d = deformation_model(old, new, &prepared.topology(), params, ws);
+                let d = deformation_rotations(old, new, &prepared.topology(), params, ws);
                 ws.times.update -= ws.times.model() - before; // counted in their own stages
                 let rot = &ws.rotation;
                 next.par_iter_mut().enumerate().for_each(|(v, out)| {
@@ -1387,6 +1479,7 @@ impl ScheduleRun {
         self.diagnostics.stage_seconds = self.ws.times;
         // Per-step field of the last iteration, and the accumulated field of the total motion.
         let wvf = if params.method == Method::FoldMatch && !self.history.is_empty() {
+            self.ws.fill_wrinkle_field(params);
             self.ws.wvf.clone()
         } else {
             vec![[0.0; 3]; m]
@@ -1676,6 +1769,65 @@ mod tests {
                 "rigid_sample",
             );
         }
+    }
+
+    #[test]
+    fn rigid_scan_sample_strides_only_dense_scans() {
+        let default = FitParams::default();
+        // Paper-sized: 14,400 points under 3,307 rigid-phase vertices: every point pulls.
+        assert_eq!(default.rigid_scan_stride(13_225, 14_400), 1);
+        // The large case: 1M points under 25,123 vertices, 8 per vertex → every 4th.
+        assert_eq!(default.rigid_scan_stride(100_489, 1_000_000), 4);
+        let every_vertex = FitParams {
+            rigid_sample: 1,
+            ..default.clone()
+        };
+        assert_eq!(every_vertex.rigid_scan_stride(100_489, 1_000_000), 1);
+        let given = FitParams {
+            rigid_scan_sample: 3,
+            ..default.clone()
+        };
+        assert_eq!(given.rigid_scan_stride(100_489, 14_400), 3);
+        assert_refused(
+            &FitParams {
+                rigid_scan_sample: 65,
+                ..default
+            },
+            "rigid_scan_sample",
+        );
+
+        // An 8×8 template over a 40×40-point scan: 16 rigid-phase vertices, stride 12.
+        let (v, f, _) = small_grid_case();
+        let (_, _, x) = wavy_grid_case(40, 0.1);
+        let rigid_only = FitParams {
+            iterations: 6,
+            rigid_fraction: 1.0,
+            coarse_fraction: 0.0,
+            selection: Selection::Single,
+            ..FitParams::default()
+        };
+        assert_eq!(rigid_only.rigid_scan_stride(v.len(), x.len()), 12);
+        let with = |rigid_scan_sample| {
+            let params = FitParams {
+                rigid_scan_sample,
+                ..rigid_only.clone()
+            };
+            fit_simple(&v, &f, &x, None, &params).unwrap().vertices
+        };
+        let (auto, twelve, every) = (with(0), with(12), with(1));
+        assert_eq!(auto, twelve);
+        let dist = |a: &[f64; 3], b: &[f64; 3]| (vec3(a) - vec3(b)).norm();
+        let max_over = |a: &[[f64; 3]], b: &[[f64; 3]]| {
+            (0..a.len()).map(|i| dist(&a[i], &b[i])).fold(0.0, f64::max)
+        };
+        // Still one rigid motion, not the one every scan point drives, but close to it.
+        for i in 0..v.len() {
+            for j in 0..i {
+                assert!((dist(&auto[i], &auto[j]) - dist(&v[i], &v[j])).abs() < 1e-12);
+            }
+        }
+        let (apart, moved) = (max_over(&auto, &every), max_over(&every, &v));
+        assert!(apart > 1e-9 && apart < 0.2 * moved, "{apart} vs {moved}");
     }
 
     #[test]

@@ -46,6 +46,25 @@ pub fn modified_stretch(u: &Mat3, psi: f64) -> ModifiedStretch {
     }
 }
 
+/// A sufficient test, without an eigen-decomposition, that `u` is positive definite and
+/// that every ψ-modified eigenvalue of [`modified_stretch`] stays positive: `λ1 + ψ > 0` and
+/// `λ3 − ψ/2 > 0`. Then `u Û` is positive definite, which makes Eq. 8's rotation the
+/// regularized one (see `fit::deformation_rotations`).
+///
+/// Positive definiteness by Sylvester's criterion (leading minors); then
+/// `λ3 = det / (λ1 λ2) ≥ 4 det / tr²` (as `λ1 λ2 ≤ ((λ1 + λ2)/2)² < (tr/2)²`) and
+/// `λ1 ≥ tr / 3`.
+pub fn stretch_stays_positive(u: &Mat3, psi: f64) -> bool {
+    let minor2 = u[(0, 0)] * u[(1, 1)] - u[(0, 1)] * u[(1, 0)];
+    let det = u.determinant();
+    let trace = u.trace();
+    u[(0, 0)] > 0.0
+        && minor2 > 0.0
+        && det > 0.0
+        && 4.0 * det > 0.5 * psi * trace * trace
+        && trace > -3.0 * psi
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -62,6 +81,45 @@ mod tests {
             3.0,
             epsilon = 1e-12
         );
+    }
+
+    #[test]
+    fn positive_stretch_test_is_sufficient_and_rarely_refuses() {
+        // Random symmetric matrices around the identity: wherever the test passes, the
+        // Jacobi eigenvalues of the ψ-modified stretch are all positive, and then Eq. 8's
+        // solve returns the regularized rotation itself.
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let r = *nalgebra::Rotation3::from_euler_angles(0.3, -0.2, 1.1).matrix();
+        let (mut passed, mut near_identity) = (0, 0);
+        for i in 0..20_000 {
+            let spread = if i % 2 == 0 { 0.3 } else { 1.5 };
+            let a = Mat3::from_fn(|_, _| rng.random_range(-spread..spread));
+            let u = Mat3::identity() + 0.5 * (a + a.transpose());
+            for psi in [0.05, 0.5, -0.3] {
+                if !stretch_stays_positive(&u, psi) {
+                    continue;
+                }
+                passed += 1;
+                near_identity += usize::from(spread < 1.0);
+                let e = sym_eigen3(&u);
+                assert!(e.values[2] > 0.0, "{u}");
+                let m = modified_stretch(&u, psi);
+                let hat = sym_eigen3(&m.stretch);
+                assert!(hat.values[2] > 0.0, "{u} ψ={psi}");
+                let solved = crate::rotation::solve_rotation(&(r * u), &m.stretch, false);
+                assert_relative_eq!(solved, r, epsilon = 1e-9);
+            }
+        }
+        // Near the identity (spread 0.3: the stretches of a fit) it refuses only ψ = 0.5's
+        // large shrink cases; far from it, it must also refuse indefinite matrices.
+        assert!(near_identity > 25_000, "{near_identity}");
+        assert!(passed < 60_000, "{passed}");
+        // Refuses: an indefinite matrix, and a compression below ψ/2.
+        let indefinite = Mat3::from_diagonal(&Vec3::new(5.0, -1.0, -1.0));
+        assert!(!stretch_stays_positive(&indefinite, 0.05));
+        let squashed = Mat3::from_diagonal(&Vec3::new(1.0, 1.0, 0.02));
+        assert!(!stretch_stays_positive(&squashed, 0.05));
     }
 
     #[test]

@@ -327,6 +327,9 @@ def test_matrix_series_changes_nothing_beyond_round_off(case):
         scale = np.abs(exact.vertices).max()
         assert np.abs(fast.vertices - exact.vertices).max() <= 1e-9 * scale
         np.testing.assert_allclose(fast.wvf_accumulated, exact.wvf_accumulated, atol=1e-9)
+        # The last step's field, which the fast path computes once, after the iterations.
+        np.testing.assert_allclose(fast.wvf, exact.wvf, atol=1e-9)
+        assert np.abs(fast.wvf).max() > 0.5
 
 
 def test_selection_keeps_the_schedule_closer_to_the_scan(case):
@@ -377,3 +380,29 @@ def test_rigid_sample_moves_the_template_rigidly(case):
             fm.fit(v, f, x, iterations=2, coarse_sample=bad)
     with pytest.raises(fm.InvalidParameterError, match="coarse_sample"):
         fm.fit(v, f, x, iterations=2, coarse_sample=2, coarse_rings=2)
+
+
+def test_rigid_scan_sample_strides_only_dense_scans(case):
+    """The rigid phase's two-way pulls come from every s-th scan point only where the scan has
+    more than 8 points per rigid-phase vertex (rigid_scan_sample=0, automatic): on the module's
+    case (3000 points over 421 sampled vertices) that is every point, the same fit as
+    rigid_scan_sample=1; on a dense scan it is a stride, which changes the fit but not its
+    accuracy."""
+    args = (case["template_vertices"], case["faces"], case["scan"])
+    auto = fm.fit(*args, iterations=40)
+    every = fm.fit(*args, iterations=40, rigid_scan_sample=1)
+    np.testing.assert_array_equal(auto.vertices, every.vertices)
+
+    dense = fm.folded_sheet(nx=15, ny=15, scan_points=12000, noise=0.001)
+    dargs = (dense["template_vertices"], dense["faces"], dense["scan"])
+
+    def f_r(vertices):
+        return fm.evaluate(*dargs[:2], vertices, dense["scan"],
+                           ground_truth=dense["ground_truth"])["f_R"]
+
+    strided, full = fm.fit(*dargs), fm.fit(*dargs, rigid_scan_sample=1)
+    assert np.abs(strided.vertices - full.vertices).max() > 1e-9
+    assert f_r(strided.vertices) < 0.5 * f_r(dense["template_vertices"])
+    assert abs(f_r(strided.vertices) - f_r(full.vertices)) < 0.05 * f_r(full.vertices)
+    with pytest.raises(fm.InvalidParameterError, match="rigid_scan_sample"):
+        fm.fit(*args, rigid_scan_sample=65)

@@ -192,6 +192,7 @@ def fit(
     coarse_rings: Optional[int] = None,
     coarse_levels: Optional[int] = None,
     rigid_sample: Optional[int] = None,
+    rigid_scan_sample: Optional[int] = None,
     coarse_sample: Optional[int] = None,
     knn_cache: Optional[bool] = None,
     matrix_series: Optional[bool] = None,
@@ -277,6 +278,11 @@ def fit(
         Rigid phase on a sample: only every ``rigid_sample``-th template vertex feels the
         N-body and two-way forces, and their one Kabsch fit moves the whole template (1: every
         vertex; 1..=64).
+    rigid_scan_sample : int
+        Rigid phase's two-way attraction on a scan sample: only every
+        ``rigid_scan_sample``-th scan point pulls its nearest template vertex (0, the default:
+        automatic, a stride only where the scan has more than 8 points per vertex of the rigid
+        phase's sample, e.g. 4 for 1M points under 100K vertices; 1: every point; 0..=64).
     coarse_sample : int
         Coarse phase on a sample: only every ``coarse_sample``-th vertex feels the forces, and
         every vertex moves by the Kabsch fit of its coarse ring's sampled members (1: every
@@ -337,7 +343,8 @@ def fit(
         tolerance=tolerance, use_curvature=use_curvature, prealign=prealign,
         snapshot_every=snapshot_every, two_way=two_way, rigid_fraction=rigid_fraction,
         coarse_fraction=coarse_fraction, coarse_rings=coarse_rings,
-        coarse_levels=coarse_levels, rigid_sample=rigid_sample, coarse_sample=coarse_sample,
+        coarse_levels=coarse_levels, rigid_sample=rigid_sample,
+        rigid_scan_sample=rigid_scan_sample, coarse_sample=coarse_sample,
         anneal=anneal, anneal_fraction=anneal_fraction, selection=selection, knn_cache=knn_cache,
         matrix_series=matrix_series,
     )
