@@ -83,11 +83,13 @@ LEVERS = {
     "distance: ~100 % once the template lies on the scan), else from a box-tree query "
     "started from a known template point; the rigid phase (every 4th vertex, the flat "
     "template still far from the folded scan: ~95 % of the scan uncertified) makes most of "
-    "them. Tried and not kept: local certificates (a per-cell minimum ρ on a grid; a near set "
+    "them; where the scan has more than 8 points per rigid-phase vertex (the 1M-point case), "
+    "only every s-th scan point pulls in the rigid phase (`rigid_scan_sample`, automatic). "
+    "Tried and not kept: local certificates (a per-cell minimum ρ on a grid; a near set "
     "of the template points with ρ below the 10 % quantile offering themselves within τ): "
     "11–17 % fewer queries, no wall-time gain; a parallel inversion of the lists: no gain "
-    "(the two candidate schedules already fill both cores). Closing: a scan sample for the "
-    "rigid phase's reverse pulls (result-changing, like `rigid_sample`)",
+    "(the two candidate schedules already fill both cores). Closing: the coarse phase's "
+    "uncertified queries (the template still off the scan), a cheaper exact far query",
     "nbody": "force: f64x4 SIMD over the K neighbors, neighbors' coordinates and κ gathered "
     "once per vertex",
     "gradient": "gradients: already closed-form eigenvalues and a direct inverse where B is "
@@ -95,9 +97,10 @@ LEVERS = {
     "regularize": "regularization (paper preset): the affine-invariant mean needs one "
     "logarithm per ring pair (≈250K per iteration); the default's log-Euclidean mean needs "
     "one per vertex",
-    "rotation": "ψ-stretch/rotation: the ψ-modified stretch needs the eigenvectors of nearly "
-    "isotropic U (Jacobi kept: a closed form is ill-conditioned there and would change results "
-    "beyond 1e-9); the rotation solve already uses Newton polar iterations",
+    "rotation": "ψ-stretch/rotation: with the regularized gradient, Eq. 8's rotation is R̄ "
+    "wherever the ψ-modified eigenvalues stay positive (a determinant/trace bound), so the "
+    "iterations skip the Procrustes solve and the ψ-stretch's Jacobi eigen-decomposition; the "
+    "wrinkle field is computed once, after the last iteration. Nothing left to close",
     "update": "update: the coarse phase's 8-ring Kabsch fits (~145 ring members per vertex, "
     "now 15 sums each from per-point moments, half the flops of the two-pass fit); what is "
     "left is the ring gathers themselves and the nearest rotations (a Newton path for the "
