@@ -21,10 +21,10 @@ use crate::mesh::{clean_faces, validate_faces, validate_points, vertex_normals, 
 use crate::nbody::{self, NBodyParams};
 use crate::normalize::Frame;
 use crate::regularize::{regularize, Regularization, RegularizeBuffers};
-use crate::rings::{n_rings, Neighborhoods};
+use crate::rings::{adjacency, n_rings, Neighborhoods, RingDeltas};
 use crate::rotation::{
-    kabsch, point_moments, ring_centroids, ring_fit_from_moments, solve_rotation, transform_vertex,
-    PointMoments,
+    kabsch, point_moments, ring_centroids, ring_fit_from_moments, ring_fit_from_sum,
+    solve_rotation, transform_vertex, PointMoments,
 };
 use crate::wrinkle::{modified_stretch, stretch_stays_positive};
 use rayon::prelude::*;
@@ -690,8 +690,10 @@ pub struct Workspace {
     wvf_stale: bool,
     /// Solved rotation R_k* of every vertex.
     pub rotation: Vec<Mat3>,
-    /// Per-point moments of the coarse phase's Kabsch fits ([`ring_fit_from_moments`]).
+    /// Per-point moments of the coarse phase's Kabsch fits ([`ring_fit_from_moments`]), and
+    /// their sums over every vertex's coarse ring ([`RingDeltas::sums`]).
     moments: Vec<PointMoments>,
+    ring_sums: Vec<PointMoments>,
     /// Seconds spent per stage so far.
     pub times: StageTimes,
 }
@@ -711,6 +713,7 @@ impl Workspace {
             wvf_stale: false,
             rotation: vec![Mat3::identity(); m],
             moments: vec![[0.0; 15]; m],
+            ring_sums: vec![[0.0; 15]; m],
             times: StageTimes::default(),
         }
     }
@@ -968,6 +971,8 @@ struct Prepared {
     rings: Neighborhoods,
     /// The coarse phase's neighborhoods, one per level (empty when no schedule has one).
     coarse_levels: Vec<Neighborhoods>,
+    /// Their rows as differences of adjacent rows, for the sums over them.
+    coarse_deltas: Vec<RingDeltas>,
     /// Under `coarse_sample` = s > 1: per level, the sampled members of every vertex's coarse
     /// ring, as indices into the sample (vertex u ≡ 0 mod s is sample u / s).
     coarse_sampled: Vec<Neighborhoods>,
@@ -1067,6 +1072,15 @@ impl Prepared {
         } else {
             Vec::new()
         };
+        let coarse_deltas = if coarse_levels.is_empty() {
+            Vec::new()
+        } else {
+            let one_rings = adjacency(&faces, m);
+            coarse_levels
+                .iter()
+                .map(|rings| RingDeltas::new(rings, &one_rings))
+                .collect()
+        };
         let stride = params.coarse_sample;
         let coarse_sampled = if stride > 1 {
             coarse_levels
@@ -1111,6 +1125,7 @@ impl Prepared {
             incidence,
             rings,
             coarse_levels,
+            coarse_deltas,
             coarse_sampled,
             all_vertices,
             diagnostics,
@@ -1389,16 +1404,23 @@ impl ScheduleRun {
                 let level =
                     (it - self.rigid_iterations - 1) * levels.len() / self.coarse_iterations;
                 // Each vertex moves by the fit of its ring (or of the ring's sampled members).
-                let (rings, ring_old, ring_new) = match sampled.map(|i| &self.samples[i]) {
+                let (rings, deltas, ring_old, ring_new) = match sampled.map(|i| &self.samples[i]) {
                     Some(sample) => (
                         &prepared.coarse_sampled[level],
+                        None,
                         &sample.pos[..],
                         &sample.attraction.proposed[..],
                     ),
-                    None => (&levels[level], &old[..], &new[..]),
+                    None => (
+                        &levels[level],
+                        Some(&prepared.coarse_deltas[level]),
+                        &old[..],
+                        &new[..],
+                    ),
                 };
                 let fast = params.matrix_series;
-                let moments = fast.then_some(&mut self.ws.moments);
+                let ws = &mut self.ws;
+                let moments = fast.then_some((&mut ws.moments, deltas, &mut ws.ring_sums));
                 kabsch_update(rings, ring_old, ring_new, old, fast, moments, next);
                 0
             }
@@ -1510,22 +1532,32 @@ impl ScheduleRun {
     }
 }
 
+/// The coarse phase's moment buffers for [`kabsch_update`]: the per-point moments, the rows'
+/// differences (`None`: rows summed directly) and the per-vertex sums.
+type MomentBuffers<'a> = (
+    &'a mut Vec<PointMoments>,
+    Option<&'a RingDeltas>,
+    &'a mut Vec<PointMoments>,
+);
+
 /// Moves every vertex `v` (at `old[v]`) by the Kabsch rigid fit of its neighborhood's motion
 /// `ring_old → ring_new` (the NRGa update, and the coarse phase; the ring members index
 /// `ring_old`/`ring_new`, which are `old` and the proposal, or a phase sample's); `fast` as in
 /// [`kabsch`]. With `moments` (the coarse phase's large rings, under `matrix_series`) the
 /// centroids and covariances come from per-point moments in one pass
-/// ([`ring_fit_from_moments`]: half the flops, equal to round-off), else from two passes.
+/// ([`ring_fit_from_moments`]: half the flops, equal to round-off), summed over each ring from
+/// an adjacent ring's sum where deltas are given ([`RingDeltas`]: a quarter of the reads on a
+/// grid's 8-rings, equal to round-off), else from two passes.
 fn kabsch_update(
     rings: &Neighborhoods,
     ring_old: &[[f64; 3]],
     ring_new: &[[f64; 3]],
     old: &[[f64; 3]],
     fast: bool,
-    moments: Option<&mut Vec<PointMoments>>,
+    moments: Option<MomentBuffers<'_>>,
     next: &mut [[f64; 3]],
 ) {
-    if let Some(moments) = moments {
+    if let Some((moments, deltas, sums)) = moments {
         // One pass of 15 sums per ring member from per-point moments (equal to round-off).
         let moments = &mut moments[..ring_old.len()];
         moments
@@ -1533,11 +1565,22 @@ fn kabsch_update(
             .zip(ring_old.par_iter().zip(ring_new.par_iter()))
             .for_each(|(m, (o, n))| *m = point_moments(o, n));
         let moments = &*moments;
-        next.par_iter_mut().enumerate().for_each(|(v, out)| {
-            let (c_old, c_new, cov) = ring_fit_from_moments(rings.of(v), moments);
+        let fit_vertex = |v: usize, out: &mut [f64; 3], (c_old, c_new, cov): (Vec3, Vec3, Mat3)| {
             let r = nearest_rotation_with(&cov, fast);
             *out = transform_vertex(&r, &vec3(&old[v]), &c_old, &c_new).into();
-        });
+        };
+        match deltas {
+            Some(deltas) => {
+                deltas.sums(rings, moments, sums);
+                let sums = &*sums;
+                next.par_iter_mut().enumerate().for_each(|(v, out)| {
+                    fit_vertex(v, out, ring_fit_from_sum(&sums[v], rings.of(v).len()))
+                });
+            }
+            None => next.par_iter_mut().enumerate().for_each(|(v, out)| {
+                fit_vertex(v, out, ring_fit_from_moments(rings.of(v), moments))
+            }),
+        }
         return;
     }
     next.par_iter_mut().enumerate().for_each(|(v, out)| {

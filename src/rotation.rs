@@ -85,7 +85,13 @@ pub fn ring_fit_from_moments(ring: &[u32], moments: &[PointMoments]) -> (Vec3, V
             *s += m;
         }
     }
-    let n = ring.len().max(1) as f64;
+    ring_fit_from_sum(&sum, ring.len())
+}
+
+/// [`ring_fit_from_moments`] from the sum of the ring's `len` members' moments (as
+/// [`crate::rings::RingDeltas::sums`] gives it).
+pub fn ring_fit_from_sum(sum: &PointMoments, len: usize) -> (Vec3, Vec3, Mat3) {
+    let n = len.max(1) as f64;
     let c_old = Vec3::new(sum[0], sum[1], sum[2]) / n;
     let c_new = Vec3::new(sum[3], sum[4], sum[5]) / n;
     let cov = Mat3::from_row_slice(&sum[6..15]) - n * c_new * c_old.transpose();
