@@ -150,14 +150,16 @@ pub struct FitParams {
     /// the one rigid motion, so 4 (the default) costs no accuracy on the harness and cuts
     /// the phase's k-NN, two-way and force work by about 4× (docs/method.md).
     pub rigid_sample: usize,
-    /// Rigid phase's two-way attraction on a scan sample: only every `rigid_scan_sample`-th
-    /// scan point (in the fit's space-filling-curve order, so the sample is spread evenly)
-    /// pulls its nearest template vertex. The pulls on a vertex are a mean over the scan
-    /// points choosing it, which the sample estimates; the rigid phase reduces them to one
-    /// rigid motion. 0 (the default): automatic, the largest stride leaving
-    /// [`RIGID_SCAN_POINTS_PER_VERTEX`] scan points per vertex of the rigid phase's sample
-    /// (1 — every point — unless the scan has more than that many times as many points,
-    /// e.g. 4 for a 1M-point scan under a 100K-vertex template); 1: every scan point.
+    /// Rigid phase on a scan sample: the rigid phase sees every `rigid_scan_sample`-th scan
+    /// point only (in the fit's space-filling-curve order, so the sample is spread evenly),
+    /// with `⌈K / s⌉` target neighbours per vertex (about the same neighbourhood radius) and
+    /// the two-way pulls of the sampled points. Eq. 2's force is a mean over the neighbours
+    /// and the pulls on a vertex a mean over the scan points choosing it, which the sample
+    /// estimates; the phase reduces them to one rigid motion. 0 (the default): automatic, the
+    /// largest stride leaving [`RIGID_SCAN_POINTS_PER_VERTEX`] scan points per vertex of the
+    /// rigid phase's sample (1 — the whole scan — unless the scan has more than that many times
+    /// as many points, e.g. 4 for a 1M-point scan under a 100K-vertex template); 1: the whole
+    /// scan.
     pub rigid_scan_sample: usize,
     /// Coarse phase on a sample: the forces are computed for every `coarse_sample`-th vertex
     /// only, and every vertex moves by the Kabsch fit of the sampled members of its coarse
@@ -978,6 +980,8 @@ struct Prepared {
     coarse_sampled: Vec<Neighborhoods>,
     /// Every vertex index (the rigid phase's "ring"; empty when no schedule has one).
     all_vertices: Vec<u32>,
+    /// The rigid phase's scan sample ([`FitParams::rigid_scan_sample`]; `None`: the scan).
+    rigid_scan: Option<ScanSample>,
     /// The diagnostics every run starts from.
     diagnostics: Diagnostics,
 }
@@ -1060,6 +1064,9 @@ impl Prepared {
         };
         let phases: Vec<(usize, usize)> =
             schedules.iter().map(FitParams::phase_iterations).collect();
+        let stride = params.rigid_scan_stride(m, scan.len());
+        let rigid_scan = (stride > 1 && phases.iter().any(|p| p.0 > 0))
+            .then(|| ScanSample::new(&scan, &kappa, k, stride));
         let all_vertices = if phases.iter().any(|p| p.0 > 0) {
             (0..m as u32).collect()
         } else {
@@ -1128,8 +1135,36 @@ impl Prepared {
             coarse_deltas,
             coarse_sampled,
             all_vertices,
+            rigid_scan,
             diagnostics,
         })
+    }
+
+    /// The scan points a phase sees: the whole scan, or under `stride` > 1 the rigid phase's
+    /// scan sample.
+    fn scan_view(&self, stride: usize) -> ScanView<'_> {
+        match &self.rigid_scan {
+            Some(sample) if stride > 1 => {
+                debug_assert_eq!(sample.stride, stride);
+                ScanView {
+                    points: &sample.points,
+                    kappa: &sample.kappa,
+                    index: &sample.index,
+                    k: sample.k,
+                }
+            }
+            _ => ScanView {
+                points: &self.scan,
+                kappa: &self.kappa,
+                index: &self.index,
+                k: self.k,
+            },
+        }
+    }
+
+    /// The stride of the rigid phase's scan sample (1: the whole scan).
+    fn rigid_scan_stride(&self) -> usize {
+        self.rigid_scan.as_ref().map_or(1, |s| s.stride)
     }
 
     fn topology(&self) -> TemplateTopology<'_> {
@@ -1139,6 +1174,43 @@ impl Prepared {
             rings: &self.rings,
         }
     }
+}
+
+/// Every `stride`-th scan point (in the fit's Morton order, so spread evenly), with its
+/// curvature, its own k-d tree and `⌈K / stride⌉` neighbours per template point: about the same
+/// neighbourhood radius as K points of the whole scan ([`FitParams::rigid_scan_sample`]).
+struct ScanSample {
+    stride: usize,
+    points: Vec<[f64; 3]>,
+    kappa: Vec<f64>,
+    index: PointIndex,
+    k: usize,
+}
+
+impl ScanSample {
+    fn new(scan: &[[f64; 3]], kappa: &[f64], k: usize, stride: usize) -> Self {
+        let points: Vec<[f64; 3]> = scan.iter().step_by(stride).copied().collect();
+        let kappa = kappa.iter().step_by(stride).copied().collect();
+        let index = PointIndex::new(&points);
+        let k = k.div_ceil(stride).clamp(1, points.len());
+        Self {
+            stride,
+            points,
+            kappa,
+            index,
+            k,
+        }
+    }
+}
+
+/// The scan points an [`Attraction`] sees (the whole scan or a [`ScanSample`]), their
+/// curvatures, their k-d tree and K.
+#[derive(Clone, Copy)]
+struct ScanView<'a> {
+    points: &'a [[f64; 3]],
+    kappa: &'a [f64],
+    index: &'a PointIndex,
+    k: usize,
 }
 
 /// The motion model's side of an iteration (§2) for a set of template points: their target
@@ -1155,20 +1227,12 @@ struct Attraction {
 }
 
 impl Attraction {
-    /// Buffers for `m` template points over the prepared scan, the two-way attraction's pulls
-    /// from every `scan_stride`-th scan point.
-    fn new(m: usize, prepared: &Prepared, params: &FitParams, scan_stride: usize) -> Self {
-        let (n, k) = (prepared.scan.len(), prepared.k);
+    /// Buffers for `m` template points over the scan points `scan`.
+    fn new(m: usize, scan: ScanView<'_>, params: &FitParams) -> Self {
+        let (n, k) = (scan.points.len(), scan.k);
         let reverse = (params.two_way > 0.0 && params.method == Method::FoldMatch).then(|| {
-            let (scan, kappa, from_forward) = (&prepared.scan, &prepared.kappa, params.knn_cache);
             (
-                nbody::ReverseAttraction::with_scan_stride(
-                    m,
-                    scan,
-                    kappa,
-                    scan_stride,
-                    from_forward,
-                ),
+                nbody::ReverseAttraction::new(m, n, params.knn_cache),
                 vec![[0.0; 3]; m],
             )
         });
@@ -1181,12 +1245,12 @@ impl Attraction {
         }
     }
 
-    /// Γᵏ_X of the points `pos`, the two-way pulls on them, and the Eq. 2–3 step: velocities
-    /// `vel` updated, proposed positions in `self.proposed`.
+    /// Γᵏ_X of the points `pos` among the scan points `scan`, the two-way pulls on them, and
+    /// the Eq. 2–3 step: velocities `vel` updated, proposed positions in `self.proposed`.
     #[allow(clippy::too_many_arguments)] // the stage inputs, and the two accumulators
     fn propose(
         &mut self,
-        prepared: &Prepared,
+        scan: ScanView<'_>,
         params: &FitParams,
         it: usize,
         pos: &[[f64; 3]],
@@ -1194,13 +1258,17 @@ impl Attraction {
         t: &mut StageTimes,
         diagnostics: &mut Diagnostics,
     ) {
-        let k = prepared.k;
-        let (scan, kappa) = (&prepared.scan, &prepared.kappa);
+        let ScanView {
+            points,
+            kappa,
+            index,
+            k,
+        } = scan;
         let (nn_idx, nn_d2) = (&mut self.nn_idx, &mut self.nn_d2);
         diagnostics.knn_queries += timed(&mut t.knn, || match self.nn_cache.as_mut() {
-            Some(cache) => cache.query(&prepared.index, pos, nn_idx, nn_d2),
+            Some(cache) => cache.query(index, pos, nn_idx, nn_d2),
             None => {
-                prepared.index.nearest_all(pos, k, nn_idx, nn_d2);
+                index.nearest_all(pos, k, nn_idx, nn_d2);
                 pos.len()
             }
         });
@@ -1215,7 +1283,7 @@ impl Attraction {
                 diagnostics.two_way_queries += timed(&mut t.two_way, || {
                     reverse.compute(
                         pos,
-                        scan,
+                        points,
                         kappa,
                         forward,
                         params.two_way,
@@ -1233,7 +1301,7 @@ impl Attraction {
                 vel,
                 nn_idx,
                 k,
-                scan,
+                points,
                 kappa,
                 &nbody_params,
                 extra,
@@ -1269,7 +1337,7 @@ impl PhaseSample {
             indices: (0..s as u32).collect(),
             pos: vec![[0.0; 3]; s],
             vel: vec![[0.0; 3]; s],
-            attraction: Attraction::new(s, prepared, params, scan_stride),
+            attraction: Attraction::new(s, prepared.scan_view(scan_stride), params),
         }
     }
 }
@@ -1299,14 +1367,14 @@ struct ScheduleRun {
 
 impl ScheduleRun {
     fn new(prepared: &Prepared, params: FitParams) -> Self {
-        let (m, n) = (prepared.start.len(), prepared.scan.len());
+        let m = prepared.start.len();
         let (rigid_iterations, coarse_iterations) = params.phase_iterations();
         let mut samples: Vec<PhaseSample> = Vec::new();
         let mut phase_sample = [None, None];
         let wanted = [
             (
                 params.rigid_sample,
-                params.rigid_scan_stride(m, n),
+                prepared.rigid_scan_stride(),
                 rigid_iterations,
             ),
             (params.coarse_sample, 1, coarse_iterations),
@@ -1327,7 +1395,7 @@ impl ScheduleRun {
             vel: vec![[0.0; 3]; m],
             next: vec![[0.0; 3]; m],
             disp: vec![0.0; m],
-            attraction: Attraction::new(m, prepared, &params, 1),
+            attraction: Attraction::new(m, prepared.scan_view(1), &params),
             ws: Workspace::new(m),
             samples,
             phase_sample,
@@ -1366,17 +1434,19 @@ impl ScheduleRun {
                     sample.vel[i] = self.vel[v as usize];
                 }
                 let (pos, vel) = (&sample.pos, &mut sample.vel);
+                let scan = prepared.scan_view(sample.scan_stride);
                 sample
                     .attraction
-                    .propose(prepared, params, it, pos, vel, t, &mut self.diagnostics);
+                    .propose(scan, params, it, pos, vel, t, &mut self.diagnostics);
                 for (i, &v) in sample.vertices.iter().enumerate() {
                     self.vel[v as usize] = sample.vel[i];
                 }
             }
             None => {
                 let (pos, vel) = (&self.pos, &mut self.vel);
+                let scan = prepared.scan_view(1);
                 self.attraction
-                    .propose(prepared, params, it, pos, vel, t, &mut self.diagnostics);
+                    .propose(scan, params, it, pos, vel, t, &mut self.diagnostics);
             }
         }
         let update_start = std::time::Instant::now();

@@ -535,25 +535,15 @@ pub struct ReverseNearest {
     /// Per scan point: its nearest template point of the last call (`u32::MAX`: none yet), a
     /// known distance to start the tree search from.
     last: Vec<u32>,
-    /// The queried scan points are every `stride`-th of the scan the forward lists index
-    /// (scan point `j·stride` is query `j`).
-    stride: usize,
 }
 
 impl ReverseNearest {
     /// Scratch for `n` scan points.
     pub fn new(n: usize) -> Self {
-        Self::with_stride(n, 1)
-    }
-
-    /// Scratch for `n` scan points that are every `stride`-th point of the scan the forward
-    /// lists index: [`ReverseNearest::query`]'s `scan` is that sample.
-    pub fn with_stride(n: usize, stride: usize) -> Self {
         Self {
             best_d2: vec![0.0; n],
             tree: BoxTree::default(),
             last: vec![u32::MAX; n],
-            stride: stride.max(1),
         }
     }
 
@@ -617,23 +607,15 @@ impl ReverseNearest {
         self.best_d2.fill(f64::INFINITY);
         nearest.fill(u32::MAX);
         // Template points in increasing order and a strict `<`: ties go to the lower index.
-        let stride = self.stride as u32;
         for (v, (row_idx, row_d2)) in forward_idx
             .chunks_exact(k)
             .zip(forward_d2.chunks_exact(k))
             .enumerate()
         {
             for (&j, &d2) in row_idx.iter().zip(row_d2) {
-                let j = if stride == 1 {
-                    j as usize
-                } else if j.is_multiple_of(stride) {
-                    (j / stride) as usize
-                } else {
-                    continue;
-                };
-                if d2 < self.best_d2[j] {
-                    self.best_d2[j] = d2;
-                    nearest[j] = v as u32;
+                if d2 < self.best_d2[j as usize] {
+                    self.best_d2[j as usize] = d2;
+                    nearest[j as usize] = v as u32;
                 }
             }
         }
@@ -747,47 +729,6 @@ mod tests {
             reused > 5000,
             "the cache should re-use most queries, re-used {reused}"
         );
-    }
-
-    #[test]
-    fn strided_reverse_nearest_answers_for_the_scan_sample() {
-        // Forward lists over the whole scan, queries for every 3rd scan point: each answer is
-        // the brute-force nearest template point of that sample point, certified or not.
-        let mut rng = ChaCha8Rng::seed_from_u64(21);
-        let scan: Vec<[f64; 3]> = (0..4000)
-            .map(|_| [rng.random(), rng.random(), 0.01 * rng.random::<f64>()])
-            .collect();
-        let stride = 3;
-        let sample: Vec<[f64; 3]> = scan.iter().step_by(stride).copied().collect();
-        let index = PointIndex::new(&scan);
-        let k = 24;
-        let mut reverse = ReverseNearest::with_stride(sample.len(), stride);
-        let mut got = vec![0; sample.len()];
-        for height in [0.3, 0.02, 0.0] {
-            let template: Vec<[f64; 3]> = (0..400)
-                .map(|_| [rng.random(), rng.random(), height])
-                .collect();
-            let mut idx = vec![0; template.len() * k];
-            let mut d2 = vec![0.0; template.len() * k];
-            index.nearest_all(&template, k, &mut idx, &mut d2);
-            let lists = TargetNeighbours {
-                indices: &idx,
-                dist2: &d2,
-                k,
-            };
-            let fresh = reverse.query(&template, &sample, Some(lists), &mut got);
-            for (j, x) in sample.iter().enumerate() {
-                let (want, _) = brute_force_nearest(&template, x, 1);
-                assert_eq!(got[j], want[0], "height {height}, sample point {j}");
-            }
-            if height == 0.0 {
-                assert!(
-                    fresh < sample.len() / 2,
-                    "{fresh} of {} fresh",
-                    sample.len()
-                );
-            }
-        }
     }
 
     #[test]

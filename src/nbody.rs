@@ -187,9 +187,6 @@ pub fn step(
 pub struct ReverseAttraction {
     queries: ReverseNearest,
     from_forward: bool,
-    /// Under a scan sample ([`ReverseAttraction::with_scan_stride`]): every `stride`-th scan
-    /// point and its curvature, the only scan points that pull.
-    sample: Option<(Vec<[f64; 3]>, Vec<f64>)>,
     nearest: Vec<u32>,
     offsets: Vec<usize>,
     heads: Vec<usize>,
@@ -204,35 +201,10 @@ impl ReverseAttraction {
         Self {
             queries: ReverseNearest::new(n),
             from_forward,
-            sample: None,
             nearest: vec![0; n],
             offsets: vec![0; m + 1],
             heads: vec![0; m],
             order: vec![0; n],
-        }
-    }
-
-    /// Like [`ReverseAttraction::new`], with only every `stride`-th point of `target` (with
-    /// its curvature in `kappa`) pulling: the pulls a template point receives are averaged
-    /// over the scan points that choose it, so a sample estimates the same mean from fewer
-    /// reverse queries (`stride` 1: [`ReverseAttraction::new`]).
-    pub fn with_scan_stride(
-        m: usize,
-        target: &[[f64; 3]],
-        kappa: &[f64],
-        stride: usize,
-        from_forward: bool,
-    ) -> Self {
-        if stride <= 1 {
-            return Self::new(m, target.len(), from_forward);
-        }
-        let scan: Vec<[f64; 3]> = target.iter().step_by(stride).copied().collect();
-        let kappa: Vec<f64> = kappa.iter().step_by(stride).copied().collect();
-        let n = scan.len();
-        Self {
-            queries: ReverseNearest::with_stride(n, stride),
-            sample: Some((scan, kappa)),
-            ..Self::new(m, n, from_forward)
         }
     }
 
@@ -251,10 +223,6 @@ impl ReverseAttraction {
         out: &mut [[f64; 3]],
     ) -> usize {
         let forward = self.from_forward.then_some(forward);
-        let (target, kappa) = match &self.sample {
-            Some((scan, kappa)) => (&scan[..], &kappa[..]),
-            None => (target, kappa),
-        };
         let fresh = self
             .queries
             .query(positions, target, forward, &mut self.nearest);
@@ -340,50 +308,6 @@ mod tests {
         assert!((mean * 3.0 - sum).norm() < 1e-12);
         assert_eq!(alpha(1e6, 1.0, 0.1), 0.1);
         assert!(mean.iter().all(|x| x.is_finite()));
-    }
-
-    #[test]
-    fn scan_sampled_pulls_equal_the_pulls_of_the_sample() {
-        // A ReverseAttraction over every 4th scan point, fed the full scan's forward lists,
-        // gives the pulls of a plain one over the sampled scan (tree queries only).
-        let scan: Vec<[f64; 3]> = (0..2000)
-            .map(|i| {
-                let (u, v) = ((i % 50) as f64 / 49.0, (i / 50) as f64 / 39.0);
-                [u, v, 0.05 * (3.0 * u).sin() * v]
-            })
-            .collect();
-        let kappa: Vec<f64> = (0..scan.len()).map(|i| (i % 7) as f64 - 3.0).collect();
-        let template: Vec<[f64; 3]> = (0..300)
-            .map(|i| {
-                let (u, v) = ((i % 20) as f64 / 19.0, (i / 20) as f64 / 14.0);
-                [0.9 * u + 0.05, 0.9 * v + 0.05, 0.02]
-            })
-            .collect();
-        let k = 16;
-        let index = crate::knn::PointIndex::new(&scan);
-        let (mut idx, mut d2) = (vec![0; template.len() * k], vec![0.0; template.len() * k]);
-        index.nearest_all(&template, k, &mut idx, &mut d2);
-        let forward = TargetNeighbours {
-            indices: &idx,
-            dist2: &d2,
-            k,
-        };
-        let p = NBodyParams::default();
-        let m = template.len();
-        let mut sampled = ReverseAttraction::with_scan_stride(m, &scan, &kappa, 4, true);
-        let mut got = vec![[0.0; 3]; m];
-        sampled.compute(&template, &scan, &kappa, forward, 2.0, &p, &mut got);
-        let sub: Vec<[f64; 3]> = scan.iter().step_by(4).copied().collect();
-        let sub_kappa: Vec<f64> = kappa.iter().step_by(4).copied().collect();
-        let mut plain = ReverseAttraction::new(m, sub.len(), false);
-        let mut want = vec![[0.0; 3]; m];
-        plain.compute(&template, &sub, &sub_kappa, forward, 2.0, &p, &mut want);
-        assert_eq!(got, want);
-        // ... and not those of the whole scan.
-        let mut all = ReverseAttraction::new(m, scan.len(), true);
-        let mut whole = vec![[0.0; 3]; m];
-        all.compute(&template, &scan, &kappa, forward, 2.0, &p, &mut whole);
-        assert_ne!(got, whole);
     }
 
     #[test]

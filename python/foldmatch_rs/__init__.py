@@ -279,10 +279,11 @@ def fit(
         N-body and two-way forces, and their one Kabsch fit moves the whole template (1: every
         vertex; 1..=64).
     rigid_scan_sample : int
-        Rigid phase's two-way attraction on a scan sample: only every
-        ``rigid_scan_sample``-th scan point pulls its nearest template vertex (0, the default:
-        automatic, a stride only where the scan has more than 8 points per vertex of the rigid
-        phase's sample, e.g. 4 for 1M points under 100K vertices; 1: every point; 0..=64).
+        Rigid phase on a scan sample: it sees only every ``rigid_scan_sample``-th scan point,
+        with ``ceil(K / s)`` neighbours per vertex and the sampled points' two-way pulls (0, the
+        default: automatic, a stride only where the scan has more than 8 points per vertex of
+        the rigid phase's sample, e.g. 4 for 1M points under 100K vertices; 1: the whole scan;
+        0..=64).
     coarse_sample : int
         Coarse phase on a sample: only every ``coarse_sample``-th vertex feels the forces, and
         every vertex moves by the Kabsch fit of its coarse ring's sampled members (1: every
