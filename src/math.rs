@@ -433,7 +433,7 @@ pub fn spd_log_near_identity(m: &Mat3) -> Mat3 {
         a[0] * a[3] - a[1] * a[1],
     ];
     let det = a[0] * cof[0] + a[1] * cof[1] + a[2] * cof[2];
-    if !(det > 0.0) {
+    if det <= 0.0 || det.is_nan() {
         return spd_log(m);
     }
     let inv_det = 1.0 / det;
