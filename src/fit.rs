@@ -1771,6 +1771,35 @@ mod tests {
         wavy_grid_case(8, 0.1)
     }
 
+    /// The default with only a rigid phase, `iterations` long, one schedule.
+    fn rigid_only(iterations: usize) -> FitParams {
+        FitParams {
+            iterations,
+            rigid_fraction: 1.0,
+            coarse_fraction: 0.0,
+            selection: Selection::Single,
+            ..FitParams::default()
+        }
+    }
+
+    fn dist(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+        (vec3(a) - vec3(b)).norm()
+    }
+
+    /// The largest distance between corresponding points.
+    fn max_apart(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
+        (0..a.len()).map(|i| dist(&a[i], &b[i])).fold(0.0, f64::max)
+    }
+
+    /// `moved` keeps every pairwise distance of `start`: one rigid motion.
+    fn assert_rigidly_moved(start: &[[f64; 3]], moved: &[[f64; 3]]) {
+        for i in 0..start.len() {
+            for j in 0..i {
+                assert!((dist(&moved[i], &moved[j]) - dist(&start[i], &start[j])).abs() < 1e-12);
+            }
+        }
+    }
+
     /// `params` fail validation with an error naming `field`.
     fn assert_refused(params: &FitParams, field: &str) {
         let err = params.validate().unwrap_err().to_string();
@@ -1831,13 +1860,7 @@ mod tests {
     #[test]
     fn rigid_sample_moves_the_template_rigidly_by_the_sample_fit() {
         let (v, f, x) = small_grid_case();
-        let rigid_only = FitParams {
-            iterations: 6,
-            rigid_fraction: 1.0,
-            coarse_fraction: 0.0,
-            selection: Selection::Single,
-            ..FitParams::default()
-        };
+        let rigid_only = rigid_only(6);
         let with = |rigid_sample| {
             fit_simple(
                 &v,
@@ -1852,18 +1875,11 @@ mod tests {
             .unwrap()
             .vertices
         };
-        let dist = |a: &[f64; 3], b: &[f64; 3]| (vec3(a) - vec3(b)).norm();
         // A quarter of the vertices drives the fit: the template still moves rigidly (every
         // pairwise distance kept), but not as the fit driven by every vertex does.
         let (quarter, full) = (with(4), with(1));
-        for i in 0..v.len() {
-            for j in 0..i {
-                assert!((dist(&quarter[i], &quarter[j]) - dist(&v[i], &v[j])).abs() < 1e-12);
-            }
-        }
-        let apart = (0..v.len())
-            .map(|i| dist(&quarter[i], &full[i]))
-            .fold(0.0, f64::max);
+        assert_rigidly_moved(&v, &quarter);
+        let apart = max_apart(&quarter, &full);
         assert!(apart > 1e-9, "{apart}");
         // 64 ≥ M: the sample is vertex 0 alone, whose Kabsch fit has no rotation, so every
         // vertex moves by the same translation, the one the N-body step proposes for vertex 0.
@@ -1912,13 +1928,7 @@ mod tests {
         // An 8×8 template over a 40×40-point scan: 16 rigid-phase vertices, stride 12.
         let (v, f, _) = small_grid_case();
         let (_, _, x) = wavy_grid_case(40, 0.1);
-        let rigid_only = FitParams {
-            iterations: 6,
-            rigid_fraction: 1.0,
-            coarse_fraction: 0.0,
-            selection: Selection::Single,
-            ..FitParams::default()
-        };
+        let rigid_only = rigid_only(6);
         assert_eq!(rigid_only.rigid_scan_stride(v.len(), x.len()), 12);
         let with = |rigid_scan_sample| {
             let params = FitParams {
@@ -1929,17 +1939,9 @@ mod tests {
         };
         let (auto, twelve, every) = (with(0), with(12), with(1));
         assert_eq!(auto, twelve);
-        let dist = |a: &[f64; 3], b: &[f64; 3]| (vec3(a) - vec3(b)).norm();
-        let max_over = |a: &[[f64; 3]], b: &[[f64; 3]]| {
-            (0..a.len()).map(|i| dist(&a[i], &b[i])).fold(0.0, f64::max)
-        };
         // Still one rigid motion, not the one every scan point drives, but close to it.
-        for i in 0..v.len() {
-            for j in 0..i {
-                assert!((dist(&auto[i], &auto[j]) - dist(&v[i], &v[j])).abs() < 1e-12);
-            }
-        }
-        let (apart, moved) = (max_over(&auto, &every), max_over(&every, &v));
+        assert_rigidly_moved(&v, &auto);
+        let (apart, moved) = (max_apart(&auto, &every), max_apart(&every, &v));
         assert!(apart > 1e-9 && apart < 0.2 * moved, "{apart} vs {moved}");
     }
 
