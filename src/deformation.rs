@@ -90,13 +90,31 @@ pub const DIRECT_INVERSE_MIN_RATIO: f64 = 1e-3;
 /// (`λ_min > 10⁻³ λ_max` by the closed-form eigenvalues): then no direction is null and
 /// `H = A B⁻¹` with the adjugate inverse equals the eigen path to round-off.
 pub fn solve_gradient_fast(a: &Mat3, b: &Mat3) -> (Mat3, bool) {
-    let l = sym_eigenvalues3(b);
-    if l[0] > 0.0 && l[0].is_finite() && l[2] > DIRECT_INVERSE_MIN_RATIO * l[0] {
+    if well_conditioned(b) || {
+        let l = sym_eigenvalues3(b);
+        l[0] > 0.0 && l[0].is_finite() && l[2] > DIRECT_INVERSE_MIN_RATIO * l[0]
+    } {
         if let Some(inv) = b.try_inverse() {
             return (a * inv, false);
         }
     }
     solve_gradient(a, b)
+}
+
+/// A sufficient test, without eigenvalues, that the symmetric `b` is positive definite with
+/// `λ_min > 10` [`DIRECT_INVERSE_MIN_RATIO`] `λ_max` (by a wide margin, so the closed-form
+/// eigenvalues' round-off could not decide otherwise): Sylvester's minors, then
+/// `λ_min ≥ 4 det / tr²` (as `λ1 λ2 < (tr/2)²`) against `λ_max ≤ tr`. The completed B of a
+/// surface ring passes it (its normal direction gets γ·tr/3), so Eq. 4 computes one cubic per
+/// vertex instead of two.
+fn well_conditioned(b: &Mat3) -> bool {
+    let minor2 = b[(0, 0)] * b[(1, 1)] - b[(0, 1)] * b[(1, 0)];
+    let det = b.determinant();
+    let trace = b.trace();
+    b[(0, 0)] > 0.0
+        && minor2 > 0.0
+        && det.is_finite()
+        && 4.0 * det > 10.0 * DIRECT_INVERSE_MIN_RATIO * trace * trace * trace
 }
 
 /// `H = A B⁻¹`, with the null directions of B (relative eigenvalue below [`RANK_TOLERANCE`])
@@ -172,6 +190,32 @@ mod tests {
         let (_, degenerate) =
             deformation_gradient(0, &ring, &old, &new, &[0.0, 0.0, 1.0], &n_new, 0.0, false);
         assert!(degenerate);
+    }
+
+    #[test]
+    fn the_conditioning_bound_only_admits_what_the_eigenvalues_admit() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let mut admitted = 0;
+        for i in 0..20_000 {
+            // Random symmetric matrices, from well-conditioned SPD to indefinite.
+            let g = Mat3::from_fn(|_, _| rng.random_range(-1.0..1.0));
+            let shift = [0.0, 0.05, 0.5, 2.0][i % 4];
+            let b = g * g.transpose() + shift * Mat3::identity() - 0.1 * Mat3::identity();
+            if well_conditioned(&b) {
+                admitted += 1;
+                let l = sym_eigen3(&b).values;
+                assert!(l[2] > 10.0 * DIRECT_INVERSE_MIN_RATIO * l[0], "{b}");
+            }
+        }
+        assert!(admitted > 5_000, "{admitted}");
+        // A flat ring's B completed by its normal (γ = 0.3): admitted.
+        let flat = Mat3::from_diagonal(&Vec3::new(0.5, 0.4, 0.0));
+        let w = 0.3 * flat.trace() / 3.0;
+        assert!(well_conditioned(
+            &(flat + w * Mat3::from_diagonal(&Vec3::z()))
+        ));
+        assert!(!well_conditioned(&flat));
     }
 
     #[test]
