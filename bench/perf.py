@@ -101,10 +101,11 @@ LEVERS = {
     "wherever the ψ-modified eigenvalues stay positive (a determinant/trace bound), so the "
     "iterations skip the Procrustes solve and the ψ-stretch's Jacobi eigen-decomposition; the "
     "wrinkle field is computed once, after the last iteration. Nothing left to close",
-    "update": "update: the coarse phase's 8-ring Kabsch fits (~145 ring members per vertex, "
-    "now 15 sums each from per-point moments, half the flops of the two-pass fit); what is "
-    "left is the ring gathers themselves and the nearest rotations (a Newton path for the "
-    "flat rings' rank-2 covariances was tried and saved nothing)",
+    "update": "update: the coarse phase's 8-ring Kabsch fits, their sums of per-point moments "
+    "taken from an adjacent ring's sum plus and minus the ~35 differing members "
+    "(`rings::RingDeltas`: a third of the reads on a grid); what is left is the nearest "
+    "rotations of the flat rings' rank-2 covariances (Jacobi, ~0.5 µs a vertex; a Newton path "
+    "for them was tried and saved nothing)",
     "setup": "setup: curvature of the scan, the scan tree and the coarse 8-ring BFS (shared "
     "by both schedules); the final wrinkle fields and the selection's scan distances",
 }
