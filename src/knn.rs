@@ -401,10 +401,18 @@ impl NeighborCache {
             .zip(indices.par_chunks_mut(k).zip(dist2.par_chunks_mut(k)))
             .zip(queries.par_iter())
             .for_each_init(
-                || Vec::with_capacity(4 * c),
-                |found, (((((anchor, cand), radius), state), (idx, d2)), q)| {
-                    let mut ranked = [(0.0f64, 0u32); MAX_CACHED];
-                    let ranked = &mut ranked[..c];
+                // Per-thread scratch: the ball's points, the ranking and the fresh distances
+                // (not per point: a zeroed 3 KB array per point and iteration was a memset of
+                // gigabytes over a fit).
+                || {
+                    (
+                        Vec::with_capacity(4 * c),
+                        vec![(0.0f64, 0u32); c],
+                        vec![0.0f64; c],
+                    )
+                },
+                |(found, ranked, found_d2), (((((anchor, cand), radius), state), (idx, d2)), q)| {
+                    let ranked = &mut ranked[..];
                     let mut exact = false;
                     let mut farthest = f64::INFINITY;
                     if *state > 0 {
@@ -423,8 +431,7 @@ impl NeighborCache {
                         // the same points, faster. Either way the k nearest come first, in
                         // order, as `rerank` leaves them.
                         let bound2 = farthest * (1.0 + 1e-9);
-                        let mut found_d2 = [0.0f64; MAX_CACHED];
-                        let found_d2 = &mut found_d2[..c];
+                        let found_d2 = &mut found_d2[..];
                         if !(bound2.is_finite()
                             && index.nearest_within_into(q, bound2, k, cand, found_d2, found))
                         {
