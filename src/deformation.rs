@@ -15,7 +15,7 @@
 //! Whatever rank deficiency remains (a ring with no normal: isolated vertex, collinear ring) is
 //! not inverted: those directions map by the identity and the vertex is counted as degenerate.
 
-use crate::math::{sym_eigen3, sym_eigenvalues3, vec3, Mat3, Vec3};
+use crate::math::{positive_definite_det_trace, sym_eigen3, sym_eigenvalues3, vec3, Mat3, Vec3};
 
 /// Relative eigenvalue below which a direction of the completed second-moment matrix counts
 /// as missing.
@@ -103,18 +103,13 @@ pub fn solve_gradient_fast(a: &Mat3, b: &Mat3) -> (Mat3, bool) {
 
 /// A sufficient test, without eigenvalues, that the symmetric `b` is positive definite with
 /// `λ_min > 10` [`DIRECT_INVERSE_MIN_RATIO`] `λ_max` (by a wide margin, so the closed-form
-/// eigenvalues' round-off could not decide otherwise): Sylvester's minors, then
-/// `λ_min ≥ 4 det / tr²` (as `λ1 λ2 < (tr/2)²`) against `λ_max ≤ tr`. The completed B of a
-/// surface ring passes it (its normal direction gets γ·tr/3), so Eq. 4 computes one cubic per
-/// vertex instead of two.
+/// eigenvalues' round-off could not decide otherwise): `λ_min ≥ 4 det / tr²` against
+/// `λ_max ≤ tr` ([`positive_definite_det_trace`]). The completed B of a surface ring passes it
+/// (its normal direction gets γ·tr/3), so Eq. 4 computes one cubic per vertex instead of two.
 fn well_conditioned(b: &Mat3) -> bool {
-    let minor2 = b[(0, 0)] * b[(1, 1)] - b[(0, 1)] * b[(1, 0)];
-    let det = b.determinant();
-    let trace = b.trace();
-    b[(0, 0)] > 0.0
-        && minor2 > 0.0
-        && det.is_finite()
-        && 4.0 * det > 10.0 * DIRECT_INVERSE_MIN_RATIO * trace * trace * trace
+    positive_definite_det_trace(b).is_some_and(|(det, trace)| {
+        4.0 * det > 10.0 * DIRECT_INVERSE_MIN_RATIO * trace * trace * trace
+    })
 }
 
 /// `H = A B⁻¹`, with the null directions of B (relative eigenvalue below [`RANK_TOLERANCE`])

@@ -960,14 +960,10 @@ fn drive(
 struct Prepared {
     faces: Vec<[u32; 3]>,
     frame: Frame,
-    /// The scan in the normalized frame, in [`morton_order`].
-    scan: Vec<[f64; 3]>,
+    /// The scan in the normalized frame, in [`morton_order`], with its curvature, tree and K.
+    target: ScanPoints,
     /// The template in the normalized frame, after any pre-alignment.
     start: Vec<[f64; 3]>,
-    index: PointIndex,
-    /// K, the target neighborhood size.
-    k: usize,
-    kappa: Vec<f64>,
     incidence: VertexFaces,
     /// Γᵏ_Y: n-rings (FoldMatch) or k-NN neighborhoods (NRGa).
     rings: Neighborhoods,
@@ -981,7 +977,7 @@ struct Prepared {
     /// Every vertex index (the rigid phase's "ring"; empty when no schedule has one).
     all_vertices: Vec<u32>,
     /// The rigid phase's scan sample ([`FitParams::rigid_scan_sample`]; `None`: the scan).
-    rigid_scan: Option<ScanSample>,
+    rigid_scan: Option<ScanPoints>,
     /// The diagnostics every run starts from.
     diagnostics: Diagnostics,
 }
@@ -1064,9 +1060,16 @@ impl Prepared {
         };
         let phases: Vec<(usize, usize)> =
             schedules.iter().map(FitParams::phase_iterations).collect();
-        let stride = params.rigid_scan_stride(m, scan.len());
-        let rigid_scan = (stride > 1 && phases.iter().any(|p| p.0 > 0))
-            .then(|| ScanSample::new(&scan, &kappa, k, stride));
+        let target = ScanPoints {
+            stride: 1,
+            points: scan,
+            kappa,
+            index,
+            k,
+        };
+        let stride = params.rigid_scan_stride(m, target.points.len());
+        let rigid_scan =
+            (stride > 1 && phases.iter().any(|p| p.0 > 0)).then(|| target.sample(stride));
         let all_vertices = if phases.iter().any(|p| p.0 > 0) {
             (0..m as u32).collect()
         } else {
@@ -1124,11 +1127,8 @@ impl Prepared {
         Ok(Self {
             faces,
             frame,
-            scan,
+            target,
             start,
-            index,
-            k,
-            kappa,
             incidence,
             rings,
             coarse_levels,
@@ -1142,23 +1142,13 @@ impl Prepared {
 
     /// The scan points a phase sees: the whole scan, or under `stride` > 1 the rigid phase's
     /// scan sample.
-    fn scan_view(&self, stride: usize) -> ScanView<'_> {
+    fn scan_points(&self, stride: usize) -> &ScanPoints {
         match &self.rigid_scan {
             Some(sample) if stride > 1 => {
                 debug_assert_eq!(sample.stride, stride);
-                ScanView {
-                    points: &sample.points,
-                    kappa: &sample.kappa,
-                    index: &sample.index,
-                    k: sample.k,
-                }
+                sample
             }
-            _ => ScanView {
-                points: &self.scan,
-                kappa: &self.kappa,
-                index: &self.index,
-                k: self.k,
-            },
+            _ => &self.target,
         }
     }
 
@@ -1176,10 +1166,9 @@ impl Prepared {
     }
 }
 
-/// Every `stride`-th scan point (in the fit's Morton order, so spread evenly), with its
-/// curvature, its own k-d tree and `⌈K / stride⌉` neighbours per template point: about the same
-/// neighbourhood radius as K points of the whole scan ([`FitParams::rigid_scan_sample`]).
-struct ScanSample {
+/// The scan points an [`Attraction`] sees — the whole scan, or every `stride`-th point of it
+/// ([`ScanPoints::sample`]) — with their curvatures, their k-d tree and K.
+struct ScanPoints {
     stride: usize,
     points: Vec<[f64; 3]>,
     kappa: Vec<f64>,
@@ -1187,30 +1176,23 @@ struct ScanSample {
     k: usize,
 }
 
-impl ScanSample {
-    fn new(scan: &[[f64; 3]], kappa: &[f64], k: usize, stride: usize) -> Self {
-        let points: Vec<[f64; 3]> = scan.iter().step_by(stride).copied().collect();
-        let kappa = kappa.iter().step_by(stride).copied().collect();
+impl ScanPoints {
+    /// Every `stride`-th point (in the fit's Morton order, so spread evenly), with its own
+    /// tree and `⌈K / stride⌉` neighbours per template point: about the same neighbourhood
+    /// radius as K points of the whole scan ([`FitParams::rigid_scan_sample`]).
+    fn sample(&self, stride: usize) -> Self {
+        let points: Vec<[f64; 3]> = self.points.iter().step_by(stride).copied().collect();
+        let kappa = self.kappa.iter().step_by(stride).copied().collect();
         let index = PointIndex::new(&points);
-        let k = k.div_ceil(stride).clamp(1, points.len());
+        let k = self.k.div_ceil(stride).clamp(1, points.len());
         Self {
-            stride,
+            stride: stride * self.stride,
             points,
             kappa,
             index,
             k,
         }
     }
-}
-
-/// The scan points an [`Attraction`] sees (the whole scan or a [`ScanSample`]), their
-/// curvatures, their k-d tree and K.
-#[derive(Clone, Copy)]
-struct ScanView<'a> {
-    points: &'a [[f64; 3]],
-    kappa: &'a [f64],
-    index: &'a PointIndex,
-    k: usize,
 }
 
 /// The motion model's side of an iteration (§2) for a set of template points: their target
@@ -1228,7 +1210,7 @@ struct Attraction {
 
 impl Attraction {
     /// Buffers for `m` template points over the scan points `scan`.
-    fn new(m: usize, scan: ScanView<'_>, params: &FitParams) -> Self {
+    fn new(m: usize, scan: &ScanPoints, params: &FitParams) -> Self {
         let (n, k) = (scan.points.len(), scan.k);
         let reverse = (params.two_way > 0.0 && params.method == Method::FoldMatch).then(|| {
             (
@@ -1250,7 +1232,7 @@ impl Attraction {
     #[allow(clippy::too_many_arguments)] // the stage inputs, and the two accumulators
     fn propose(
         &mut self,
-        scan: ScanView<'_>,
+        scan: &ScanPoints,
         params: &FitParams,
         it: usize,
         pos: &[[f64; 3]],
@@ -1258,12 +1240,7 @@ impl Attraction {
         t: &mut StageTimes,
         diagnostics: &mut Diagnostics,
     ) {
-        let ScanView {
-            points,
-            kappa,
-            index,
-            k,
-        } = scan;
+        let (points, kappa, index, k) = (&scan.points, &scan.kappa, &scan.index, scan.k);
         let (nn_idx, nn_d2) = (&mut self.nn_idx, &mut self.nn_d2);
         diagnostics.knn_queries += timed(&mut t.knn, || match self.nn_cache.as_mut() {
             Some(cache) => cache.query(index, pos, nn_idx, nn_d2),
@@ -1337,7 +1314,7 @@ impl PhaseSample {
             indices: (0..s as u32).collect(),
             pos: vec![[0.0; 3]; s],
             vel: vec![[0.0; 3]; s],
-            attraction: Attraction::new(s, prepared.scan_view(scan_stride), params),
+            attraction: Attraction::new(s, prepared.scan_points(scan_stride), params),
         }
     }
 }
@@ -1395,7 +1372,7 @@ impl ScheduleRun {
             vel: vec![[0.0; 3]; m],
             next: vec![[0.0; 3]; m],
             disp: vec![0.0; m],
-            attraction: Attraction::new(m, prepared.scan_view(1), &params),
+            attraction: Attraction::new(m, prepared.scan_points(1), &params),
             ws: Workspace::new(m),
             samples,
             phase_sample,
@@ -1434,7 +1411,7 @@ impl ScheduleRun {
                     sample.vel[i] = self.vel[v as usize];
                 }
                 let (pos, vel) = (&sample.pos, &mut sample.vel);
-                let scan = prepared.scan_view(sample.scan_stride);
+                let scan = prepared.scan_points(sample.scan_stride);
                 sample
                     .attraction
                     .propose(scan, params, it, pos, vel, t, &mut self.diagnostics);
@@ -1444,7 +1421,7 @@ impl ScheduleRun {
             }
             None => {
                 let (pos, vel) = (&self.pos, &mut self.vel);
-                let scan = prepared.scan_view(1);
+                let scan = prepared.scan_points(1);
                 self.attraction
                     .propose(scan, params, it, pos, vel, t, &mut self.diagnostics);
             }

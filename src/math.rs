@@ -240,6 +240,16 @@ pub fn polar_fast(h: &Mat3) -> Polar {
     }
 }
 
+/// `(det, trace)` of a symmetric matrix that Sylvester's criterion (positive leading minors)
+/// shows positive definite, else `None`: the pieces of the eigenvalue-free bounds
+/// `λ_min ≥ 4 det / tr²` (as `λ1 λ2 < (tr/2)²`), `λ_max ≤ tr` and `λ_max ≥ tr/3`.
+#[inline]
+pub fn positive_definite_det_trace(m: &Mat3) -> Option<(Real, Real)> {
+    let minor2 = m[(0, 0)] * m[(1, 1)] - m[(0, 1)] * m[(1, 0)];
+    let det = m.determinant();
+    (m[(0, 0)] > 0.0 && minor2 > 0.0 && det > 0.0 && det.is_finite()).then(|| (det, m.trace()))
+}
+
 /// Eigenvalues of a symmetric 3×3 matrix, descending, by the closed-form trigonometric
 /// solution of the characteristic cubic (Smith 1961). Absolute error a few ulps of ‖A‖: fine
 /// for thresholds and weights, not for eigenvectors of near-repeated eigenvalues (use

@@ -8,7 +8,7 @@
 //! The wrinkle vector is `v = λ̂1 e1` (Eq. 7), with e1's sign fixed so that its first
 //! coordinate of magnitude above 1e-12 (x, then y, then z) is positive.
 
-use crate::math::{sym_eigen3, Mat3, Vec3};
+use crate::math::{positive_definite_det_trace, sym_eigen3, Mat3, Vec3};
 
 /// The ψ-modified stretch of one vertex.
 #[derive(Clone, Copy, Debug)]
@@ -51,18 +51,11 @@ pub fn modified_stretch(u: &Mat3, psi: f64) -> ModifiedStretch {
 /// `λ3 − ψ/2 > 0`. Then `u Û` is positive definite, which makes Eq. 8's rotation the
 /// regularized one (see `fit::deformation_rotations`).
 ///
-/// Positive definiteness by Sylvester's criterion (leading minors); then
-/// `λ3 = det / (λ1 λ2) ≥ 4 det / tr²` (as `λ1 λ2 ≤ ((λ1 + λ2)/2)² < (tr/2)²`) and
-/// `λ1 ≥ tr / 3`.
+/// Positive definiteness by Sylvester's criterion, then `λ3 ≥ 4 det / tr²` and `λ1 ≥ tr / 3`
+/// ([`positive_definite_det_trace`]).
 pub fn stretch_stays_positive(u: &Mat3, psi: f64) -> bool {
-    let minor2 = u[(0, 0)] * u[(1, 1)] - u[(0, 1)] * u[(1, 0)];
-    let det = u.determinant();
-    let trace = u.trace();
-    u[(0, 0)] > 0.0
-        && minor2 > 0.0
-        && det > 0.0
-        && 4.0 * det > 0.5 * psi * trace * trace
-        && trace > -3.0 * psi
+    positive_definite_det_trace(u)
+        .is_some_and(|(det, trace)| 4.0 * det > 0.5 * psi * trace * trace && trace > -3.0 * psi)
 }
 
 #[cfg(test)]
