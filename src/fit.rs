@@ -183,6 +183,16 @@ pub struct FitParams {
     /// `false` queries a k-d tree for every vertex and every scan point every iteration.
     /// Results are the same either way.
     pub knn_cache: bool,
+    /// Rest-shape rigidity β₀ of the FoldMatch iterations (as-rigid-as-possible blending): in
+    /// the j-th of the J iterations after the rigid and coarse phases every vertex goes to
+    /// `(1 − β) ·` its Eq. 8 update `+ β ·` the placement of its template n-ring, as given
+    /// (the rest shape), by the Kabsch rigid fit of that ring onto the proposed positions,
+    /// with `β = β₀ (1 − j / J)` (stiff first, the paper's update alone at the end, like
+    /// non-rigid ICP's decreasing stiffness). Eq. 8 moves the *current* ring, so edge lengths
+    /// drift where the scan does not pin them (tangential sliding, holes); the rest-shape term
+    /// remembers the template's metric, as ARAP's local step does. 0: the paper's update
+    /// alone. FoldMatch only; docs/method.md "Seventh round".
+    pub rest_rigidity: f64,
     /// Softening annealing: ε starts at `anneal × ε` and decreases linearly to ε over the
     /// first `anneal_fraction` of the ξ iterations (1: constant ε, the paper's reading).
     pub anneal: f64,
@@ -222,6 +232,7 @@ impl Default for FitParams {
             coarse_sample: 1,
             knn_cache: true,
             matrix_series: true,
+            rest_rigidity: 0.5,
             anneal: 3.0,
             anneal_fraction: 0.6,
             selection: Selection::ScanDistance,
@@ -238,6 +249,7 @@ impl FitParams {
             two_way: 0.0,
             rigid_fraction: 0.0,
             coarse_fraction: 0.0,
+            rest_rigidity: 0.0,
             anneal: 1.0,
             anneal_fraction: 0.0,
             selection: Selection::Single,
@@ -250,11 +262,13 @@ impl FitParams {
     /// (warm-started frames of a sequence): annealing is a far-start device and, with few
     /// iterations per frame, leaves too little time at the final ε (docs/method.md). Its
     /// two-way weight (2) and its rigid phase on every vertex are the values it was measured
-    /// with on sequences.
+    /// with on sequences; it has no rest-shape rigidity (a warm-started frame's template is the
+    /// previous fit, not a rest shape, and the option was not measured on sequences).
     pub fn tracking() -> Self {
         Self {
             two_way: 2.0,
             rigid_sample: 1,
+            rest_rigidity: 0.0,
             anneal: 1.0,
             anneal_fraction: 0.0,
             selection: Selection::Single,
@@ -460,6 +474,7 @@ impl FitParams {
             ("rigid_fraction", self.rigid_fraction),
             ("coarse_fraction", self.coarse_fraction),
             ("anneal_fraction", self.anneal_fraction),
+            ("rest_rigidity", self.rest_rigidity),
         ] {
             if !(0.0..=1.0).contains(&v) {
                 return Err(FoldMatchError::parameter(name, v, "must be in [0, 1]"));
@@ -1477,9 +1492,20 @@ impl ScheduleRun {
                 let d = deformation_rotations(old, new, &prepared.topology(), params, ws);
                 ws.times.update -= ws.times.model() - before; // counted in their own stages
                 let rot = &ws.rotation;
+                let phases = self.rigid_iterations + self.coarse_iterations;
+                let beta = rest_rigidity_at(params, it - phases, params.iterations - phases);
+                let (rest, fast) = (&prepared.start, params.matrix_series);
                 next.par_iter_mut().enumerate().for_each(|(v, out)| {
-                    let (c_old, c_new) = ring_centroids(prepared.rings.of(v), old, new);
-                    *out = transform_vertex(&rot[v], &vec3(&old[v]), &c_old, &c_new).into();
+                    let ring = prepared.rings.of(v);
+                    let (c_old, c_new) = ring_centroids(ring, old, new);
+                    let moved = transform_vertex(&rot[v], &vec3(&old[v]), &c_old, &c_new);
+                    *out = if beta > 0.0 {
+                        let placed = rest_ring_placement(ring, v, rest, new, &c_new, fast);
+                        (1.0 - beta) * moved + beta * placed
+                    } else {
+                        moved
+                    }
+                    .into();
                 });
                 d
             }
@@ -1636,6 +1662,32 @@ fn kabsch_update(
         let r = kabsch(ring, ring_old, ring_new, &c_old, &c_new, fast);
         *out = transform_vertex(&r, &vec3(&old[v]), &c_old, &c_new).into();
     });
+}
+
+/// The rest-shape rigidity β of the `fine`-th of the `total` FoldMatch iterations (1-based):
+/// [`FitParams::rest_rigidity`] decreasing linearly to 0 at the last one.
+fn rest_rigidity_at(params: &FitParams, fine: usize, total: usize) -> f64 {
+    params.rest_rigidity * (1.0 - fine as f64 / total.max(1) as f64)
+}
+
+/// Where the rest-shape rigidity ([`FitParams::rest_rigidity`]) puts vertex `v`: its template
+/// ring `rest[ring]`, moved by the Kabsch rigid fit of that ring onto the proposed positions
+/// `proposed[ring]` (centroid `c_proposed`), evaluated at `rest[v]` — ARAP's local step with
+/// the proposal as the data.
+fn rest_ring_placement(
+    ring: &[u32],
+    v: usize,
+    rest: &[[f64; 3]],
+    proposed: &[[f64; 3]],
+    c_proposed: &Vec3,
+    fast: bool,
+) -> Vec3 {
+    let c_rest = ring
+        .iter()
+        .fold(Vec3::zeros(), |acc, &u| acc + vec3(&rest[u as usize]))
+        / ring.len() as f64;
+    let r = kabsch(ring, rest, proposed, &c_rest, c_proposed, fast);
+    transform_vertex(&r, &vec3(&rest[v]), &c_rest, c_proposed)
 }
 
 /// The N-body constants of iteration `it` (1-based): the softening annealed from
@@ -2152,5 +2204,81 @@ mod tests {
             },
             params
         );
+    }
+
+    #[test]
+    fn rest_ring_placement_recovers_a_rigid_motion_of_the_rest_shape() {
+        // Proposed = R · rest + t on every ring: each vertex goes to R · rest[v] + t exactly.
+        let (rest, f) = crate::synthetic::grid_sheet(6, 5, 1.0, 0.8);
+        let rest: Vec<[f64; 3]> = rest
+            .iter()
+            .map(|p| [p[0], p[1], 0.3 * p[0] * p[1]])
+            .collect();
+        let rings = n_rings(&f, rest.len(), 2);
+        let r = nalgebra::Rotation3::from_scaled_axis(Vec3::new(0.3, -0.5, 0.9)).into_inner();
+        let t = Vec3::new(0.2, -1.0, 0.4);
+        let moved = |p: &[f64; 3]| r * vec3(p) + t;
+        let proposed: Vec<[f64; 3]> = rest.iter().map(|p| moved(p).into()).collect();
+        for fast in [true, false] {
+            for v in 0..rest.len() {
+                let ring = rings.of(v);
+                let c = ring
+                    .iter()
+                    .fold(Vec3::zeros(), |a, &u| a + vec3(&proposed[u as usize]))
+                    / ring.len() as f64;
+                let placed = rest_ring_placement(ring, v, &rest, &proposed, &c, fast);
+                assert!((placed - moved(&rest[v])).norm() < 1e-12, "vertex {v}");
+            }
+        }
+    }
+
+    #[test]
+    fn rest_rigidity_keeps_the_template_edge_lengths_over_a_scan_hole() {
+        // A flat sheet onto a wavy scan with a hole: the rest-shape term keeps the edge lengths
+        // closer to the template's; 0 is the update without it, and out-of-range values fail.
+        let (v, f, x) = wavy_grid_case(17, 0.03);
+        let x: Vec<[f64; 3]> = x
+            .into_iter()
+            .filter(|p| (p[0] - 0.6).hypot(p[1] - 0.4) > 0.2)
+            .collect();
+        let edges: Vec<(usize, usize)> = f
+            .iter()
+            .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])])
+            .map(|(a, b)| (a as usize, b as usize))
+            .collect();
+        let spread = |params: &FitParams| {
+            let r = fit_simple(&v, &f, &x, None, params).unwrap();
+            let logs: Vec<f64> = edges
+                .iter()
+                .map(|&(a, b)| (dist(&r.vertices[a], &r.vertices[b]) / dist(&v[a], &v[b])).ln())
+                .collect();
+            let mean = logs.iter().sum::<f64>() / logs.len() as f64;
+            (logs.iter().map(|l| (l - mean).powi(2)).sum::<f64>() / logs.len() as f64).sqrt()
+        };
+        let with_rigidity = FitParams {
+            iterations: 40,
+            coarse_fraction: 0.2,
+            selection: Selection::Single,
+            ..FitParams::default()
+        };
+        assert_eq!(with_rigidity.rest_rigidity, 0.5);
+        let with = spread(&with_rigidity);
+        let without = spread(&FitParams {
+            rest_rigidity: 0.0,
+            ..with_rigidity.clone()
+        });
+        assert!(
+            with < 0.8 * without,
+            "edge-length spread {with} vs {without}"
+        );
+        for bad in [-0.1, 1.5, f64::NAN] {
+            assert_refused(
+                &FitParams {
+                    rest_rigidity: bad,
+                    ..FitParams::default()
+                },
+                "rest_rigidity",
+            );
+        }
     }
 }

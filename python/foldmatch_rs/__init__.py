@@ -196,6 +196,7 @@ def fit(
     coarse_sample: Optional[int] = None,
     knn_cache: Optional[bool] = None,
     matrix_series: Optional[bool] = None,
+    rest_rigidity: Optional[float] = None,
     anneal: Optional[float] = None,
     anneal_fraction: Optional[float] = None,
     selection: Optional[str] = None,
@@ -295,6 +296,13 @@ def fit(
     matrix_series : bool
         Evaluate Eq. 5's logarithms/exponentials of near-identity matrices by truncated series
         (True; agrees with the eigen-decomposition path to round-off).
+    rest_rigidity : float
+        As-rigid-as-possible blending of the FoldMatch iterations, β₀ in [0, 1]: in the j-th of
+        the J iterations after the rigid and coarse phases each vertex goes to ``(1 - β)`` × its
+        Eq. 8 update ``+ β`` × where the Kabsch fit of its template ring (the rest shape) onto
+        the proposed ring puts it, with ``β = β₀ (1 - j / J)``, so the template's edge lengths
+        are remembered where the scan does not pin them (0.5; the paper and tracking presets
+        0, the paper's update alone; FoldMatch only).
     anneal, anneal_fraction : float, float
         Softening annealing: ε starts at ``anneal × ε`` and decreases linearly to ε over the
         first ``anneal_fraction`` of the iterations (3, 0.6; 1: constant, the paper's reading).
@@ -346,7 +354,8 @@ def fit(
         coarse_fraction=coarse_fraction, coarse_rings=coarse_rings,
         coarse_levels=coarse_levels, rigid_sample=rigid_sample,
         rigid_scan_sample=rigid_scan_sample, coarse_sample=coarse_sample,
-        anneal=anneal, anneal_fraction=anneal_fraction, selection=selection, knn_cache=knn_cache,
+        rest_rigidity=rest_rigidity, anneal=anneal, anneal_fraction=anneal_fraction,
+        selection=selection, knn_cache=knn_cache,
         matrix_series=matrix_series,
     )
     raw = _core.fit_raw(tv, tf, x, xf, _params_json(params), callback, threads, preset)
