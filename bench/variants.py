@@ -72,6 +72,12 @@ PRESETS: dict[str, list[tuple[str, dict[str, Any]]]] = {
         ("default + 2 coarse levels (8, 4 rings)", {"coarse_levels": 2}),
         ("default + 3 coarse levels (16, 8, 4 rings)", {"coarse_levels": 3, "coarse_rings": 16}),
     ],
+    # Rest-shape rigidity (docs/method.md, seventh round): the previous default (0) first, so
+    # the per-case block compares every other value with it.
+    "rest": [
+        (f"rest_rigidity {b}" + (" (default)" if b == 0.5 else ""), {"rest_rigidity": b})
+        for b in (0.0, 0.3, 0.5, 0.8)
+    ],
 }
 METRICS = ("f_R", "f_lambda", "f_H", "f_E", "f_F", "s2f_mean_rel")
 
@@ -139,6 +145,35 @@ def against_peers(rows: list[dict[str, Any]], best: dict[str, tuple[float, float
               + f" | {geo(sel, 'f_R', 0):.3f} | {worst:.3f} | {geo(sel, 'f_lambda', 1):.3f} |")
 
 
+def against_first(rows: list[dict[str, Any]]) -> None:
+    """Case by case against the first variant: per group, the geometric mean of each other
+    variant's f_R, f_λ and f_H ÷ the first's, the cases it lowers f_R on, and the mean f_F."""
+    variants = list(dict.fromkeys(r["variant"] for r in rows))
+    if len(variants) < 2:
+        return
+    first = {r["case"]: r for r in rows if r["variant"] == variants[0]}
+    groups = list(dict.fromkeys(r["group"] for r in rows)) + ["all"]
+    print(f"\ncase by case against {variants[0]!r}: geometric mean of f_R / f_λ / f_H ratios, "
+          "cases with a lower f_R, mean f_F (first → variant)\n")
+    print("| variant | " + " | ".join(groups) + " |")
+    print("| :--- |" + " ---: |" * len(groups))
+    for v in variants[1:]:
+        cells = []
+        for g in groups:
+            rs = [r for r in rows if r["variant"] == v and r["case"] in first
+                  and g in ("all", r["group"])]
+
+            def geo(m: str) -> float:
+                return float(np.exp(np.mean([np.log(r[m] / first[r["case"]][m]) for r in rs])))
+
+            lower = sum(r["f_R"] < first[r["case"]]["f_R"] for r in rs)
+            f_f = [np.mean([x["f_F"] for x in sel]) for sel in
+                   ([first[r["case"]] for r in rs], rs)]
+            cells.append(f"{geo('f_R'):.3f} / {geo('f_lambda'):.3f} / {geo('f_H'):.3f}, "
+                         f"{lower} of {len(rs)}, f_F {f_f[0]:.4f} → {f_f[1]:.4f}")
+        print(f"| {v} | " + " | ".join(cells) + " |")
+
+
 def summary(rows: list[dict[str, Any]]) -> None:
     """Medians per group: one markdown table of f_R / f_λ (variants × groups), then every
     metric per group."""
@@ -159,6 +194,7 @@ def summary(rows: list[dict[str, Any]]) -> None:
         for v in variants:
             cells = [f"{med(v, g, m):.4f}" for m in METRICS] + [f"{med(v, g, 'seconds'):.2f}"]
             print(f"  {v:<52} " + " | ".join(cells))
+    against_first(rows)
 
 
 def main() -> int:
