@@ -157,19 +157,18 @@ def against_first(rows: list[dict[str, Any]]) -> None:
           "cases with a lower f_R, mean f_F (first → variant)\n")
     print("| variant | " + " | ".join(groups) + " |")
     print("| :--- |" + " ---: |" * len(groups))
+    def geo(rs: list[dict[str, Any]], m: str) -> float:
+        return float(np.exp(np.mean([np.log(r[m] / first[r["case"]][m]) for r in rs])))
+
     for v in variants[1:]:
         cells = []
         for g in groups:
             rs = [r for r in rows if r["variant"] == v and r["case"] in first
                   and g in ("all", r["group"])]
-
-            def geo(m: str) -> float:
-                return float(np.exp(np.mean([np.log(r[m] / first[r["case"]][m]) for r in rs])))
-
             lower = sum(r["f_R"] < first[r["case"]]["f_R"] for r in rs)
             f_f = [np.mean([x["f_F"] for x in sel]) for sel in
                    ([first[r["case"]] for r in rs], rs)]
-            cells.append(f"{geo('f_R'):.3f} / {geo('f_lambda'):.3f} / {geo('f_H'):.3f}, "
+            cells.append(f"{geo(rs, 'f_R'):.3f} / {geo(rs, 'f_lambda'):.3f} / {geo(rs, 'f_H'):.3f}, "
                          f"{lower} of {len(rs)}, f_F {f_f[0]:.4f} → {f_f[1]:.4f}")
         print(f"| {v} | " + " | ".join(cells) + " |")
 

@@ -419,8 +419,10 @@ def test_rest_rigidity_keeps_edge_lengths_over_a_scan_hole(case):
     v, f = case["template_vertices"], case["faces"]
     edges = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
 
+    def length(x):
+        return np.linalg.norm(x[edges[:, 0]] - x[edges[:, 1]], axis=1)
+
     def spread(vertices):
-        length = lambda x: np.linalg.norm(x[edges[:, 0]] - x[edges[:, 1]], axis=1)
         return float(np.log(length(vertices) / length(v)).std())
 
     with_rigidity = fm.fit(v, f, holed)
