@@ -109,6 +109,11 @@ def parse_variant(text: str) -> tuple[str, dict[str, Any]]:
 PEERS = [m for m in peers.METHODS if m not in ("foldmatch", "foldmatch_paper")]
 
 
+def geo_mean(ratios: Any) -> float:
+    """The geometric mean of positive ratios."""
+    return float(np.exp(np.mean(np.log(list(ratios)))))
+
+
 def best_peers(results: pathlib.Path) -> dict[str, tuple[float, float]]:
     """Per case of a bench/compare.py run: the lowest f_R and the lowest f_λ of any peer."""
     best = {}
@@ -138,7 +143,7 @@ def against_peers(rows: list[dict[str, Any]], best: dict[str, tuple[float, float
                          f"{sum(r['f_lambda'] <= best[r['case']][1] for r in gs)} of {len(gs)}")
 
         def geo(rs: list[dict[str, Any]], m: str, i: int) -> float:
-            return float(np.exp(np.mean([np.log(r[m] / best[r["case"]][i]) for r in rs])))
+            return geo_mean(r[m] / best[r["case"]][i] for r in rs)
 
         worst = max(geo([r for r in sel if r["group"] == g], "f_R", 0) for g in groups)
         print(f"| {v} | " + " | ".join(cells)
@@ -158,7 +163,7 @@ def against_first(rows: list[dict[str, Any]]) -> None:
     print("| variant | " + " | ".join(groups) + " |")
     print("| :--- |" + " ---: |" * len(groups))
     def geo(rs: list[dict[str, Any]], m: str) -> float:
-        return float(np.exp(np.mean([np.log(r[m] / first[r["case"]][m]) for r in rs])))
+        return geo_mean(r[m] / first[r["case"]][m] for r in rs)
 
     for v in variants[1:]:
         cells = []

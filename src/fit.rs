@@ -982,6 +982,9 @@ struct Prepared {
     incidence: VertexFaces,
     /// Γᵏ_Y: n-rings (FoldMatch) or k-NN neighborhoods (NRGa).
     rings: Neighborhoods,
+    /// The centroid of every vertex's ring of `start` (the rest shape), for
+    /// [`FitParams::rest_rigidity`]; empty when no schedule uses it.
+    rest_centroids: Vec<Vec3>,
     /// The coarse phase's neighborhoods, one per level (empty when no schedule has one).
     coarse_levels: Vec<Neighborhoods>,
     /// Their rows as differences of adjacent rows, for the sums over them.
@@ -1097,6 +1100,17 @@ impl Prepared {
         } else {
             Vec::new()
         };
+        let rest_centroids = if schedules
+            .iter()
+            .any(|p| p.method == Method::FoldMatch && p.rest_rigidity > 0.0)
+        {
+            (0..m)
+                .into_par_iter()
+                .map(|v| ring_centroids(rings.of(v), &start, &start).0)
+                .collect()
+        } else {
+            Vec::new()
+        };
         let coarse_deltas = if coarse_levels.is_empty() {
             Vec::new()
         } else {
@@ -1146,6 +1160,7 @@ impl Prepared {
             start,
             incidence,
             rings,
+            rest_centroids,
             coarse_levels,
             coarse_deltas,
             coarse_sampled,
@@ -1500,7 +1515,8 @@ impl ScheduleRun {
                     let (c_old, c_new) = ring_centroids(ring, old, new);
                     let moved = transform_vertex(&rot[v], &vec3(&old[v]), &c_old, &c_new);
                     *out = if beta > 0.0 {
-                        let placed = rest_ring_placement(ring, v, rest, new, &c_new, fast);
+                        let c_rest = &prepared.rest_centroids[v];
+                        let placed = rest_ring_placement(ring, v, rest, c_rest, new, &c_new, fast);
                         (1.0 - beta) * moved + beta * placed
                     } else {
                         moved
@@ -1671,23 +1687,20 @@ fn rest_rigidity_at(params: &FitParams, fine: usize, total: usize) -> f64 {
 }
 
 /// Where the rest-shape rigidity ([`FitParams::rest_rigidity`]) puts vertex `v`: its template
-/// ring `rest[ring]`, moved by the Kabsch rigid fit of that ring onto the proposed positions
-/// `proposed[ring]` (centroid `c_proposed`), evaluated at `rest[v]` — ARAP's local step with
-/// the proposal as the data.
+/// ring `rest[ring]` (centroid `c_rest`), moved by the Kabsch rigid fit of that ring onto the
+/// proposed positions `proposed[ring]` (centroid `c_proposed`), evaluated at `rest[v]` —
+/// ARAP's local step with the proposal as the data.
 fn rest_ring_placement(
     ring: &[u32],
     v: usize,
     rest: &[[f64; 3]],
+    c_rest: &Vec3,
     proposed: &[[f64; 3]],
     c_proposed: &Vec3,
     fast: bool,
 ) -> Vec3 {
-    let c_rest = ring
-        .iter()
-        .fold(Vec3::zeros(), |acc, &u| acc + vec3(&rest[u as usize]))
-        / ring.len() as f64;
-    let r = kabsch(ring, rest, proposed, &c_rest, c_proposed, fast);
-    transform_vertex(&r, &vec3(&rest[v]), &c_rest, c_proposed)
+    let r = kabsch(ring, rest, proposed, c_rest, c_proposed, fast);
+    transform_vertex(&r, &vec3(&rest[v]), c_rest, c_proposed)
 }
 
 /// The N-body constants of iteration `it` (1-based): the softening annealed from
@@ -2222,11 +2235,8 @@ mod tests {
         for fast in [true, false] {
             for v in 0..rest.len() {
                 let ring = rings.of(v);
-                let c = ring
-                    .iter()
-                    .fold(Vec3::zeros(), |a, &u| a + vec3(&proposed[u as usize]))
-                    / ring.len() as f64;
-                let placed = rest_ring_placement(ring, v, &rest, &proposed, &c, fast);
+                let (c_rest, c) = ring_centroids(ring, &rest, &proposed);
+                let placed = rest_ring_placement(ring, v, &rest, &c_rest, &proposed, &c, fast);
                 assert!((placed - moved(&rest[v])).norm() < 1e-12, "vertex {v}");
             }
         }
