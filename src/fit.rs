@@ -70,9 +70,12 @@ pub enum Selection {
     /// Run the schedule the parameters describe.
     Single,
     /// Also run the *sharp* schedule ([`FitParams::sharp_schedule`]: two-way 1, coarse 30 %,
-    /// constant softening) and return whichever fit lies closer to the scan (the mean distance
-    /// from every scan point to its nearest fitted vertex). FoldMatch only; twice the work,
-    /// the two runs side by side (concurrently, sharing the setup).
+    /// constant softening) and return the fit closer to the scan (the mean distance from every
+    /// scan point to its nearest fitted vertex), a near-tie — within
+    /// [`FitParams::selection_margin`] of the closest — going to the fit whose edge lengths
+    /// spread least from the template's ([`crate::metrics::edge_length_spread`]; see
+    /// [`select_schedule`]). FoldMatch only; twice the work, the two runs side by side
+    /// (concurrently, sharing the setup).
     ScanDistance,
     /// Like [`Selection::ScanDistance`] with a third candidate, the *gentle* schedule
     /// ([`FitParams::gentle_schedule`]: the given one with ⅔ of the two-way weight and a
@@ -200,6 +203,13 @@ pub struct FitParams {
     pub anneal_fraction: f64,
     /// Run one schedule, or two and keep the fit closer to the scan ([`Selection`]).
     pub selection: Selection,
+    /// Schedule selection's near-tie margin: candidates whose mean scan→fit distance is within
+    /// `(1 + selection_margin) ×` the closest one's are tied, and the tie goes to the least
+    /// edge-length spread ([`select_schedule`]). 0: the closest fit alone (the rule before
+    /// 2026-12-01). The given schedule's three-fold two-way pull minimizes exactly the
+    /// distance compared, so it wins it by a few per cent even where its fit slid along the
+    /// scan (docs/method.md "Eighth round").
+    pub selection_margin: f64,
 }
 
 impl Default for FitParams {
@@ -236,6 +246,7 @@ impl Default for FitParams {
             anneal: 3.0,
             anneal_fraction: 0.6,
             selection: Selection::ScanDistance,
+            selection_margin: 0.06,
         }
     }
 }
@@ -463,6 +474,13 @@ impl FitParams {
                 "must be finite and >= 0",
             ));
         }
+        if !(self.selection_margin >= 0.0 && self.selection_margin.is_finite()) {
+            return Err(FoldMatchError::parameter(
+                "selection_margin",
+                self.selection_margin,
+                "must be finite and >= 0",
+            ));
+        }
         if !(self.two_way >= 0.0 && self.two_way.is_finite()) {
             return Err(FoldMatchError::parameter(
                 "two_way",
@@ -669,6 +687,9 @@ pub struct Diagnostics {
     /// Under schedule selection: the mean scan→fit distance (user units) of each candidate's
     /// fit, in [`SCHEDULE_NAMES`] order; empty otherwise.
     pub candidate_scan_distances: Vec<f64>,
+    /// Under schedule selection: each candidate's edge-length spread
+    /// ([`crate::metrics::edge_length_spread`]), in [`SCHEDULE_NAMES`] order; empty otherwise.
+    pub candidate_edge_spreads: Vec<f64>,
 }
 
 /// The outcome of a fit, in the user's frame.
@@ -909,14 +930,18 @@ pub fn fit(
             d.iter().sum::<f64>() / d.len() as f64
         })
         .collect();
-    // The first minimum: ties keep the earlier (given) schedule.
-    let best = (1..distances.len()).fold(0, |b, i| if distances[i] < distances[b] { i } else { b });
+    let spreads: Vec<f64> = vertices
+        .iter()
+        .map(|v| crate::metrics::edge_length_spread(template_vertices, v, &prepared.faces))
+        .collect();
+    let best = select_schedule(&distances, &spreads, params.selection_margin);
     let winner = runs.swap_remove(best);
     let mut chosen = winner.finish(&prepared, vertices.swap_remove(best));
     chosen.params = params.clone();
     let d = &mut chosen.diagnostics;
     d.schedule = SCHEDULE_NAMES[best].into();
     d.candidate_scan_distances = distances;
+    d.candidate_edge_spreads = spreads;
     for other in &runs {
         d.knn_queries += other.diagnostics.knn_queries;
         d.two_way_queries += other.diagnostics.two_way_queries;
@@ -924,6 +949,29 @@ pub fn fit(
     }
     walls(&mut chosen);
     Ok(chosen)
+}
+
+/// Schedule selection's rule (docs/method.md "Eighth round"): of the candidates whose mean
+/// scan→fit distance is at most `(1 + margin) ×` the smallest, the one with the least
+/// edge-length spread; ties keep the earlier candidate (the given schedule first). With
+/// `margin = 0` the closest fit wins (among exact ties, the least spread).
+///
+/// Why a margin: the candidates differ mainly in the two-way weight, and the two-way pull
+/// minimizes the very distance compared, so the stronger pull wins it by a few per cent even
+/// where its fit slid along the scan (measured on the random sheets: distances within ±3 %,
+/// ground-truth error 2× apart); cloth barely stretches, so among fits that lie about as
+/// close to the scan the one nearest to an isometry of the template is kept.
+pub fn select_schedule(distances: &[f64], spreads: &[f64], margin: f64) -> usize {
+    debug_assert_eq!(distances.len(), spreads.len());
+    let closest = distances.iter().copied().fold(f64::INFINITY, f64::min);
+    let bound = closest * (1.0 + margin);
+    (0..distances.len())
+        .filter(|&i| distances[i] <= bound)
+        .fold(None, |best: Option<usize>, i| match best {
+            Some(b) if spreads[b] <= spreads[i] => Some(b),
+            _ => Some(i),
+        })
+        .unwrap_or(0)
 }
 
 /// Steps every run in lockstep (concurrently when there are several) and reports each iteration
@@ -2039,7 +2087,7 @@ mod tests {
     }
 
     #[test]
-    fn wide_selection_returns_the_closest_of_three_candidates() {
+    fn wide_selection_chooses_among_three_candidates() {
         let (v, f, x) = grid_case();
         let accurate = FitParams {
             iterations: 20,
@@ -2075,7 +2123,12 @@ mod tests {
         };
         let d: Vec<f64> = alone.iter().map(dist).collect();
         assert_eq!(chosen.diagnostics.candidate_scan_distances, d);
-        let best = (0..3).min_by(|&a, &b| d[a].total_cmp(&d[b])).unwrap();
+        let spreads: Vec<f64> = alone
+            .iter()
+            .map(|r| crate::metrics::edge_length_spread(&v, &r.vertices, &f))
+            .collect();
+        assert_eq!(chosen.diagnostics.candidate_edge_spreads, spreads);
+        let best = select_schedule(&d, &spreads, accurate.selection_margin);
         assert_eq!(chosen.vertices, alone[best].vertices);
         assert_eq!(chosen.diagnostics.schedule, SCHEDULE_NAMES[best]);
         // One schedule for NRGa and for a single selection.
@@ -2152,7 +2205,33 @@ mod tests {
     }
 
     #[test]
-    fn selection_returns_the_candidate_closer_to_the_scan() {
+    fn select_schedule_breaks_near_ties_by_the_edge_length_spread() {
+        // Outside the margin the closest fit wins, whatever its spread.
+        assert_eq!(select_schedule(&[1.0, 1.2], &[0.5, 0.1], 0.06), 0);
+        assert_eq!(select_schedule(&[1.2, 1.0], &[0.1, 0.5], 0.06), 1);
+        // Within it, the least spread.
+        assert_eq!(select_schedule(&[1.0, 1.05], &[0.5, 0.1], 0.06), 1);
+        assert_eq!(
+            select_schedule(&[1.05, 1.0, 1.03], &[0.3, 0.5, 0.2], 0.06),
+            2
+        );
+        // Margin 0: the closest alone (the earlier rule); equal spreads keep the earlier.
+        assert_eq!(select_schedule(&[1.0, 1.05], &[0.5, 0.1], 0.0), 0);
+        assert_eq!(select_schedule(&[1.0, 1.0], &[0.2, 0.2], 0.06), 0);
+        assert_eq!(select_schedule(&[1.0, 1.0], &[0.2, 0.1], 0.0), 1);
+        for bad in [-0.01, f64::NAN, f64::INFINITY] {
+            assert_refused(
+                &FitParams {
+                    selection_margin: bad,
+                    ..FitParams::default()
+                },
+                "selection_margin",
+            );
+        }
+    }
+
+    #[test]
+    fn selection_chooses_between_the_given_and_the_sharp_schedule() {
         let (v, f, x) = grid_case();
         let params = FitParams {
             iterations: 20,
@@ -2173,7 +2252,12 @@ mod tests {
         };
         let d = chosen.diagnostics.candidate_scan_distances.clone();
         assert_eq!(d, vec![dist(&runs[0]), dist(&runs[1])]);
-        let k = usize::from(d[1] < d[0]);
+        let spreads: Vec<f64> = runs
+            .iter()
+            .map(|r| crate::metrics::edge_length_spread(&v, &r.vertices, &f))
+            .collect();
+        assert_eq!(chosen.diagnostics.candidate_edge_spreads, spreads);
+        let k = select_schedule(&d, &spreads, params.selection_margin);
         assert_eq!(chosen.vertices, runs[k].vertices);
         assert_eq!(chosen.diagnostics.schedule, ["given", "sharp"][k]);
         assert_eq!(chosen.params, params);
@@ -2251,19 +2335,9 @@ mod tests {
             .into_iter()
             .filter(|p| (p[0] - 0.6).hypot(p[1] - 0.4) > 0.2)
             .collect();
-        let edges: Vec<(usize, usize)> = f
-            .iter()
-            .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])])
-            .map(|(a, b)| (a as usize, b as usize))
-            .collect();
         let spread = |params: &FitParams| {
             let r = fit_simple(&v, &f, &x, None, params).unwrap();
-            let logs: Vec<f64> = edges
-                .iter()
-                .map(|&(a, b)| (dist(&r.vertices[a], &r.vertices[b]) / dist(&v[a], &v[b])).ln())
-                .collect();
-            let mean = logs.iter().sum::<f64>() / logs.len() as f64;
-            (logs.iter().map(|l| (l - mean).powi(2)).sum::<f64>() / logs.len() as f64).sqrt()
+            crate::metrics::edge_length_spread(&v, &r.vertices, &f)
         };
         let with_rigidity = FitParams {
             iterations: 40,

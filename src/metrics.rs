@@ -300,6 +300,41 @@ pub fn nearest_distances(from: &[[f64; 3]], to: &[[f64; 3]]) -> Vec<f64> {
     NnIndex::new(to).distances(from)
 }
 
+/// The spread of the mesh's edge lengths against the template's: the population standard
+/// deviation of `ln(‖ŷᵢ − ŷⱼ‖ / ‖yᵢ − yⱼ‖)` over the unique edges `{i, j}` of `faces` (each
+/// edge once, however many faces share it) whose template length is positive.
+///
+/// 0 for any similarity of the template (a rigid motion with a uniform scale), so it measures
+/// how far the fit is from an isometry up to scale, whatever the units; schedule selection
+/// breaks near-ties in scan distance with it (cloth barely stretches, docs/method.md "Eighth
+/// round"). A fitted edge collapsed to zero length counts as the ratio `1e-12`. No edge: 0.
+pub fn edge_length_spread(template: &[[f64; 3]], fitted: &[[f64; 3]], faces: &[[u32; 3]]) -> f64 {
+    let mut edges: Vec<(u32, u32)> = faces
+        .iter()
+        .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])])
+        .map(|(a, b)| (a.min(b), a.max(b)))
+        .collect();
+    edges.sort_unstable();
+    edges.dedup();
+    let length = |p: &[[f64; 3]], (a, b): (u32, u32)| {
+        let (a, b) = (&p[a as usize], &p[b as usize]);
+        ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+    };
+    let logs: Vec<f64> = edges
+        .into_iter()
+        .filter_map(|e| {
+            let rest = length(template, e);
+            (rest > 0.0).then(|| (length(fitted, e) / rest).max(1e-12).ln())
+        })
+        .collect();
+    if logs.is_empty() {
+        return 0.0;
+    }
+    let n = logs.len() as f64;
+    let mean = logs.iter().sum::<f64>() / n;
+    (logs.iter().map(|l| (l - mean).powi(2)).sum::<f64>() / n).sqrt()
+}
+
 /// Symmetric Hausdorff distance between two point sets:
 /// `max(max_{a∈A} min_{b∈B} ‖a − b‖, max_{b∈B} min_{a∈A} ‖a − b‖)`.
 ///
@@ -580,6 +615,46 @@ mod tests {
     use approx::assert_relative_eq;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
+
+    #[test]
+    fn edge_length_spread_counts_each_edge_once_and_ignores_similarities() {
+        // A unit square as two triangles sharing the diagonal 0–2: five unique edges.
+        let square = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [0.0, 1.0, 0.0],
+        ];
+        let faces = [[0, 1, 2], [0, 2, 3]];
+        // Stretched ×2 along x: edge ratios 2 (0–1), 1 (1–2), √(5/2) (0–2), 2 (2–3), 1 (3–0).
+        let stretched: Vec<[f64; 3]> = square.iter().map(|p| [2.0 * p[0], p[1], p[2]]).collect();
+        let logs = [2f64.ln(), 0.0, 2.5f64.sqrt().ln(), 2f64.ln(), 0.0];
+        let mean = logs.iter().sum::<f64>() / 5.0;
+        let want = (logs.iter().map(|l| (l - mean).powi(2)).sum::<f64>() / 5.0).sqrt();
+        assert_relative_eq!(
+            edge_length_spread(&square, &stretched, &faces),
+            want,
+            max_relative = 1e-14
+        );
+        // A rotation, a uniform scale and a translation change no ratio's logarithm but by a
+        // constant: spread 0.
+        let (c, s) = (0.6f64, 0.8f64);
+        let similar: Vec<[f64; 3]> = square
+            .iter()
+            .map(|p| {
+                [
+                    3.0 * (c * p[0] - s * p[1]) + 5.0,
+                    3.0 * (s * p[0] + c * p[1]),
+                    -2.0,
+                ]
+            })
+            .collect();
+        assert!(edge_length_spread(&square, &similar, &faces) < 1e-14);
+        // A collapsed edge is finite (ratio 1e-12); no face, no edge: 0.
+        let collapsed = [square[0], square[0], square[2], square[3]];
+        assert!(edge_length_spread(&square, &collapsed, &faces).is_finite());
+        assert_eq!(edge_length_spread(&square, &stretched, &[]), 0.0);
+    }
 
     // ---------- brute-force references (O(N·M), written independently) ----------
 

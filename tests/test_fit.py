@@ -245,10 +245,31 @@ def test_knn_cache_changes_nothing(case):
             assert cached.diagnostics[key] < 0.75 * fresh.diagnostics[key], (key, rigid_sample)
 
 
-def test_accurate_preset_keeps_the_closest_of_three_schedules(case):
+def scan_distance(x, y):
+    """Brute-force mean distance from every scan point to its nearest fitted vertex."""
+    return float(np.sqrt(((x[:, None, :] - y[None, :, :]) ** 2).sum(-1).min(1)).mean())
+
+
+def edge_spread(template, fitted_vertices, faces):
+    """Standard deviation of the log edge-length ratios over the unique edges (NumPy)."""
+    e = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
+    e = np.unique(e, axis=0)
+    rest = np.linalg.norm(template[e[:, 0]] - template[e[:, 1]], axis=1)
+    now = np.linalg.norm(fitted_vertices[e[:, 0]] - fitted_vertices[e[:, 1]], axis=1)
+    return float(np.std(np.log(now / rest)))
+
+
+def selected(distances, spreads, margin):
+    """Schedule selection's rule: the least spread among the fits within the margin of the
+    closest one (the earlier on ties)."""
+    tied = [i for i, d in enumerate(distances) if d <= (1 + margin) * min(distances)]
+    return min(tied, key=lambda i: (spreads[i], i))
+
+
+def test_accurate_preset_selects_among_three_schedules(case):
     """preset="accurate" fits the given, sharp and gentle (⅔ two-way, longer annealing)
-    schedules and keeps the one with the lowest brute-force scan→fit distance; each equals its
-    single run."""
+    schedules and keeps the one the selection rule picks from brute-force scan→fit distances
+    and NumPy edge-length spreads; each equals its single run."""
     v, f, x = case["template_vertices"], case["faces"], case["scan"]
     r = fm.fit(v, f, x, preset="accurate", iterations=20)
     single = dict(iterations=20, selection="single", rigid_sample=1)
@@ -259,12 +280,11 @@ def test_accurate_preset_keeps_the_closest_of_three_schedules(case):
         fm.fit(v, f, x, **single, two_way=2.0, anneal_fraction=0.8),
     ]
 
-    def scan_distance(y):
-        return float(np.sqrt(((x[:, None, :] - y[None, :, :]) ** 2).sum(-1).min(1)).mean())
-
-    d = [scan_distance(a.vertices) for a in alone]
+    d = [scan_distance(x, a.vertices) for a in alone]
+    spreads = [edge_spread(v, a.vertices, f) for a in alone]
     np.testing.assert_allclose(r.diagnostics["candidate_scan_distances"], d, rtol=1e-12)
-    best = int(np.argmin(d))
+    np.testing.assert_allclose(r.diagnostics["candidate_edge_spreads"], spreads, rtol=1e-9)
+    best = selected(d, spreads, r.params["selection_margin"])
     assert r.diagnostics["schedule"] == ["given", "sharp", "gentle"][best]
     np.testing.assert_array_equal(r.vertices, alone[best].vertices)
     assert r.params["selection"] == "scan_distance_wide"
@@ -332,27 +352,36 @@ def test_matrix_series_changes_nothing_beyond_round_off(case):
         assert np.abs(fast.wvf).max() > 0.5
 
 
-def test_selection_keeps_the_schedule_closer_to_the_scan(case):
+def test_selection_keeps_the_closer_schedule_or_on_a_near_tie_the_less_stretched(case):
     """The default fits the given and the sharp schedule and keeps the one whose mean
-    scan→nearest-fitted-vertex distance is lower (checked against a brute-force NumPy
-    distance); each candidate equals the single-schedule fit run on its own."""
+    scan→nearest-fitted-vertex distance is lower, or, within the 6 % margin, the one whose
+    edge lengths spread less from the template's (checked against brute-force NumPy figures);
+    margin 0 keeps the closer; each candidate equals the single-schedule fit run on its
+    own."""
     v, f, x = case["template_vertices"], case["faces"], case["scan"]
     chosen = fm.fit(v, f, x, iterations=30)
     given = fm.fit(v, f, x, iterations=30, selection="single")
     sharp = fm.fit(v, f, x, iterations=30, selection="single", two_way=1.0,
                    coarse_fraction=0.3, anneal=1.0, anneal_fraction=0.0)
 
-    def scan_distance(y):
-        d2 = ((x[:, None, :] - y[None, :, :]) ** 2).sum(-1)
-        return float(np.sqrt(d2.min(1)).mean())
-
-    want = [scan_distance(given.vertices), scan_distance(sharp.vertices)]
+    want = [scan_distance(x, given.vertices), scan_distance(x, sharp.vertices)]
     got = chosen.diagnostics["candidate_scan_distances"]
     np.testing.assert_allclose(got, want, rtol=1e-12)
-    k = int(want[1] < want[0])
-    assert chosen.diagnostics["schedule"] == ("given", "sharp")[k]
-    np.testing.assert_array_equal(chosen.vertices, (given, sharp)[k].vertices)
+    spreads = [edge_spread(v, r.vertices, f) for r in (given, sharp)]
+    np.testing.assert_allclose(chosen.diagnostics["candidate_edge_spreads"], spreads, rtol=1e-9)
+    assert chosen.params["selection_margin"] == 0.06
+    picks = set()
+    for margin in (0.06, 0.0, 0.1):
+        result = chosen if margin == 0.06 else fm.fit(v, f, x, iterations=30,
+                                                      selection_margin=margin)
+        k = selected(want, spreads, margin)
+        assert result.diagnostics["schedule"] == ("given", "sharp")[k]
+        np.testing.assert_array_equal(result.vertices, (given, sharp)[k].vertices)
+        picks.add(k)
+    assert picks == {0, 1}, "the margins tried should pick both schedules on this case"
     assert given.diagnostics["candidate_scan_distances"] == []
+    with pytest.raises(fm.InvalidParameterError, match="selection_margin"):
+        fm.fit(v, f, x, iterations=2, selection_margin=-0.1)
     with pytest.raises(fm.InvalidParameterError, match="selection"):
         fm.fit(v, f, x, iterations=2, selection="best")
 

@@ -200,6 +200,7 @@ def fit(
     anneal: Optional[float] = None,
     anneal_fraction: Optional[float] = None,
     selection: Optional[str] = None,
+    selection_margin: Optional[float] = None,
     callback: Optional[Callable[[dict[str, Any]], Optional[bool]]] = None,
     threads: Optional[int] = None,
 ) -> FitResult:
@@ -309,13 +310,22 @@ def fit(
     selection : {"scan_distance", "scan_distance_wide", "single"}
         ``"scan_distance"`` (default) also fits with the *sharp* schedule (two-way 1, coarse
         30 %, constant softening) and returns the fit closer to the scan (mean scan→fit
-        distance; twice the work, the runs advancing side by side in lockstep, so the
-        callback still sees ξ iterations and a stop applies to all);
+        distance), a near-tie (``selection_margin``) going to the fit whose edge lengths spread
+        least from the template's (twice the work, the runs advancing side by side in
+        lockstep, so the callback still sees ξ iterations and a stop applies to all);
         ``"scan_distance_wide"`` adds the *gentle* schedule (⅔ of the two-way weight, softening
         annealed over 80 % of the iterations); ``diagnostics["schedule"]`` says which won
         (``"given"``, ``"sharp"`` or ``"gentle"``)
-        and ``diagnostics["candidate_scan_distances"]`` gives every candidate's distance.
+        and ``diagnostics["candidate_scan_distances"]`` and
+        ``diagnostics["candidate_edge_spreads"]`` give every candidate's distance and spread.
         ``"single"`` runs the given schedule only (the paper and tracking presets).
+    selection_margin : float
+        Schedule selection's near-tie margin, ≥ 0: candidates within ``(1 + margin) ×`` the
+        closest one's scan distance are tied and the one whose edge lengths spread least from
+        the template's (standard deviation of the log length ratios, 0 for any similarity)
+        wins (0.06; 0: the closest fit alone). The given schedule's strong two-way pull
+        minimizes the very distance compared, so it wins it narrowly even where its fit slid
+        along the scan (docs/method.md "Eighth round").
     callback : callable, optional
         Called after every iteration with a dict (``iteration``, ``iterations``,
         ``mean_displacement``, ``max_displacement``); returning ``False`` stops the fit, which
@@ -355,7 +365,7 @@ def fit(
         coarse_levels=coarse_levels, rigid_sample=rigid_sample,
         rigid_scan_sample=rigid_scan_sample, coarse_sample=coarse_sample,
         rest_rigidity=rest_rigidity, anneal=anneal, anneal_fraction=anneal_fraction,
-        selection=selection, knn_cache=knn_cache,
+        selection=selection, selection_margin=selection_margin, knn_cache=knn_cache,
         matrix_series=matrix_series,
     )
     raw = _core.fit_raw(tv, tf, x, xf, _params_json(params), callback, threads, preset)
