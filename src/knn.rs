@@ -137,6 +137,10 @@ impl PointIndex {
 /// Points per leaf of a [`BoxTree`].
 const BOX_LEAF: usize = 32;
 
+/// [`BoxTree::update`] rebuilds once the leaves' looseness exceeds this multiple of its value
+/// at the last rebuild.
+pub const REBUILD_LOOSENESS: f64 = 1.5;
+
 /// A k-d tree with a tight bounding box per node: for the nearest template point of scan
 /// points (the two-way attraction's queries; rebuilt in place as the template moves) and for
 /// the ball queries of [`NeighborCache`] re-queries over the scan.
@@ -156,6 +160,8 @@ pub struct BoxTree {
     /// The points in tree order, with their indices.
     entries: Vec<([f64; 3], u32)>,
     nodes: Vec<BoxNode>,
+    /// [`BoxTree::looseness`] right after the last rebuild.
+    built_looseness: f64,
 }
 
 #[derive(Clone, Copy, Debug, Default)]
@@ -203,6 +209,74 @@ impl BoxTree {
         self.nodes
             .resize(box_nodes(points.len()), BoxNode::default());
         build_box_node(&mut self.entries, 0, &mut self.nodes, 0);
+        self.built_looseness = self.looseness();
+    }
+
+    /// Moves the points of the tree to `points` (the same points, moved: `points.len()` equal
+    /// to the tree's) keeping its structure, and recomputes every node's box bottom-up, in
+    /// O(n) instead of the rebuild's O(n log n) selections. Queries stay exact (every box
+    /// bounds its points; [`BoxTree::nearest_one`]'s answer, ties included, does not depend
+    /// on how the points are grouped), only slower if the motion pulled the leaves' points
+    /// apart: see [`BoxTree::update`].
+    pub fn refit(&mut self, points: &[[f64; 3]]) {
+        assert_eq!(points.len(), self.entries.len());
+        for (p, id) in &mut self.entries {
+            *p = points[*id as usize];
+        }
+        // Children follow their parent in the node array: in reverse every child is done
+        // before its parent.
+        for at in (0..self.nodes.len()).rev() {
+            let node = self.nodes[at];
+            let (lo, hi) = if node.right == 0 {
+                let mut lo = [f64::INFINITY; 3];
+                let mut hi = [f64::NEG_INFINITY; 3];
+                for (p, _) in &self.entries[node.start as usize..node.end as usize] {
+                    for a in 0..3 {
+                        lo[a] = lo[a].min(p[a]);
+                        hi[a] = hi[a].max(p[a]);
+                    }
+                }
+                (lo, hi)
+            } else {
+                let (l, r) = (&self.nodes[at + 1], &self.nodes[node.right as usize]);
+                (
+                    std::array::from_fn(|a| l.lo[a].min(r.lo[a])),
+                    std::array::from_fn(|a| l.hi[a].max(r.hi[a])),
+                )
+            };
+            self.nodes[at].lo = lo;
+            self.nodes[at].hi = hi;
+        }
+    }
+
+    /// The leaves' boxes against the root's: the sum over the leaves of their box's
+    /// half-perimeter (`Δx + Δy + Δz`) ÷ the root box's. Unchanged by a translation or a
+    /// uniform scaling of the points; it grows when a motion pulls the points of a leaf apart
+    /// (a fold bringing far template parts together, or tearing near ones apart).
+    fn looseness(&self) -> f64 {
+        let half_perimeter = |n: &BoxNode| (0..3).map(|a| n.hi[a] - n.lo[a]).sum::<f64>();
+        let leaves: f64 = self
+            .nodes
+            .iter()
+            .filter(|n| n.right == 0)
+            .map(half_perimeter)
+            .sum();
+        leaves / half_perimeter(&self.nodes[0]).max(f64::MIN_POSITIVE)
+    }
+
+    /// Brings the tree to `points`: a [`BoxTree::refit`] while the leaves stay within
+    /// [`REBUILD_LOOSENESS`] × their looseness at the last rebuild, else (and for a new point
+    /// count) a rebuild. The answers are the same either way; a moving template (the two-way
+    /// attraction's tree) refits in O(n) most iterations.
+    pub fn update(&mut self, points: &[[f64; 3]]) {
+        if points.len() != self.entries.len() || self.nodes.is_empty() {
+            self.rebuild(points);
+            return;
+        }
+        self.refit(points);
+        if self.looseness() > REBUILD_LOOSENESS * self.built_looseness {
+            self.rebuild(points);
+        }
     }
 
     /// The nearest point of `q`: (index, squared distance), ties to the lower index.
@@ -578,7 +652,7 @@ impl ReverseNearest {
         let certified = |d2: f64| d2 < rho2_min * (1.0 - 1e-12);
         let fresh = self.best_d2.iter().filter(|&&d2| !certified(d2)).count();
         if fresh > 0 {
-            self.tree.rebuild(template);
+            self.tree.update(template);
             let tree = &self.tree;
             // The search starts from a template point known to be that close: the nearest
             // listing one, else the last call's answer.
@@ -834,6 +908,73 @@ mod tests {
         assert_eq!(tree.nearest_one(&[0.0; 3]), (0, 14.0));
         tree.rebuild(&[[0.5; 3]; 20]);
         assert_eq!(tree.nearest_one(&[0.0; 3]).0, 0);
+    }
+
+    #[test]
+    fn box_tree_refit_answers_like_brute_force_and_update_rebuilds_when_loose() {
+        // A flat 40 × 40 grid, then the same points rolled up around the y axis (a fold that
+        // brings x = 0 and x = 1 together), then scattered at random (the worst motion for a
+        // kept grouping): a refitted tree keeps the flat grid's grouping and must still answer
+        // exactly, ties to the lower index included.
+        let mut rng = ChaCha8Rng::seed_from_u64(21);
+        let flat: Vec<[f64; 3]> = (0..1600)
+            .map(|i| [(i % 40) as f64 / 39.0, (i / 40) as f64 / 39.0, 0.0])
+            .collect();
+        let rolled = |t: f64| -> Vec<[f64; 3]> {
+            let r = 1.0 / (t * std::f64::consts::TAU);
+            flat.iter()
+                .map(|p| {
+                    let angle = t * std::f64::consts::TAU * p[0];
+                    [r * angle.sin(), p[1], r * (1.0 - angle.cos())]
+                })
+                .collect()
+        };
+        let scattered: Vec<[f64; 3]> = (0..flat.len())
+            .map(|_| [rng.random(), rng.random(), rng.random()])
+            .collect();
+        let mut refitted = BoxTree::default();
+        refitted.rebuild(&flat);
+        let mut updated = refitted.clone();
+        let mut rebuilt = BoxTree::default();
+        // Rolling bends the flat grid's leaves but keeps them compact (an isometry): refitted;
+        // scattering pulls every leaf apart: rebuilt.
+        for (moved, expect_loose) in [
+            (rolled(0.5), false),
+            (rolled(0.95), false),
+            (scattered, true),
+        ] {
+            refitted.refit(&moved);
+            let loose = refitted.looseness() > REBUILD_LOOSENESS * refitted.built_looseness;
+            updated.update(&moved);
+            rebuilt.rebuild(&moved);
+            for i in 0..300 {
+                let q = if i % 5 == 0 {
+                    moved[(i * 7) % moved.len()]
+                } else {
+                    [
+                        rng.random_range(-0.5..1.2),
+                        rng.random(),
+                        rng.random_range(-0.2..0.6),
+                    ]
+                };
+                let (want, want_d2) = brute_force_nearest(&moved, &q, 1);
+                for tree in [&refitted, &updated, &rebuilt] {
+                    assert_eq!(tree.nearest_one(&q), (want[0], want_d2[0]), "{q:?}");
+                }
+            }
+            assert_eq!(loose, expect_loose);
+            assert!(updated.looseness() <= REBUILD_LOOSENESS * updated.built_looseness);
+        }
+        assert!(refitted.looseness() > 5.0 * refitted.built_looseness);
+        // A translation and a uniform scale keep the looseness: no rebuild needed.
+        let mut tree = BoxTree::default();
+        tree.rebuild(&flat);
+        let scaled: Vec<[f64; 3]> = flat
+            .iter()
+            .map(|p| [3.0 * p[0] + 1.0, 3.0 * p[1], 2.0])
+            .collect();
+        tree.refit(&scaled);
+        assert!((tree.looseness() - tree.built_looseness).abs() < 1e-12 * tree.built_looseness);
     }
 
     #[test]
