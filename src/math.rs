@@ -172,11 +172,7 @@ pub fn rotation_newton(m: &Mat3) -> Option<Mat3> {
     let mut x = *m;
     let mut scaled = true;
     for _ in 0..32 {
-        let det = x.determinant();
-        if det <= 0.0 || det.is_nan() {
-            return None;
-        }
-        // X⁻ᵀ = cof(X) / det X.
+        // X⁻ᵀ = cof(X) / det X, det X by the cofactors of its first row.
         let cof = Mat3::new(
             x[(1, 1)] * x[(2, 2)] - x[(1, 2)] * x[(2, 1)],
             x[(1, 2)] * x[(2, 0)] - x[(1, 0)] * x[(2, 2)],
@@ -188,20 +184,27 @@ pub fn rotation_newton(m: &Mat3) -> Option<Mat3> {
             x[(0, 2)] * x[(1, 0)] - x[(0, 0)] * x[(1, 2)],
             x[(0, 0)] * x[(1, 1)] - x[(0, 1)] * x[(1, 0)],
         );
-        let inv_t = cof / det;
+        let det = x[(0, 0)] * cof[(0, 0)] + x[(0, 1)] * cof[(0, 1)] + x[(0, 2)] * cof[(0, 2)];
+        if det <= 0.0 || det.is_nan() {
+            return None;
+        }
+        let inv_det = 1.0 / det;
+        // γ = (‖X⁻ᵀ‖ / ‖X‖)^{½} from squared norms: one square root of a square root.
         let gamma = if scaled {
-            (inv_t.norm() / x.norm()).sqrt()
+            (cof.norm_squared() * inv_det * inv_det / x.norm_squared())
+                .sqrt()
+                .sqrt()
         } else {
             1.0
         };
-        let next = 0.5 * (gamma * x + inv_t / gamma);
-        let change = (next - x).norm();
+        let next = 0.5 * (gamma * x + cof * (inv_det / gamma));
+        let change2 = (next - x).norm_squared();
         x = next;
         if !scaled {
             // The unscaled step after a change ≤ 1e-9 squares the error below round-off.
             return Some(x);
         }
-        if change <= 1e-9 {
+        if change2 <= 1e-18 {
             scaled = false;
         }
     }
