@@ -54,47 +54,28 @@ impl PointIndex {
         self.boxes.nearest_k_into(query, indices, dist2);
     }
 
-    /// Like [`PointIndex::nearest_into`], searching only within squared distance `radius2`,
-    /// except that only the first `head` of the outputs are in order (the others follow in no
-    /// particular order); returns `false` (and leaves the outputs untouched) when fewer than
-    /// `indices.len()` points lie that close. `found` is scratch.
+    /// Like [`PointIndex::nearest_into`], searching only within squared distance `radius2`
+    /// ([`BoxTree::nearest_k_within`]: nodes and points beyond it are never looked at);
+    /// returns `false` (the outputs then hold only what was found) when fewer than
+    /// `indices.len()` points lie that close.
     ///
-    /// Collects every point of the ball from the [`BoxTree`] (whose box distances prune for a
-    /// query far off the scan's surface, where kiddo's split planes do not: on the
-    /// million-point case the re-queries of template points still far from the scan took
-    /// ~20 µs each) and selects the nearest (ties by index), which is several times faster
-    /// than a bounded heap when the ball holds not many more than the points wanted, as in
-    /// [`NeighborCache`] re-queries (2K candidates measured faster than 3K/2 or 3K on the
-    /// paper-sized case: fewer re-queries against a longer re-ranking; within ±3 % of both on
-    /// the quarter-size large case).
+    /// The box tree's box distances prune for a query far off the scan's surface, where
+    /// kiddo's split planes do not (on the million-point case the re-queries of template
+    /// points still far from the scan took ~20 µs each). For [`NeighborCache`] re-queries
+    /// (2K candidates, measured faster than 3K/2 or 3K on the paper-sized case: fewer
+    /// re-queries against a longer re-ranking; within ±3 % of both on the quarter-size large
+    /// case), the ball through the old candidates holds about 1.7 × 2K points; a sorted
+    /// insertion of the ones that come before the k-th so far replaced collecting the ball
+    /// and two selections and a sort (callgrind, 2,500-vertex default: −2.1 % of the fit's
+    /// instructions).
     pub fn nearest_within_into(
         &self,
         query: &[f64; 3],
         radius2: f64,
-        head: usize,
         indices: &mut [u32],
         dist2: &mut [f64],
-        found: &mut Vec<(f64, u32)>,
     ) -> bool {
-        let c = indices.len();
-        found.clear();
-        self.boxes.within(query, radius2, found);
-        if found.len() < c {
-            return false;
-        }
-        let by_distance = |a: &(f64, u32), b: &(f64, u32)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
-        if found.len() > c {
-            found.select_nth_unstable_by(c - 1, by_distance);
-        }
-        if head < c {
-            found[..c].select_nth_unstable_by(head, by_distance);
-        }
-        found[..head].sort_unstable_by(by_distance);
-        for (slot, &(d2, j)) in found[..c].iter().enumerate() {
-            indices[slot] = j;
-            dist2[slot] = d2;
-        }
-        true
+        self.boxes.nearest_k_within(query, radius2, indices, dist2) == indices.len()
     }
 
     /// The nearest indexed point of `query`: (index, squared distance).
@@ -337,11 +318,27 @@ impl BoxTree {
     /// wide slab of leaves (paper-sized default: ~40,000 instructions a query, 4.6 % of the
     /// fit's instructions).
     pub fn nearest_k_into(&self, q: &[f64; 3], indices: &mut [u32], dist2: &mut [f64]) {
+        let filled = self.nearest_k_within(q, f64::INFINITY, indices, dist2);
+        debug_assert_eq!(filled, indices.len());
+    }
+
+    /// Like [`BoxTree::nearest_k_into`] among the points within squared distance `radius2` of
+    /// `q` (nodes and points beyond it are never looked at); returns how many it found (the
+    /// first that many outputs are written), which is `indices.len()` whenever that many
+    /// points lie within the radius.
+    pub fn nearest_k_within(
+        &self,
+        q: &[f64; 3],
+        radius2: f64,
+        indices: &mut [u32],
+        dist2: &mut [f64],
+    ) -> usize {
         let k = indices.len();
         assert!(k >= 1 && k <= self.entries.len() && dist2.len() == k);
         let mut filled = 0;
-        // The k-th found so far: a point must come before it to enter.
-        let mut worst = (f64::INFINITY, u32::MAX);
+        // The k-th found so far (until then, the radius): a point must come before it to
+        // enter.
+        let mut worst = (radius2, u32::MAX);
         let mut stack = [(0u32, 0.0f64); 64];
         let mut top = 1;
         while top > 0 {
@@ -396,36 +393,7 @@ impl BoxTree {
             stack[top + 1] = near;
             top += 2;
         }
-    }
-
-    /// Appends every point within squared distance `radius2` of `q` to `out`, unordered:
-    /// (squared distance, index).
-    pub fn within(&self, q: &[f64; 3], radius2: f64, out: &mut Vec<(f64, u32)>) {
-        let mut stack = [0u32; 64];
-        let mut top = 0;
-        if box_distance2(q, &self.nodes[0].lo, &self.nodes[0].hi) <= radius2 {
-            top = 1;
-        }
-        while top > 0 {
-            top -= 1;
-            let node = &self.nodes[stack[top] as usize];
-            if node.right == 0 {
-                for (p, id) in &self.entries[node.start as usize..node.end as usize] {
-                    let d2 = squared_distance(p, q);
-                    if d2 <= radius2 {
-                        out.push((d2, *id));
-                    }
-                }
-                continue;
-            }
-            for child in [stack[top] + 1, node.right] {
-                let b = &self.nodes[child as usize];
-                if box_distance2(q, &b.lo, &b.hi) <= radius2 {
-                    stack[top] = child;
-                    top += 1;
-                }
-            }
-        }
+        filled
     }
 }
 
@@ -539,17 +507,11 @@ impl NeighborCache {
             .zip(indices.par_chunks_mut(k).zip(dist2.par_chunks_mut(k)))
             .zip(queries.par_iter())
             .for_each_init(
-                // Per-thread scratch: the ball's points, the ranking and the fresh distances
-                // (not per point: a zeroed 3 KB array per point and iteration was a memset of
-                // gigabytes over a fit).
-                || {
-                    (
-                        Vec::with_capacity(4 * c),
-                        vec![(0.0f64, 0u32); c],
-                        vec![0.0f64; c],
-                    )
-                },
-                |(found, ranked, found_d2), (((((anchor, cand), radius), state), (idx, d2)), q)| {
+                // Per-thread scratch: the ranking and the fresh distances (not per point: a
+                // zeroed 3 KB array per point and iteration was a memset of gigabytes over a
+                // fit).
+                || (vec![(0.0f64, 0u32); c], vec![0.0f64; c]),
+                |(ranked, found_d2), (((((anchor, cand), radius), state), (idx, d2)), q)| {
                     let ranked = &mut ranked[..];
                     let mut exact = false;
                     let mut farthest = f64::INFINITY;
@@ -571,7 +533,7 @@ impl NeighborCache {
                         let bound2 = farthest * (1.0 + 1e-9);
                         let found_d2 = &mut found_d2[..];
                         if !(bound2.is_finite()
-                            && index.nearest_within_into(q, bound2, k, cand, found_d2, found))
+                            && index.nearest_within_into(q, bound2, cand, found_d2))
                         {
                             index.nearest_into(q, cand, found_d2);
                         }
@@ -962,13 +924,18 @@ mod tests {
                 let (mut got, mut got_d2) = (vec![0; 30], vec![0.0; 30]);
                 tree.nearest_k_into(&q, &mut got, &mut got_d2);
                 assert_eq!((&got, &got_d2), (&near, &near_d2), "query {q:?}");
-                // The ball through the 30th nearest: those 30, and ties beyond them.
-                let mut ball = Vec::new();
-                tree.within(&q, near_d2[29], &mut ball);
-                ball.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-                let ids: Vec<u32> = ball.iter().map(|b| b.1).collect();
-                assert_eq!(&ids[..30], &near[..], "query {q:?}");
-                assert!(ball[30..].iter().all(|b| b.0 == near_d2[29]));
+                // Within the 30th distance: the same 30; within less, fewer than 30.
+                let (mut ball, mut ball_d2) = (vec![0; 30], vec![0.0; 30]);
+                assert_eq!(
+                    tree.nearest_k_within(&q, near_d2[29], &mut ball, &mut ball_d2),
+                    30
+                );
+                assert_eq!((&ball, &ball_d2), (&near, &near_d2), "query {q:?}");
+                let less = near_d2[29] * (1.0 - 1e-9);
+                let short = tree.nearest_k_within(&q, less, &mut ball, &mut ball_d2);
+                let closer = near_d2.iter().filter(|&&d| d <= less).count();
+                assert_eq!(short, closer);
+                assert_eq!(&ball[..short], &near[..short]);
             }
         }
         // One point, and points in one spot (k = all of them: ties in index order).
