@@ -75,13 +75,16 @@ LEVERS = {
     "template points off the scan's surface at 1M points). In the rigid and coarse phases a "
     "template point far off the surface (height h ≫ ρ) sees all its candidates at ≈ h, so its "
     "margin d_c − d_K is tiny and it re-queries nearly every iteration (25 % of the "
-    "vertex-iterations at 1M points); re-ranking the 2K candidates is memory-bound. Closing: "
+    "vertex-iterations at 1M points); re-ranking the 2K candidates is memory-bound. Re-queries "
+    "and first queries are best-first searches of the box tree writing a sorted list in place "
+    "(bounded by the old candidates' ball for re-queries). Closing: "
     "fewer re-queries for far points (a bound on the far candidates' forces instead of their "
     "exact ranking), a result-changing option",
     "two_way": "two-way attraction: a scan point's nearest template vertex comes from the "
     "inverted forward k-NN lists when certified (closer than the smallest K-th neighbour "
     "distance: ~100 % once the template lies on the scan), else from a box-tree query "
-    "started from a known template point; the rigid phase (every 4th vertex, the flat "
+    "started from a known template point (the tree over the moving template refitted, O(M), "
+    "and rebuilt only when its leaves loosen 1.5×); the rigid phase (every 4th vertex, the flat "
     "template still far from the folded scan: ~95 % of the scan uncertified) makes most of "
     "them; where the scan has more than 8 points per rigid-phase vertex (the 1M-point case), "
     "only every s-th scan point pulls in the rigid phase (`rigid_scan_sample`, automatic). "
@@ -107,7 +110,8 @@ LEVERS = {
     "rotations of the flat rings' rank-2 covariances (Jacobi, ~0.5 µs a vertex; a Newton path "
     "for them was tried and saved nothing)",
     "setup": "setup: curvature of the scan, the scan tree and the coarse 8-ring BFS (shared "
-    "by both schedules); the final wrinkle fields and the selection's scan distances",
+    "by both schedules); the final wrinkle fields and the selection's scan distances and edge "
+    "spreads",
 }
 
 
