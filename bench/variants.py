@@ -199,6 +199,9 @@ def against_peers(rows: list[dict[str, Any]], best: Best, source: str) -> None:
         cells = []
         for g in groups:
             gs = [(r, best[r["case"]]) for r in sel if r["group"] == g]
+            if not gs:
+                cells.append("— (no peer figures)")
+                continue
             flips = [r["f_F"] <= b["truth_f_F"] + 0.01 for r, b in gs if b["truth_f_F"] == b["truth_f_F"]]
             cells.append(f"{sum(r['f_R'] <= b['f_R'] for r, b in gs)} / "
                          f"{sum(r['f_lambda'] <= b['f_lambda'] for r, b in gs)} / "
@@ -208,7 +211,8 @@ def against_peers(rows: list[dict[str, Any]], best: Best, source: str) -> None:
         def geo(rs: list[dict[str, Any]], m: str) -> float:
             return geo_mean(r[m] / best[r["case"]][m] for r in rs)
 
-        worst = max(geo([r for r in sel if r["group"] == g], "f_R") for g in groups)
+        worst = max(geo([r for r in sel if r["group"] == g], "f_R") for g in groups
+                    if any(r["group"] == g for r in sel))
         print(f"| {v} | " + " | ".join(cells)
               + f" | {geo(sel, 'f_R'):.3f} | {worst:.3f} | {geo(sel, 'f_lambda'):.3f} |")
 
@@ -273,23 +277,26 @@ def main() -> int:
     ap.add_argument("--preset", choices=sorted(PRESETS))
     ap.add_argument("--out", default=str(HERE / "out" / "variants.json"))
     ap.add_argument("--from-json", metavar="FILE", help="print the summary of an earlier run")
-    ap.add_argument("--peers", metavar="FILE", default=None,
+    ap.add_argument("--peers", metavar="FILE", action="append", default=None,
                     help="the peers to score against: a bench/compare.py results.json, or the "
-                         "report it generated (docs/results.md, its per-case tables); default "
-                         "bench/out/results.json if present, else docs/results.md")
+                         "report it generated (docs/results.md, its per-case tables); repeat "
+                         "to merge several (a later file's cases replace an earlier's); "
+                         "default bench/out/results.json if present, else docs/results.md")
     args = ap.parse_args()
     if args.peers is None:
         json_run = HERE / "out" / "results.json"
-        args.peers = str(json_run if json_run.is_file() else HERE.parent / "docs" / "results.md")
-    peers_file = pathlib.Path(args.peers)
-    if not peers_file.is_file():
-        raise SystemExit(f"--peers {peers_file}: no such file")
-    best = (best_peers_from_markdown(peers_file) if peers_file.suffix == ".md"
-            else best_peers(peers_file))
+        args.peers = [str(json_run if json_run.is_file() else HERE.parent / "docs" / "results.md")]
+    best: Best = {}
+    for name in args.peers:
+        peers_file = pathlib.Path(name)
+        if not peers_file.is_file():
+            raise SystemExit(f"--peers {peers_file}: no such file")
+        best.update(best_peers_from_markdown(peers_file) if peers_file.suffix == ".md"
+                    else best_peers(peers_file))
 
     def report(rows: list[dict[str, Any]]) -> None:
         summary(rows)
-        against_peers(rows, best, str(peers_file))
+        against_peers(rows, best, " + ".join(args.peers))
 
     if args.from_json:
         report(json.loads(pathlib.Path(args.from_json).read_text()))
