@@ -113,6 +113,11 @@ def parse_variant(text: str) -> tuple[str, dict[str, Any]]:
     return name, json.loads(kw)
 
 
+#: The best-peer figures of the cases whose rows docs/results.md does not print case by case
+#: (the random sheets and the wind frames), saved from a bench/compare.py run
+#: (``--save-peers``): the peers' code and the cases are deterministic.
+PEER_FIGURES = HERE / "peer_figures.json"
+
 #: Every compared method but FoldMatch's own two configurations (NRGa counts as a peer).
 PEERS = [m for m in peers.METHODS if m not in ("foldmatch", "foldmatch_paper")]
 
@@ -282,17 +287,33 @@ def main() -> int:
                          "report it generated (docs/results.md, its per-case tables); repeat "
                          "to merge several (a later file's cases replace an earlier's); "
                          "default bench/out/results.json if present, else docs/results.md")
+    ap.add_argument("--save-peers", metavar="FILE",
+                    help="write the merged best-peer figures (JSON, per case) and exit; "
+                         "bench/peer_figures.json is read by default")
     args = ap.parse_args()
     if args.peers is None:
         json_run = HERE / "out" / "results.json"
-        args.peers = [str(json_run if json_run.is_file() else HERE.parent / "docs" / "results.md")]
+        args.peers = ([str(json_run)] if json_run.is_file() else
+                      [str(p) for p in (HERE.parent / "docs" / "results.md", PEER_FIGURES)
+                       if p.is_file()])
     best: Best = {}
     for name in args.peers:
         peers_file = pathlib.Path(name)
         if not peers_file.is_file():
             raise SystemExit(f"--peers {peers_file}: no such file")
-        best.update(best_peers_from_markdown(peers_file) if peers_file.suffix == ".md"
-                    else best_peers(peers_file))
+        if peers_file.suffix == ".md":
+            best.update(best_peers_from_markdown(peers_file))
+        elif "groups" in (data := json.loads(peers_file.read_text())):
+            best.update(best_peers(peers_file))
+        else:
+            best.update(data["cases"])
+    if args.save_peers:
+        pathlib.Path(args.save_peers).write_text(json.dumps(
+            {"about": "per case, the lowest f_R, f_lambda and s2f_mean_rel of the peers "
+                      f"({', '.join(PEERS)}) and the truth's f_F; written by "
+                      "bench/variants.py --save-peers from " + " + ".join(args.peers),
+             "cases": best}, indent=1, sort_keys=True) + "\n")
+        return 0
 
     def report(rows: list[dict[str, Any]]) -> None:
         summary(rows)
