@@ -1,14 +1,13 @@
 //! Target neighborhoods Γᵏ_X (paper §2, SPEC §2.1): the K nearest scan points of every template
-//! vertex, from a k-d tree over the scan built once per fit. This is the only module that talks
-//! to `kiddo`.
+//! vertex, from a k-d tree over the scan built once per fit ([`BoxTree`]; kiddo's trees, whose
+//! split-plane pruning is slow for queries off the scan's surface, serve the metrics' nearest
+//! queries in `metrics.rs`).
 
-use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 
-/// A k-d tree over a fixed point set (the scan, or the template for NRGa neighborhoods), and a
-/// [`BoxTree`] over the same points for the ball queries of [`NeighborCache`] re-queries.
+/// A k-d tree with node bounding boxes ([`BoxTree`]) over a fixed point set (the scan, or the
+/// template for NRGa neighborhoods): the first queries and the [`NeighborCache`] re-queries.
 pub struct PointIndex {
-    tree: ImmutableKdTree<f64, 3>,
     boxes: BoxTree,
     points: Vec<[f64; 3]>,
 }
@@ -25,7 +24,6 @@ impl PointIndex {
         let mut boxes = BoxTree::default();
         boxes.rebuild(points);
         Self {
-            tree: ImmutableKdTree::new_from_slice(points),
             boxes,
             points: points.to_vec(),
         }
@@ -80,8 +78,7 @@ impl PointIndex {
 
     /// The nearest indexed point of `query`: (index, squared distance).
     pub fn nearest_one(&self, query: &[f64; 3]) -> (u32, f64) {
-        let nn = self.tree.nearest_one::<SquaredEuclidean>(query);
-        (nn.item as u32, nn.distance)
+        self.boxes.nearest_one(query)
     }
 
     /// The `k` nearest points of every query, in parallel: row `q` of the (len(queries) × k)
@@ -116,8 +113,8 @@ const BOX_LEAF: usize = 32;
 pub const REBUILD_LOOSENESS: f64 = 1.5;
 
 /// A k-d tree with a tight bounding box per node: for the nearest template point of scan
-/// points (the two-way attraction's queries; rebuilt in place as the template moves) and for
-/// the ball queries of [`NeighborCache`] re-queries over the scan.
+/// points (the two-way attraction's queries; refitted as the template moves,
+/// [`BoxTree::update`]) and for the k-NN queries over the scan ([`PointIndex`]).
 ///
 /// A k-d tree that prunes by its split planes alone (kiddo's) only sees how far a query lies
 /// *along the split axes*: for a query at height h above a flat patch of template, every leaf
@@ -202,15 +199,7 @@ impl BoxTree {
         for at in (0..self.nodes.len()).rev() {
             let node = self.nodes[at];
             let (lo, hi) = if node.right == 0 {
-                let mut lo = [f64::INFINITY; 3];
-                let mut hi = [f64::NEG_INFINITY; 3];
-                for (p, _) in &self.entries[node.start as usize..node.end as usize] {
-                    for a in 0..3 {
-                        lo[a] = lo[a].min(p[a]);
-                        hi[a] = hi[a].max(p[a]);
-                    }
-                }
-                (lo, hi)
+                bounds(&self.entries[node.start as usize..node.end as usize])
             } else {
                 let (l, r) = (&self.nodes[at + 1], &self.nodes[node.right as usize]);
                 (
@@ -226,7 +215,8 @@ impl BoxTree {
     /// The leaves' boxes against the root's: the sum over the leaves of their box's
     /// half-perimeter (`Δx + Δy + Δz`) ÷ the root box's. Unchanged by a translation or a
     /// uniform scaling of the points; it grows when a motion pulls the points of a leaf apart
-    /// (a fold bringing far template parts together, or tearing near ones apart).
+    /// (stretching or tearing; a fold or a roll-up of cloth, an isometry, bends the leaves but
+    /// keeps them compact — the test rolls a grid shut).
     fn looseness(&self) -> f64 {
         let half_perimeter = |n: &BoxNode| (0..3).map(|a| n.hi[a] - n.lo[a]).sum::<f64>();
         let leaves: f64 = self
@@ -397,6 +387,18 @@ impl BoxTree {
     }
 }
 
+/// The bounding box `(lo, hi)` of a [`BoxTree`]'s entries.
+fn bounds(entries: &[([f64; 3], u32)]) -> ([f64; 3], [f64; 3]) {
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for (p, _) in entries {
+        for a in 0..3 {
+            lo[a] = lo[a].min(p[a]);
+            hi[a] = hi[a].max(p[a]);
+        }
+    }
+    (lo, hi)
+}
+
 /// Builds the node `nodes[0]` (number `base` of the tree) over `entries` (which start at
 /// `offset` in the tree's order), its subtrees after it.
 fn build_box_node(
@@ -405,13 +407,7 @@ fn build_box_node(
     nodes: &mut [BoxNode],
     base: usize,
 ) {
-    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-    for (p, _) in entries.iter() {
-        for a in 0..3 {
-            lo[a] = lo[a].min(p[a]);
-            hi[a] = hi[a].max(p[a]);
-        }
-    }
+    let (lo, hi) = bounds(entries);
     let n = entries.len();
     let mut node = BoxNode {
         lo,
@@ -631,7 +627,8 @@ pub struct TargetNeighbours<'a> {
 /// point whenever it is closer than ρ_min — the k-d tree's answer up to exactly tied distances.
 /// Scan points without that certificate (none listed them, as when the template is still far
 /// from the scan, or the nearest listing point is not close enough) are queried against a
-/// [`BoxTree`] over the template, rebuilt (in place) only in iterations that need one.
+/// [`BoxTree`] over the template, brought up to date ([`BoxTree::update`]: refitted, or rebuilt
+/// when loose) only in iterations that need one.
 /// Inverting the lists is one pass over M·K entries instead of N tree queries.
 #[derive(Clone, Debug, Default)]
 pub struct ReverseNearest {
