@@ -253,23 +253,40 @@ impl BoxTree {
     /// iteration, a few spacings off at most). The same answer, ties included.
     pub fn nearest_one_from(&self, q: &[f64; 3], known: (u32, f64)) -> (u32, f64) {
         let mut best = known;
+        self.descend(q, best.1, |leaf| {
+            for (p, id) in leaf {
+                let d2 = squared_distance(p, q);
+                if d2 < best.1 || (d2 == best.1 && *id < best.0) {
+                    best = (*id, d2);
+                }
+            }
+            best.1
+        });
+        best
+    }
+
+    /// Visits the leaves that may hold a point within squared distance `bound2` of `q`, depth
+    /// first, the nearer child first; `leaf` sees a leaf's entries and returns the bound from
+    /// then on (the search's current k-th distance). Nodes whose box lies farther than the
+    /// bound are skipped; one at the bound is visited (it may hold a tie of lower index).
+    fn descend(
+        &self,
+        q: &[f64; 3],
+        mut bound2: f64,
+        mut leaf: impl FnMut(&[([f64; 3], u32)]) -> f64,
+    ) {
         // Depth ≤ log2(n / BOX_LEAF) + 1 and one pending sibling per level.
         let mut stack = [(0u32, 0.0f64); 64];
         let mut top = 1;
         while top > 0 {
             top -= 1;
             let (at, d2) = stack[top];
-            if d2 > best.1 {
+            if d2 > bound2 {
                 continue;
             }
             let node = &self.nodes[at as usize];
             if node.right == 0 {
-                for (p, id) in &self.entries[node.start as usize..node.end as usize] {
-                    let d2 = squared_distance(p, q);
-                    if d2 < best.1 || (d2 == best.1 && *id < best.0) {
-                        best = (*id, d2);
-                    }
-                }
+                bound2 = leaf(&self.entries[node.start as usize..node.end as usize]);
                 continue;
             }
             let (left, right) = (at + 1, node.right);
@@ -293,7 +310,6 @@ impl BoxTree {
             stack[top + 1] = near;
             top += 2;
         }
-        best
     }
 }
 
@@ -329,60 +345,30 @@ impl BoxTree {
         // The k-th found so far (until then, the radius): a point must come before it to
         // enter.
         let mut worst = (radius2, u32::MAX);
-        let mut stack = [(0u32, 0.0f64); 64];
-        let mut top = 1;
-        while top > 0 {
-            top -= 1;
-            let (at, d2) = stack[top];
-            if d2 > worst.0 {
-                continue;
-            }
-            let node = &self.nodes[at as usize];
-            if node.right == 0 {
-                for (p, id) in &self.entries[node.start as usize..node.end as usize] {
-                    let d2 = squared_distance(p, q);
-                    if d2 > worst.0 || (d2 == worst.0 && *id > worst.1) {
-                        continue;
-                    }
-                    // Insert into the sorted list, dropping its last when full.
-                    let mut slot = filled.min(k - 1);
-                    filled = (filled + 1).min(k);
-                    while slot > 0
-                        && (dist2[slot - 1] > d2
-                            || (dist2[slot - 1] == d2 && indices[slot - 1] > *id))
-                    {
-                        dist2[slot] = dist2[slot - 1];
-                        indices[slot] = indices[slot - 1];
-                        slot -= 1;
-                    }
-                    dist2[slot] = d2;
-                    indices[slot] = *id;
-                    if filled == k {
-                        worst = (dist2[k - 1], indices[k - 1]);
-                    }
+        self.descend(q, radius2, |leaf| {
+            for (p, id) in leaf {
+                let d2 = squared_distance(p, q);
+                if d2 > worst.0 || (d2 == worst.0 && *id > worst.1) {
+                    continue;
                 }
-                continue;
+                // Insert into the sorted list, dropping its last when full.
+                let mut slot = filled.min(k - 1);
+                filled = (filled + 1).min(k);
+                while slot > 0
+                    && (dist2[slot - 1] > d2 || (dist2[slot - 1] == d2 && indices[slot - 1] > *id))
+                {
+                    dist2[slot] = dist2[slot - 1];
+                    indices[slot] = indices[slot - 1];
+                    slot -= 1;
+                }
+                dist2[slot] = d2;
+                indices[slot] = *id;
+                if filled == k {
+                    worst = (dist2[k - 1], indices[k - 1]);
+                }
             }
-            let (left, right) = (at + 1, node.right);
-            let dl = box_distance2(
-                q,
-                &self.nodes[left as usize].lo,
-                &self.nodes[left as usize].hi,
-            );
-            let dr = box_distance2(
-                q,
-                &self.nodes[right as usize].lo,
-                &self.nodes[right as usize].hi,
-            );
-            let (near, far) = if dl <= dr {
-                ((left, dl), (right, dr))
-            } else {
-                ((right, dr), (left, dl))
-            };
-            stack[top] = far;
-            stack[top + 1] = near;
-            top += 2;
-        }
+            worst.0
+        });
         filled
     }
 }
