@@ -930,10 +930,8 @@ pub fn fit(
             d.iter().sum::<f64>() / d.len() as f64
         })
         .collect();
-    let spreads: Vec<f64> = vertices
-        .iter()
-        .map(|v| crate::metrics::edge_length_spread(template_vertices, v, &prepared.faces))
-        .collect();
+    let rest_edges = crate::metrics::EdgeLengths::new(template_vertices, &prepared.faces);
+    let spreads: Vec<f64> = vertices.iter().map(|v| rest_edges.spread(v)).collect();
     let best = select_schedule(&distances, &spreads, params.selection_margin);
     let winner = runs.swap_remove(best);
     let mut chosen = winner.finish(&prepared, vertices.swap_remove(best));
@@ -1851,6 +1849,20 @@ mod tests {
         (v, f, target)
     }
 
+    /// Schedule selection's first figure for a fit: the mean distance from every scan point
+    /// to its nearest fitted vertex.
+    fn mean_scan_distance(x: &[[f64; 3]], r: &FitResult) -> f64 {
+        let d = crate::metrics::nearest_distances(x, &r.vertices);
+        d.iter().sum::<f64>() / d.len() as f64
+    }
+
+    /// Schedule selection's tie-break for each fit: its edge-length spread.
+    fn edge_spreads(v: &[[f64; 3]], f: &[[u32; 3]], runs: &[FitResult]) -> Vec<f64> {
+        runs.iter()
+            .map(|r| crate::metrics::edge_length_spread(v, &r.vertices, f))
+            .collect()
+    }
+
     /// A 13 × 13 sheet and its scan.
     fn grid_case() -> Case {
         wavy_grid_case(13, 0.02)
@@ -2117,16 +2129,10 @@ mod tests {
             .iter()
             .map(|p| fit_simple(&v, &f, &x, None, p).unwrap())
             .collect();
-        let dist = |r: &FitResult| {
-            let d = crate::metrics::nearest_distances(&x, &r.vertices);
-            d.iter().sum::<f64>() / d.len() as f64
-        };
+        let dist = |r: &FitResult| mean_scan_distance(&x, r);
         let d: Vec<f64> = alone.iter().map(dist).collect();
         assert_eq!(chosen.diagnostics.candidate_scan_distances, d);
-        let spreads: Vec<f64> = alone
-            .iter()
-            .map(|r| crate::metrics::edge_length_spread(&v, &r.vertices, &f))
-            .collect();
+        let spreads = edge_spreads(&v, &f, &alone);
         assert_eq!(chosen.diagnostics.candidate_edge_spreads, spreads);
         let best = select_schedule(&d, &spreads, accurate.selection_margin);
         assert_eq!(chosen.vertices, alone[best].vertices);
@@ -2246,16 +2252,10 @@ mod tests {
             fit_simple(&v, &f, &x, None, &given).unwrap(),
             fit_simple(&v, &f, &x, None, &params.sharp_schedule()).unwrap(),
         ];
-        let dist = |r: &FitResult| {
-            let d = crate::metrics::nearest_distances(&x, &r.vertices);
-            d.iter().sum::<f64>() / d.len() as f64
-        };
+        let dist = |r: &FitResult| mean_scan_distance(&x, r);
         let d = chosen.diagnostics.candidate_scan_distances.clone();
         assert_eq!(d, vec![dist(&runs[0]), dist(&runs[1])]);
-        let spreads: Vec<f64> = runs
-            .iter()
-            .map(|r| crate::metrics::edge_length_spread(&v, &r.vertices, &f))
-            .collect();
+        let spreads = edge_spreads(&v, &f, &runs);
         assert_eq!(chosen.diagnostics.candidate_edge_spreads, spreads);
         let k = select_schedule(&d, &spreads, params.selection_margin);
         assert_eq!(chosen.vertices, runs[k].vertices);

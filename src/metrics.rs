@@ -308,31 +308,59 @@ pub fn nearest_distances(from: &[[f64; 3]], to: &[[f64; 3]]) -> Vec<f64> {
 /// how far the fit is from an isometry up to scale, whatever the units; schedule selection
 /// breaks near-ties in scan distance with it (cloth barely stretches, docs/method.md "Eighth
 /// round"). A fitted edge collapsed to zero length counts as the ratio `1e-12`. No edge: 0.
+/// For several fits of one template, build [`EdgeLengths`] once.
 pub fn edge_length_spread(template: &[[f64; 3]], fitted: &[[f64; 3]], faces: &[[u32; 3]]) -> f64 {
-    let mut edges: Vec<(u32, u32)> = faces
-        .iter()
-        .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])])
-        .map(|(a, b)| (a.min(b), a.max(b)))
-        .collect();
-    edges.sort_unstable();
-    edges.dedup();
-    let length = |p: &[[f64; 3]], (a, b): (u32, u32)| {
-        let (a, b) = (&p[a as usize], &p[b as usize]);
-        ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
-    };
-    let logs: Vec<f64> = edges
-        .into_iter()
-        .filter_map(|e| {
-            let rest = length(template, e);
-            (rest > 0.0).then(|| (length(fitted, e) / rest).max(1e-12).ln())
-        })
-        .collect();
-    if logs.is_empty() {
-        return 0.0;
+    EdgeLengths::new(template, faces).spread(fitted)
+}
+
+/// A template's unique edges of positive length and their lengths: the rest state that
+/// [`edge_length_spread`] compares fits with, built once for all the fits of one template.
+pub struct EdgeLengths {
+    edges: Vec<(u32, u32)>,
+    rest: Vec<f64>,
+}
+
+impl EdgeLengths {
+    /// The unique edges of `faces` (each once, however many faces share it) whose length on
+    /// `template` is positive.
+    pub fn new(template: &[[f64; 3]], faces: &[[u32; 3]]) -> Self {
+        let mut edges: Vec<(u32, u32)> = faces
+            .iter()
+            .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])])
+            .map(|(a, b)| (a.min(b), a.max(b)))
+            .collect();
+        edges.sort_unstable();
+        edges.dedup();
+        let rest: Vec<f64> = edges.iter().map(|&e| edge_length(template, e)).collect();
+        let (edges, rest) = edges
+            .into_iter()
+            .zip(rest)
+            .filter(|&(_, r)| r > 0.0)
+            .unzip();
+        Self { edges, rest }
     }
-    let n = logs.len() as f64;
-    let mean = logs.iter().sum::<f64>() / n;
-    (logs.iter().map(|l| (l - mean).powi(2)).sum::<f64>() / n).sqrt()
+
+    /// [`edge_length_spread`] of `fitted` (the template's vertices, moved).
+    pub fn spread(&self, fitted: &[[f64; 3]]) -> f64 {
+        if self.edges.is_empty() {
+            return 0.0;
+        }
+        let logs: Vec<f64> = self
+            .edges
+            .iter()
+            .zip(&self.rest)
+            .map(|(&e, &rest)| (edge_length(fitted, e) / rest).max(1e-12).ln())
+            .collect();
+        let n = logs.len() as f64;
+        let mean = logs.iter().sum::<f64>() / n;
+        (logs.iter().map(|l| (l - mean).powi(2)).sum::<f64>() / n).sqrt()
+    }
+}
+
+/// The length of the edge `(a, b)` on the points `p`.
+fn edge_length(p: &[[f64; 3]], (a, b): (u32, u32)) -> f64 {
+    let (a, b) = (&p[a as usize], &p[b as usize]);
+    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
 }
 
 /// Symmetric Hausdorff distance between two point sets:
