@@ -113,9 +113,10 @@ def parse_variant(text: str) -> tuple[str, dict[str, Any]]:
     return name, json.loads(kw)
 
 
-#: The best-peer figures of the cases whose rows docs/results.md does not print case by case
-#: (the random sheets and the wind frames), saved from a bench/compare.py run
-#: (``--save-peers``): the peers' code and the cases are deterministic.
+#: The best-peer figures of every harness case (``--save-peers``: docs/results.md's per-case
+#: tables merged with a bench/compare.py run for the random sheets and the wind frames, which
+#: docs/results.md does not print case by case): the peers' code and the cases are
+#: deterministic, so the figures stand until either changes.
 PEER_FIGURES = HERE / "peer_figures.json"
 
 #: Every compared method but FoldMatch's own two configurations (NRGa counts as a peer).
@@ -286,16 +287,16 @@ def main() -> int:
                     help="the peers to score against: a bench/compare.py results.json, or the "
                          "report it generated (docs/results.md, its per-case tables); repeat "
                          "to merge several (a later file's cases replace an earlier's); "
-                         "default bench/out/results.json if present, else docs/results.md")
+                         "default bench/out/results.json if present, else bench/peer_figures.json, "
+                         "else docs/results.md")
     ap.add_argument("--save-peers", metavar="FILE",
                     help="write the merged best-peer figures (JSON, per case) and exit; "
-                         "bench/peer_figures.json is read by default")
+                         "bench/peer_figures.json is read by default when present")
     args = ap.parse_args()
     if args.peers is None:
         json_run = HERE / "out" / "results.json"
-        args.peers = ([str(json_run)] if json_run.is_file() else
-                      [str(p) for p in (HERE.parent / "docs" / "results.md", PEER_FIGURES)
-                       if p.is_file()])
+        fallback = PEER_FIGURES if PEER_FIGURES.is_file() else HERE.parent / "docs" / "results.md"
+        args.peers = [str(json_run if json_run.is_file() else fallback)]
     best: Best = {}
     for name in args.peers:
         peers_file = pathlib.Path(name)
