@@ -9,6 +9,7 @@ and, per group, the medians of f_R, f_λ, f_H, f_E, f_F and scan→fit mean::
     .venv/bin/python bench/variants.py --preset schedule --groups real,small,sheets,wind,paper
     .venv/bin/python bench/variants.py --preset placement
     .venv/bin/python bench/variants.py --preset margin --groups real,small,sheets,wind,paper
+    .venv/bin/python bench/variants.py --preset pull --groups real,small,sheets,wind,paper
 
 Groups: ``real`` (22 pre-placed real-garment cases), ``small`` / ``paper`` (generated, rotated
 and offset), ``sheets`` (24 random sheets), ``wind`` (30 wind frames). Results go to
@@ -79,6 +80,16 @@ PRESETS: dict[str, list[tuple[str, dict[str, Any]]]] = {
         (f"selection_margin {m}" + (" (default)" if m == 0.06 else "")
          + (" (previous default)" if m == 0.0 else ""), {"selection_margin": m})
         for m in (0.0, 0.03, 0.06, 0.1)
+    ],
+    # The two-way pulls summed by coverage (docs/method.md, ninth round): the previous default
+    # (their mean, weight 3) first, so the per-case block compares every other row with it.
+    "pull": [
+        ("mean, two-way 3 (previous default)", {"two_way_pull": "mean", "two_way": 3.0}),
+        ("mean, two-way 4.5", {"two_way_pull": "mean", "two_way": 4.5}),
+        ("coverage, two-way 2", {"two_way_pull": "coverage", "two_way": 2.0}),
+        ("coverage, two-way 3", {"two_way_pull": "coverage", "two_way": 3.0}),
+        ("coverage, two-way 4.5 (default)", {"two_way_pull": "coverage", "two_way": 4.5}),
+        ("coverage, two-way 6", {"two_way_pull": "coverage", "two_way": 6.0}),
     ],
     # Rest-shape rigidity (docs/method.md, seventh round): the previous default (0) first, so
     # the per-case block compares every other value with it.

@@ -21,7 +21,7 @@ use foldmatch::fit::{deformation_model, fit_simple, FitParams, TemplateTopology,
 use foldmatch::knn::{neighborhood_size, NeighborCache, PointIndex, TargetNeighbours};
 use foldmatch::math::{polar, sym_eigen3, vec3, Mat3};
 use foldmatch::mesh::{vertex_normals, VertexFaces};
-use foldmatch::nbody;
+use foldmatch::nbody::{self, TwoWayPull};
 use foldmatch::normalize::Frame;
 use foldmatch::regularize::{regularize, RegularizeBuffers};
 use foldmatch::rings::{n_rings, Neighborhoods};
@@ -314,7 +314,16 @@ fn bench_stages(c: &mut Criterion) {
             let mut force = vec![[0.0; 3]; m];
             b.iter(|| {
                 let (x, kappa, p) = (&s.scan, &s.kappa, &s.params.nbody);
-                reverse.compute(&s.pos, x, kappa, forward, 1.0, p, &mut force)
+                reverse.compute(
+                    &s.pos,
+                    x,
+                    kappa,
+                    forward,
+                    1.0,
+                    TwoWayPull::Coverage,
+                    p,
+                    &mut force,
+                )
             });
         });
     }

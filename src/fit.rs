@@ -18,7 +18,7 @@ use crate::error::{FoldMatchError, Result};
 use crate::knn::{morton_order, neighborhood_size, NeighborCache, PointIndex, TargetNeighbours};
 use crate::math::{nearest_rotation_with, vec3, Mat3, Vec3};
 use crate::mesh::{clean_faces, validate_faces, validate_points, vertex_normals, VertexFaces};
-use crate::nbody::{self, NBodyParams};
+use crate::nbody::{self, NBodyParams, TwoWayPull};
 use crate::normalize::Frame;
 use crate::regularize::{regularize, Regularization, RegularizeBuffers};
 use crate::rings::{adjacency, n_rings, Neighborhoods, RingDeltas};
@@ -138,6 +138,10 @@ pub struct FitParams {
     /// Two-way attraction: weight of the pull of every scan point on its nearest template
     /// vertex, added to Eq. 2 (0: the paper's one-way attraction).
     pub two_way: f64,
+    /// How the two-way pulls on one vertex combine: their mean, or (the default) their sum in
+    /// proportion to the template's share of the scan, so that a vertex standing for an
+    /// uncovered scan region is pulled in proportion to it ([`TwoWayPull`]).
+    pub two_way_pull: TwoWayPull,
     /// Rigid phase: this fraction of the ξ iterations comes first and moves the whole template
     /// rigidly (one Kabsch fit of all vertices' old to proposed positions). FoldMatch only.
     pub rigid_fraction: f64,
@@ -232,7 +236,8 @@ impl Default for FitParams {
             use_curvature: true,
             prealign: Prealign::None,
             snapshot_every: 0,
-            two_way: 3.0,
+            two_way: 4.5,
+            two_way_pull: TwoWayPull::Coverage,
             rigid_fraction: 0.3,
             coarse_fraction: 0.5,
             coarse_rings: 8,
@@ -272,12 +277,13 @@ impl FitParams {
     /// The default without softening annealing, for a fit that starts close to its scan
     /// (warm-started frames of a sequence): annealing is a far-start device and, with few
     /// iterations per frame, leaves too little time at the final ε (docs/method.md). Its
-    /// two-way weight (2) and its rigid phase on every vertex are the values it was measured
-    /// with on sequences; it has no rest-shape rigidity (a warm-started frame's template is the
+    /// two-way weight (2), averaged pulls ([`TwoWayPull::Mean`]) and rigid phase on every
+    /// vertex are the values it was measured with on sequences; it has no rest-shape rigidity (a warm-started frame's template is the
     /// previous fit, not a rest shape, and the option was not measured on sequences).
     pub fn tracking() -> Self {
         Self {
             two_way: 2.0,
+            two_way_pull: TwoWayPull::Mean,
             rigid_sample: 1,
             rest_rigidity: 0.0,
             anneal: 1.0,
@@ -303,7 +309,7 @@ impl FitParams {
     }
 
     /// The third candidate of [`Selection::ScanDistanceWide`]: these parameters with ⅔ of the
-    /// two-way weight (3 → 2) and the softening annealed over at least 80 % of the iterations
+    /// two-way weight (4.5 → 3) and the softening annealed over at least 80 % of the iterations
     /// (60 % in the default): long-range pulls for longer, a gentler pull on scan regions the
     /// template does not cover yet (docs/method.md).
     pub fn gentle_schedule(&self) -> Self {
@@ -1340,6 +1346,7 @@ impl Attraction {
                         kappa,
                         forward,
                         params.two_way,
+                        params.two_way_pull,
                         &nbody_params,
                         force,
                     )

@@ -38,6 +38,22 @@ pub enum DampingMode {
     Force,
 }
 
+/// How the two-way attraction combines the pulls of the scan points choosing one template
+/// point ([`ReverseAttraction`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TwoWayPull {
+    /// Their mean: a template point chosen by many scan points is pulled no harder than one
+    /// chosen by a few (the rule before 2026-12-01).
+    Mean,
+    /// Their sum × M / N (template points over scan points): every scan point pulls with the
+    /// same weight, so where the template covers the scan evenly (N / M points choosing each
+    /// template point) this is the mean, and a template point standing for more than its
+    /// share of the scan — at the edge of a scan region no other template point is near — is
+    /// pulled harder, in proportion (default; docs/method.md "Ninth round").
+    Coverage,
+}
+
 /// Constants of the N-body simulation (paper §4 defaults).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
@@ -177,8 +193,8 @@ pub fn step(
 }
 
 /// Two-way attraction: every scan point also pulls its nearest template point with the Eq. 2
-/// kernel. The pulls on each template point are averaged (so a point chosen by many scan
-/// points is not pulled harder than by its own neighbours) and scaled by `weight`.
+/// kernel. The pulls on each template point are combined by [`TwoWayPull`] (their mean, or
+/// their sum in proportion to the template's share of the scan) and scaled by `weight`.
 ///
 /// Holds the per-fit scratch buffers. Each template point sums its pulls in increasing scan
 /// order (the scan points are bucketed by their nearest template point with a counting sort),
@@ -219,6 +235,7 @@ impl ReverseAttraction {
         kappa: &[f64],
         forward: TargetNeighbours<'_>,
         weight: f64,
+        pull: TwoWayPull,
         p: &NBodyParams,
         out: &mut [[f64; 3]],
     ) -> usize {
@@ -241,6 +258,8 @@ impl ReverseAttraction {
             self.heads[k as usize] += 1;
         }
         let (offsets, order) = (&self.offsets, &self.order);
+        // Per scan point, under `Coverage`: M / N (the template's share of the scan).
+        let share = m as f64 / self.nearest.len().max(1) as f64;
         out.par_iter_mut().enumerate().for_each(|(k, f)| {
             let mine = &order[offsets[k]..offsets[k + 1]];
             let mut sum = Vec3::zeros();
@@ -248,11 +267,12 @@ impl ReverseAttraction {
                 let j = j as usize;
                 sum += pair_force(&vec3(&positions[k]), &vec3(&target[j]), kappa[j], p);
             }
-            *f = if mine.is_empty() {
-                [0.0; 3]
-            } else {
-                (sum * (weight / mine.len() as f64)).into()
+            let scale = match pull {
+                _ if mine.is_empty() => 0.0,
+                TwoWayPull::Mean => weight / mine.len() as f64,
+                TwoWayPull::Coverage => weight * share,
             };
+            *f = (sum * scale).into();
         });
         fresh
     }
@@ -308,6 +328,53 @@ mod tests {
         assert!((mean * 3.0 - sum).norm() < 1e-12);
         assert_eq!(alpha(1e6, 1.0, 0.1), 0.1);
         assert!(mean.iter().all(|x| x.is_finite()));
+    }
+
+    #[test]
+    fn two_way_pulls_average_or_sum_in_proportion_to_the_scan_share() {
+        // Two template points far apart; three scan points choose the first, one the second
+        // (M / N = 1/2). The mean gives each point the mean of its pulls; coverage gives the
+        // sum × M / N: 3/2 of the mean on the first, 1/2 on the second; with an even share
+        // (two each) both rules agree.
+        let p = NBodyParams::default();
+        let template = [[0.0; 3], [10.0, 0.0, 0.0]];
+        let uneven = [
+            [-0.1, 0.0, 0.0],
+            [0.0, 0.1, 0.0],
+            [0.05, 0.0, 0.1],
+            [10.1, 0.0, 0.0],
+        ];
+        let even = [uneven[0], uneven[1], uneven[3], [9.9, 0.05, 0.0]];
+        let kappa = [0.5, -1.0, 0.0, 2.0];
+        let pull = |target: &[[f64; 3]], rule: TwoWayPull| {
+            let mut reverse = ReverseAttraction::new(2, 4, false);
+            let forward = TargetNeighbours {
+                indices: &[0, 0],
+                dist2: &[0.0, 0.0],
+                k: 1,
+            };
+            let mut out = [[0.0; 3]; 2];
+            reverse.compute(&template, target, &kappa, forward, 2.0, rule, &p, &mut out);
+            out.map(|f| vec3(&f))
+        };
+        let pair = |k: usize, j: usize, target: &[[f64; 3]]| {
+            pair_force(&vec3(&template[k]), &vec3(&target[j]), kappa[j], &p)
+        };
+        let sum0: Vec3 = (0..3).map(|j| pair(0, j, &uneven)).sum();
+        let mean = pull(&uneven, TwoWayPull::Mean);
+        let coverage = pull(&uneven, TwoWayPull::Coverage);
+        assert!((mean[0] - sum0 * (2.0 / 3.0)).norm() < 1e-12);
+        assert!((coverage[0] - sum0).norm() < 1e-12, "2 × ½ × the sum");
+        assert!((coverage[0] - 1.5 * mean[0]).norm() < 1e-12);
+        assert!((coverage[1] - 0.5 * mean[1]).norm() < 1e-12);
+        assert!((mean[1] - 2.0 * pair(1, 3, &uneven)).norm() < 1e-12);
+        let (mean, coverage) = (
+            pull(&even, TwoWayPull::Mean),
+            pull(&even, TwoWayPull::Coverage),
+        );
+        for k in 0..2 {
+            assert!(mean[k].norm() > 0.0 && (mean[k] - coverage[k]).norm() < 1e-12);
+        }
     }
 
     #[test]

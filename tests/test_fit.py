@@ -277,7 +277,8 @@ def test_accurate_preset_selects_among_three_schedules(case):
         fm.fit(v, f, x, **single),
         fm.fit(v, f, x, **single, two_way=1.0, coarse_fraction=0.3, anneal=1.0,
                anneal_fraction=0.0),
-        fm.fit(v, f, x, **single, two_way=2.0, anneal_fraction=0.8),
+        fm.fit(v, f, x, **single, two_way=fm.DEFAULT_PARAMS["two_way"] / 1.5,
+               anneal_fraction=0.8),
     ]
 
     d = [scan_distance(x, a.vertices) for a in alone]
@@ -310,6 +311,21 @@ def test_paper_preset_is_the_method_as_printed(case):
     assert r.params["anneal"] == 1 and r.params["rest_rigidity"] == 0
     with pytest.raises(fm.InvalidParameterError, match="preset"):
         fm.fit(case["template_vertices"], case["faces"], case["scan"], preset="fast")
+
+
+def test_two_way_pull_sums_by_default_and_the_mean_stays_reachable(case):
+    """The default combines the two-way pulls by coverage (their sum × M / N), weight 4.5; the
+    previous rule (their mean) and the tracking preset's are reachable and fit differently."""
+    v, f, x = case["template_vertices"], case["faces"], case["scan"]
+    default = fm.fit(v, f, x, iterations=20, selection="single")
+    mean = fm.fit(v, f, x, iterations=20, selection="single", two_way_pull="mean")
+    assert default.params["two_way_pull"] == "coverage" and default.params["two_way"] == 4.5
+    assert mean.params["two_way_pull"] == "mean"
+    assert np.abs(default.vertices - mean.vertices).max() > 1e-6
+    tracking = fm.fit(v, f, x, iterations=2, preset="tracking")
+    assert tracking.params["two_way_pull"] == "mean"
+    with pytest.raises(fm.InvalidParameterError, match="two_way_pull"):
+        fm.fit(v, f, x, iterations=2, two_way_pull="sum")
 
 
 def test_gil_is_released_during_the_fit(case):

@@ -187,6 +187,7 @@ def fit(
     prealign: Optional[str] = None,
     snapshot_every: Optional[int] = None,
     two_way: Optional[float] = None,
+    two_way_pull: Optional[str] = None,
     rigid_fraction: Optional[float] = None,
     coarse_fraction: Optional[float] = None,
     coarse_rings: Optional[int] = None,
@@ -265,8 +266,13 @@ def fit(
         Keep the vertex positions every this many iterations (0: none).
     two_way : float
         Weight of the two-way attraction: every scan point also pulls its nearest template
-        vertex (3.0; the tracking preset 2.0; 0 is the paper's one-way attraction; FoldMatch
+        vertex (4.5; the tracking preset 2.0; 0 is the paper's one-way attraction; FoldMatch
         only).
+    two_way_pull : {"coverage", "mean"}
+        How the two-way pulls on one vertex combine: ``"coverage"`` (default) sums them and
+        scales by M / N, so every scan point pulls with the same weight and a vertex at the
+        edge of a scan region no other vertex covers is pulled in proportion to that region;
+        ``"mean"`` averages them (the rule before 2026-12-01; the tracking preset).
     rigid_fraction : float
         Rigid phase: this fraction of the iterations comes first and moves the whole template
         rigidly under the N-body forces (0.3; FoldMatch only).
@@ -360,7 +366,8 @@ def fit(
         normal_completion=normal_completion, regularization=regularization,
         rotation_source=rotation_source, velocity_sync=velocity_sync, normalize=normalize,
         tolerance=tolerance, use_curvature=use_curvature, prealign=prealign,
-        snapshot_every=snapshot_every, two_way=two_way, rigid_fraction=rigid_fraction,
+        snapshot_every=snapshot_every, two_way=two_way, two_way_pull=two_way_pull,
+        rigid_fraction=rigid_fraction,
         coarse_fraction=coarse_fraction, coarse_rings=coarse_rings,
         coarse_levels=coarse_levels, rigid_sample=rigid_sample,
         rigid_scan_sample=rigid_scan_sample, coarse_sample=coarse_sample,
