@@ -247,7 +247,7 @@ impl Default for FitParams {
             coarse_sample: 1,
             knn_cache: true,
             matrix_series: true,
-            rest_rigidity: 0.5,
+            rest_rigidity: 0.65,
             anneal: 3.0,
             anneal_fraction: 0.6,
             selection: Selection::ScanDistance,
@@ -2352,7 +2352,7 @@ mod tests {
             selection: Selection::Single,
             ..FitParams::default()
         };
-        assert_eq!(with_rigidity.rest_rigidity, 0.5);
+        assert_eq!(with_rigidity.rest_rigidity, 0.65);
         let with = spread(&with_rigidity);
         let without = spread(&FitParams {
             rest_rigidity: 0.0,

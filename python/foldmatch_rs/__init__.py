@@ -308,7 +308,7 @@ def fit(
         the J iterations after the rigid and coarse phases each vertex goes to ``(1 - β)`` × its
         Eq. 8 update ``+ β`` × where the Kabsch fit of its template ring (the rest shape) onto
         the proposed ring puts it, with ``β = β₀ (1 - j / J)``, so the template's edge lengths
-        are remembered where the scan does not pin them (0.5; the paper and tracking presets
+        are remembered where the scan does not pin them (0.65; the paper and tracking presets
         0, the paper's update alone; FoldMatch only).
     anneal, anneal_fraction : float, float
         Softening annealing: ε starts at ``anneal × ε`` and decreases linearly to ε over the
