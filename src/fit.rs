@@ -278,8 +278,9 @@ impl FitParams {
     /// (warm-started frames of a sequence): annealing is a far-start device and, with few
     /// iterations per frame, leaves too little time at the final ε (docs/method.md). Its
     /// two-way weight (2), averaged pulls ([`TwoWayPull::Mean`]) and rigid phase on every
-    /// vertex are the values it was measured with on sequences; it has no rest-shape rigidity (a warm-started frame's template is the
-    /// previous fit, not a rest shape, and the option was not measured on sequences).
+    /// vertex are the values it was measured with on sequences; it has no rest-shape rigidity
+    /// (a warm-started frame's template is the previous fit, not a rest shape, and the option
+    /// was not measured on sequences).
     pub fn tracking() -> Self {
         Self {
             two_way: 2.0,
