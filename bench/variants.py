@@ -13,9 +13,10 @@ and, per group, the medians of f_R, f_λ, f_H, f_E, f_F and scan→fit mean::
 
 Groups: ``real`` (22 pre-placed real-garment cases), ``small`` / ``paper`` (generated, rotated
 and offset), ``sheets`` (24 random sheets), ``wind`` (30 wind frames). Results go to
-``--out`` (JSON, one row per case and variant). With a comparison run in
-``bench/out/results.json`` (``bench/compare.py``), each variant is also scored against the
-best peer of every case.
+``--out`` (JSON, one row per case and variant). Each variant is also scored against the
+best peer of every case (``--peers``: by default a ``bench/compare.py`` run's
+``bench/out/results.json`` if there is one, else ``bench/peer_figures.json``, which holds all
+91 cases).
 """
 
 from __future__ import annotations
