@@ -19,7 +19,7 @@ use foldmatch::curvature::gaussian_curvature_points;
 use foldmatch::deformation::deformation_gradient;
 use foldmatch::fit::{deformation_model, fit_simple, FitParams, TemplateTopology, Workspace};
 use foldmatch::knn::{neighborhood_size, NeighborCache, PointIndex, TargetNeighbours};
-use foldmatch::math::{polar, sym_eigen3, vec3, Mat3};
+use foldmatch::math::{nearest_rotation, nearest_rotation_fast, polar, sym_eigen3, vec3, Mat3};
 use foldmatch::mesh::{vertex_normals, VertexFaces};
 use foldmatch::nbody::{self, TwoWayPull};
 use foldmatch::normalize::Frame;
@@ -492,6 +492,24 @@ fn bench_stages(c: &mut Criterion) {
             s.raw[..sample]
                 .iter()
                 .map(|h| polar(black_box(h)).stretch[(0, 0)])
+                .sum::<f64>()
+        })
+    });
+    // The nearest rotation of the raw gradients: the eigen-decomposition (the exact reference
+    // path) and the unit-quaternion solution the fast paths use.
+    g.bench_function("nearest_rotation/eigen", |b| {
+        b.iter(|| {
+            s.raw[..sample]
+                .iter()
+                .map(|h| nearest_rotation(black_box(h))[(0, 0)])
+                .sum::<f64>()
+        })
+    });
+    g.bench_function("nearest_rotation/quaternion", |b| {
+        b.iter(|| {
+            s.raw[..sample]
+                .iter()
+                .map(|h| nearest_rotation_fast(black_box(h))[(0, 0)])
                 .sum::<f64>()
         })
     });

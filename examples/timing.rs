@@ -39,9 +39,11 @@ fn main() {
         total
     );
     println!(
-        "{:#?}\nfresh k-NN queries: {} of {}",
+        "{:#?}\nfresh k-NN queries: {} of {}; two-way tree queries: {} of {}",
         r.diagnostics.stage_seconds,
         r.diagnostics.knn_queries,
-        r.iterations * case.template_vertices.len()
+        r.iterations * case.template_vertices.len(),
+        r.diagnostics.two_way_queries,
+        r.iterations * case.scan.len()
     );
 }

@@ -179,8 +179,9 @@ pub struct FitParams {
     pub coarse_levels: usize,
     /// Fast 3×3 matrix functions, each agreeing with the eigen-decomposition to round-off:
     /// truncated series for the logarithms and exponentials of Eq. 5 near the identity, the
-    /// Newton iteration for polar factors and nearest rotations (Eq. 5's rotation mean,
-    /// Eq. 8, the Kabsch fits of the rigid and coarse phases and of NRGa), closed-form
+    /// unit-quaternion (Horn / QCP) solution for polar factors and nearest rotations (Eq. 5's
+    /// rotation mean, Eq. 8, the Kabsch fits of the rigid and coarse phases, of the rest-shape
+    /// rigidity and of NRGa), closed-form
     /// eigenvalues and a direct inverse for well-conditioned Eq. 4 systems. `false` always uses
     /// the Jacobi eigen-decomposition (the exact reference path).
     pub matrix_series: bool,
@@ -811,7 +812,7 @@ pub fn deformation_model(
 /// where every ψ-modified eigenvalue stays positive ([`stretch_stays_positive`]), positive
 /// definite: the polar factor is then `R̄` itself, and the Procrustes solve and the
 /// ψ-stretch's eigen-decomposition are skipped (under `matrix_series`; equal to round-off, the
-/// solve's own Newton error). Elsewhere, and with `matrix_series` off, both are computed.
+/// solve's own error). Elsewhere, and with `matrix_series` off, both are computed.
 fn deformation_rotations(
     old: &[[f64; 3]],
     new: &[[f64; 3]],

@@ -150,72 +150,233 @@ pub fn nearest_rotation(m: &Mat3) -> Mat3 {
     rotation_from_svd_parts(m, &eig.vectors, &sigma)
 }
 
-/// Smallest `det M / (‖M‖_F/√3)³` (a cube of the ratio of the geometric to the quadratic mean
-/// of the singular values) at which [`rotation_newton`] is used: below it (near-singular or
-/// reflecting input) the eigen-decomposition path handles the rank deficiency.
-pub const NEWTON_MIN_NORMALIZED_DET: Real = 1e-3;
+/// Smallest `det H / (‖H‖_F/√3)³` (a cube of the ratio of the geometric to the quadratic mean
+/// of the singular values) at which [`polar_fast`] takes its stretch as `Rᵀ H`: below it
+/// (near-singular or reflecting input) the eigen-decomposition path keeps the stretch
+/// `√(HᵀH)` positive semi-definite.
+pub const ORIENTED_MIN_NORMALIZED_DET: Real = 1e-3;
 
-/// The orthogonal polar factor of `m` by the scaled Newton iteration
-/// `X ← ½(γX + X⁻ᵀ/γ)`, `γ = (‖X⁻¹‖_F/‖X‖_F)^{½}` (Higham 1986), or `None` when `m` is
-/// near-singular or orientation-reversing (see [`NEWTON_MIN_NORMALIZED_DET`]).
-///
-/// For a nonsingular `m` with `det m > 0` the polar factor is unique, so this equals
-/// [`nearest_rotation`]'s eigen-decomposition path to round-off (tested to 1e-12), at a
-/// fraction of the cost: a near-rotation input converges in 2–4 steps of one 3×3 inverse.
-pub fn rotation_newton(m: &Mat3) -> Option<Mat3> {
-    let norm = m.norm();
-    let det = m.determinant();
-    let scale = norm / 3.0f64.sqrt();
-    if !(norm.is_finite() && det > NEWTON_MIN_NORMALIZED_DET * scale * scale * scale) {
-        return None;
-    }
-    let mut x = *m;
-    let mut scaled = true;
-    for _ in 0..32 {
-        // X⁻ᵀ = cof(X) / det X, det X by the cofactors of its first row.
-        let cof = Mat3::new(
-            x[(1, 1)] * x[(2, 2)] - x[(1, 2)] * x[(2, 1)],
-            x[(1, 2)] * x[(2, 0)] - x[(1, 0)] * x[(2, 2)],
-            x[(1, 0)] * x[(2, 1)] - x[(1, 1)] * x[(2, 0)],
-            x[(0, 2)] * x[(2, 1)] - x[(0, 1)] * x[(2, 2)],
-            x[(0, 0)] * x[(2, 2)] - x[(0, 2)] * x[(2, 0)],
-            x[(0, 1)] * x[(2, 0)] - x[(0, 0)] * x[(2, 1)],
-            x[(0, 1)] * x[(1, 2)] - x[(0, 2)] * x[(1, 1)],
-            x[(0, 2)] * x[(1, 0)] - x[(0, 0)] * x[(1, 2)],
-            x[(0, 0)] * x[(1, 1)] - x[(0, 1)] * x[(1, 0)],
-        );
-        let det = x[(0, 0)] * cof[(0, 0)] + x[(0, 1)] * cof[(0, 1)] + x[(0, 2)] * cof[(0, 2)];
-        if det <= 0.0 || det.is_nan() {
-            return None;
-        }
-        let inv_det = 1.0 / det;
-        // γ = (‖X⁻ᵀ‖ / ‖X‖)^{½} from squared norms: one square root of a square root.
-        let gamma = if scaled {
-            (cof.norm_squared() * inv_det * inv_det / x.norm_squared())
-                .sqrt()
-                .sqrt()
-        } else {
-            1.0
-        };
-        let next = 0.5 * (gamma * x + cof * (inv_det / gamma));
-        let change2 = (next - x).norm_squared();
-        x = next;
-        if !scaled {
-            // The unscaled step after a change ≤ 1e-9 squares the error below round-off.
-            return Some(x);
-        }
-        if change2 <= 1e-18 {
-            scaled = false;
+/// `‖cof m‖_F²`, the sum of the squared 2×2 minors of `m`: `Σ_{i<j} σᵢ² σⱼ²`.
+#[inline]
+fn cofactor_norm_squared(m: &Mat3) -> Real {
+    let mut sum = 0.0;
+    for (r0, r1) in [(0, 1), (0, 2), (1, 2)] {
+        for (c0, c1) in [(0, 1), (0, 2), (1, 2)] {
+            let minor = m[(r0, c0)] * m[(r1, c1)] - m[(r0, c1)] * m[(r1, c0)];
+            sum += minor * minor;
         }
     }
-    None
+    sum
 }
 
-/// [`nearest_rotation`] by [`rotation_newton`] where it applies, else by the
+/// The 2×2 minors of a 4×4 matrix's first two rows (`s`) and last two rows (`c`), from which
+/// its determinant and every entry of its adjugate take one short sum (Laplace expansion by
+/// complementary minors).
+struct Adjugate4 {
+    a: [[Real; 4]; 4],
+    s: [Real; 6],
+    c: [Real; 6],
+    det: Real,
+}
+
+impl Adjugate4 {
+    #[inline]
+    fn of(a: [[Real; 4]; 4]) -> Self {
+        let [r0, r1, r2, r3] = &a;
+        let s = [
+            r0[0] * r1[1] - r1[0] * r0[1],
+            r0[0] * r1[2] - r1[0] * r0[2],
+            r0[0] * r1[3] - r1[0] * r0[3],
+            r0[1] * r1[2] - r1[1] * r0[2],
+            r0[1] * r1[3] - r1[1] * r0[3],
+            r0[2] * r1[3] - r1[2] * r0[3],
+        ];
+        let c = [
+            r2[0] * r3[1] - r3[0] * r2[1],
+            r2[0] * r3[2] - r3[0] * r2[2],
+            r2[0] * r3[3] - r3[0] * r2[3],
+            r2[1] * r3[2] - r3[1] * r2[2],
+            r2[1] * r3[3] - r3[1] * r2[3],
+            r2[2] * r3[3] - r3[2] * r2[3],
+        ];
+        let det = s[0] * c[5] - s[1] * c[4] + s[2] * c[3] + s[3] * c[2] - s[4] * c[1] + s[5] * c[0];
+        Self { a, s, c, det }
+    }
+
+    /// The adjugate's diagonal.
+    #[inline]
+    fn diagonal(&self) -> [Real; 4] {
+        let ([r0, r1, r2, r3], s, c) = (&self.a, &self.s, &self.c);
+        [
+            r1[1] * c[5] - r1[2] * c[4] + r1[3] * c[3],
+            r0[0] * c[5] - r0[2] * c[2] + r0[3] * c[1],
+            r3[0] * s[4] - r3[1] * s[2] + r3[3] * s[0],
+            r2[0] * s[3] - r2[1] * s[1] + r2[2] * s[0],
+        ]
+    }
+
+    /// Row `i` of the adjugate (its column `i` when the matrix is symmetric).
+    #[inline]
+    fn row(&self, i: usize) -> [Real; 4] {
+        let ([r0, r1, r2, r3], s, c) = (&self.a, &self.s, &self.c);
+        match i {
+            0 => [
+                r1[1] * c[5] - r1[2] * c[4] + r1[3] * c[3],
+                -r0[1] * c[5] + r0[2] * c[4] - r0[3] * c[3],
+                r3[1] * s[5] - r3[2] * s[4] + r3[3] * s[3],
+                -r2[1] * s[5] + r2[2] * s[4] - r2[3] * s[3],
+            ],
+            1 => [
+                -r1[0] * c[5] + r1[2] * c[2] - r1[3] * c[1],
+                r0[0] * c[5] - r0[2] * c[2] + r0[3] * c[1],
+                -r3[0] * s[5] + r3[2] * s[2] - r3[3] * s[1],
+                r2[0] * s[5] - r2[2] * s[2] + r2[3] * s[1],
+            ],
+            2 => [
+                r1[0] * c[4] - r1[1] * c[2] + r1[3] * c[0],
+                -r0[0] * c[4] + r0[1] * c[2] - r0[3] * c[0],
+                r3[0] * s[4] - r3[1] * s[2] + r3[3] * s[0],
+                -r2[0] * s[4] + r2[1] * s[2] - r2[3] * s[0],
+            ],
+            _ => [
+                -r1[0] * c[3] + r1[1] * c[1] - r1[2] * c[0],
+                r0[0] * c[3] - r0[1] * c[1] + r0[2] * c[0],
+                -r3[0] * s[3] + r3[1] * s[1] - r3[2] * s[0],
+                r2[0] * s[3] - r2[1] * s[1] + r2[2] * s[0],
+            ],
+        }
+    }
+}
+
+/// Smallest `(λ₁ − λ₂)(λ₁ − λ₃)(λ₁ − λ₄) / (√3 ‖M‖_F)³` — the product of the gaps between
+/// the largest eigenvalue of Horn's matrix and the others, relative to its scale — at which
+/// [`rotation_quaternion`] is used: below it (a covariance of nearly collinear points, whose
+/// best rotation is nearly undetermined) the eigen-decomposition path decides.
+pub const QUATERNION_MIN_RELATIVE_GAP: Real = 1e-3;
+
+/// The rotation closest to `m` in the Frobenius norm (the maximizer of `tr(Rᵀ m)` over
+/// SO(3), as [`nearest_rotation`]) by Horn's unit-quaternion method, or `None` when the
+/// answer is nearly undetermined (see [`QUATERNION_MIN_RELATIVE_GAP`]).
+///
+/// `tr(R(q)ᵀ m) = qᵀ N q` for the 4×4 symmetric, traceless matrix `N` of Horn (1987), so the
+/// best rotation is that of the eigenvector of N's largest eigenvalue λ₁ (= σ₁ + σ₂ ± σ₃, the
+/// sign of det m). λ₁ is the largest root of the characteristic quartic
+/// `λ⁴ − 2‖m‖²λ² − 8 det(m) λ + det N`, found by Newton's method from an upper bound
+/// (`√3 ‖m‖_F`, tightened below), from which it decreases monotonically onto the root (beyond the largest root of a polynomial
+/// with real roots every derivative is positive; Theobald's QCP, 2005), and the eigenvector
+/// is the best-scaled column of the adjugate of `N − λ₁ I` (rank one). Unlike Newton's polar
+/// iteration it needs no full rank: a flat neighbourhood's rank-2 covariance has a
+/// well-separated λ₁. Equal to the eigen-decomposition path to round-off (tested to 1e-12),
+/// in about half the instructions of the scaled Newton polar iteration it replaced
+/// (docs/performance.md, eleventh round) and under half of the eigen-decomposition's.
+pub fn rotation_quaternion(m: &Mat3) -> Option<Mat3> {
+    let (m00, m01, m02) = (m[(0, 0)], m[(0, 1)], m[(0, 2)]);
+    let (m10, m11, m12) = (m[(1, 0)], m[(1, 1)], m[(1, 2)]);
+    let (m20, m21, m22) = (m[(2, 0)], m[(2, 1)], m[(2, 2)]);
+    // Horn's N in the order (w, x, y, z).
+    let n = [
+        [m00 + m11 + m22, m21 - m12, m02 - m20, m10 - m01],
+        [m21 - m12, m00 - m11 - m22, m01 + m10, m02 + m20],
+        [m02 - m20, m01 + m10, -m00 + m11 - m22, m12 + m21],
+        [m10 - m01, m02 + m20, m12 + m21, -m00 - m11 + m22],
+    ];
+    let norm2 = m.norm_squared();
+    if !(norm2 > 0.0 && norm2.is_finite()) {
+        return None;
+    }
+    let det_n = Adjugate4::of(n).det;
+    let det = m.determinant();
+    let (c2, c1, c0) = (-2.0 * norm2, -8.0 * det, det_n);
+    let scale = (3.0 * norm2).sqrt();
+    // The start: with det m ≥ 0, λ₁ = σ₁ + σ₂ + σ₃ is the fixed point of
+    // f(λ) = (‖m‖² + 2 (I₂ + 2 det(m) λ)^½)^½ (I₂ = Σ σᵢ²σⱼ² = ‖cof m‖²: (Σσ)² = Σσ² + 2 e₂
+    // and e₂² = I₂ + 2 σ₁σ₂σ₃ Σσ), increasing in λ, so f of an upper bound is a tighter one:
+    // two steps from √3 ‖m‖ leave Newton 2–3 iterations instead of 6–10 for a flat
+    // covariance (f is exact there: det = 0). With det m < 0, f would undershoot.
+    let mut lambda = scale;
+    if det >= 0.0 {
+        let i2 = cofactor_norm_squared(m);
+        let tighter = |l: Real| (norm2 + 2.0 * (i2 + 2.0 * det * l).max(0.0).sqrt()).sqrt();
+        lambda = tighter(tighter(scale)).min(scale);
+    }
+    for _ in 0..64 {
+        let l2 = lambda * lambda;
+        let p = (l2 + c2) * l2 + c1 * lambda + c0;
+        let dp = (4.0 * l2 + 2.0 * c2) * lambda + c1;
+        if !(p > 0.0 && dp > 0.0) {
+            break;
+        }
+        let next = lambda - p / dp;
+        if next.is_nan() || next >= lambda {
+            break;
+        }
+        let step = lambda - next;
+        lambda = next;
+        if step <= 1e-8 * scale {
+            break;
+        }
+    }
+    // adj(N − λ₁ I) = −(λ₁ − λ₂)(λ₁ − λ₃)(λ₁ − λ₄) q qᵀ: every column ∝ q; the one with the
+    // largest diagonal entry (∝ q_i²) is the best scaled, and its trace the gaps' product.
+    let shifted = |lambda: Real| {
+        let mut a = n;
+        for (i, row) in a.iter_mut().enumerate() {
+            row[i] -= lambda;
+        }
+        Adjugate4::of(a)
+    };
+    let adj = shifted(lambda);
+    let diag = adj.diagonal();
+    let gaps = -(diag[0] + diag[1] + diag[2] + diag[3]);
+    let cube = scale * scale * scale;
+    if gaps.is_nan() || gaps <= QUATERNION_MIN_RELATIVE_GAP * cube {
+        return None;
+    }
+    let best = (1..4).fold(0, |b, i| if diag[i].abs() > diag[b].abs() { i } else { b });
+    let mut q = adj.row(best);
+    // The quartic's root carries the round-off of its coefficients, δλ ≈ 4ε‖N‖⁴/P'(λ₁) with
+    // P'(λ₁) the gaps' product G, and the column an error δλ / (λ₁ − λ₂) ≲ 16ε (scale³/G)².
+    // Where G < scale³ / 2 the Rayleigh quotient of the column (exact to second order in its
+    // error) gives a λ from which the column is as accurate as the eigenvector's conditioning
+    // allows.
+    if gaps < 0.5 * cube {
+        let q0n2 = q.iter().map(|x| x * x).sum::<Real>();
+        if !(q0n2 > 0.0 && q0n2.is_finite()) {
+            return None;
+        }
+        let mut rayleigh = 0.0;
+        for (qi, row) in q.iter().zip(&n) {
+            rayleigh += qi * (row[0] * q[0] + row[1] * q[1] + row[2] * q[2] + row[3] * q[3]);
+        }
+        q = shifted(rayleigh / q0n2).row(best);
+    }
+    let qn2 = q.iter().map(|x| x * x).sum::<Real>();
+    if !(qn2 > 0.0 && qn2.is_finite()) {
+        return None;
+    }
+    let [w, x, y, z] = q;
+    let s = 2.0 / qn2;
+    let (wx, wy, wz) = (s * w * x, s * w * y, s * w * z);
+    let (xx, xy, xz) = (s * x * x, s * x * y, s * x * z);
+    let (yy, yz, zz) = (s * y * y, s * y * z, s * z * z);
+    Some(Mat3::new(
+        1.0 - yy - zz,
+        xy - wz,
+        xz + wy,
+        xy + wz,
+        1.0 - xx - zz,
+        yz - wx,
+        xz - wy,
+        yz + wx,
+        1.0 - xx - yy,
+    ))
+}
+
+/// [`nearest_rotation`] by [`rotation_quaternion`] where it applies, else by the
 /// eigen-decomposition.
 #[inline]
 pub fn nearest_rotation_fast(m: &Mat3) -> Mat3 {
-    rotation_newton(m).unwrap_or_else(|| nearest_rotation(m))
+    rotation_quaternion(m).unwrap_or_else(|| nearest_rotation(m))
 }
 
 /// [`nearest_rotation_fast`] when `fast` (the `matrix_series` paths), else [`nearest_rotation`].
@@ -228,10 +389,14 @@ pub fn nearest_rotation_with(m: &Mat3, fast: bool) -> Mat3 {
     }
 }
 
-/// [`polar`] with the rotation from [`rotation_newton`] and `U = Rᵀ H` (symmetrized) where the
-/// Newton iteration applies, else by the eigen-decomposition.
+/// [`polar`] with the rotation from [`rotation_quaternion`] and `U = Rᵀ H` (symmetrized) where
+/// `h` is well inside the orientation-preserving matrices (its normalized determinant above
+/// [`ORIENTED_MIN_NORMALIZED_DET`], so that `Rᵀ H` is the positive-definite stretch), else by
+/// the eigen-decomposition (whose stretch `√(HᵀH)` stays positive semi-definite there).
 pub fn polar_fast(h: &Mat3) -> Polar {
-    match rotation_newton(h) {
+    let scale = h.norm() / 3.0f64.sqrt();
+    let oriented = h.determinant() > ORIENTED_MIN_NORMALIZED_DET * scale * scale * scale;
+    match rotation_quaternion(h).filter(|_| oriented) {
         Some(rotation) => {
             let u = rotation.transpose() * h;
             Polar {
@@ -585,7 +750,7 @@ mod tests {
     }
 
     #[test]
-    fn newton_rotation_matches_eigen_path() {
+    fn fast_rotation_and_polar_match_eigen_path() {
         let mut rng = ChaCha8Rng::seed_from_u64(21);
         let mut used = 0;
         for i in 0..2000 {
@@ -609,14 +774,68 @@ mod tests {
             let (pf, pe) = (polar_fast(&m), polar(&m));
             assert_relative_eq!(pf.rotation, pe.rotation, epsilon = 1e-12);
             assert_relative_eq!(pf.stretch, pe.stretch, epsilon = 1e-12 * m.norm());
-            used += usize::from(rotation_newton(&m).is_some());
+            used += usize::from(rotation_quaternion(&m).is_some());
         }
         assert!(
-            used > 1000,
-            "the Newton path should apply to most inputs ({used})"
+            used > 1500,
+            "the quaternion path should apply to most inputs ({used})"
         );
-        assert!(rotation_newton(&Mat3::from_diagonal(&Vec3::new(1.0, 1.0, -1.0))).is_none());
-        assert!(rotation_newton(&Mat3::zeros()).is_none());
+        // A reflecting input: the rotation from the quaternion, the stretch from √(HᵀH).
+        let reflecting = Mat3::from_diagonal(&Vec3::new(1.0, 2.0, -0.5));
+        assert_relative_eq!(
+            polar_fast(&reflecting).stretch,
+            polar(&reflecting).stretch,
+            epsilon = 1e-14
+        );
+    }
+
+    #[test]
+    fn quaternion_rotation_matches_eigen_path() {
+        let mut rng = ChaCha8Rng::seed_from_u64(23);
+        let mut used = 0;
+        for i in 0..4000 {
+            let r = random_rotation(&mut rng);
+            // Near-rotations, general stretches, flat (rank-2) covariances, reflecting inputs
+            // and (every 11th) nearly collinear ones.
+            let spread = [0.05, 1.5, 0.3][i % 3];
+            let mut m = r;
+            for x in m.iter_mut() {
+                *x += spread * (rng.random::<f64>() - 0.5);
+            }
+            if i % 5 == 0 {
+                let c = m.column(0) * (rng.random::<f64>() - 0.5) + m.column(1) * 0.3;
+                m.set_column(2, &c);
+            }
+            if i % 7 == 0 {
+                m.set_column(2, &(-m.column(2)));
+            }
+            if i % 11 == 0 {
+                let c = m.column(0) * 0.7 + m.column(1) * 1e-7;
+                m.set_column(1, &c);
+            }
+            m *= 10f64.powi(rng.random_range(-3..4));
+            let exact = nearest_rotation(&m);
+            if let Some(q) = rotation_quaternion(&m) {
+                used += 1;
+                assert_relative_eq!(q, exact, epsilon = 1e-12);
+                assert_relative_eq!(q.transpose() * q, Mat3::identity(), epsilon = 1e-14);
+            }
+        }
+        assert!(
+            used > 3500,
+            "the quaternion path should apply to most inputs ({used})"
+        );
+        // Rank 1 and zero: undetermined, left to the eigen path.
+        let rank1 = Vec3::new(1.0, 2.0, 3.0) * Vec3::new(0.5, -1.0, 0.2).transpose();
+        assert!(rotation_quaternion(&rank1).is_none());
+        assert!(rotation_quaternion(&Mat3::zeros()).is_none());
+        // A flat covariance (rank 2): a well-separated λ₁.
+        let flat = Mat3::from_diagonal(&Vec3::new(2.0, 1.0, 0.0));
+        assert_relative_eq!(
+            rotation_quaternion(&flat).unwrap(),
+            Mat3::identity(),
+            epsilon = 1e-15
+        );
     }
 
     #[test]

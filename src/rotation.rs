@@ -35,10 +35,9 @@ pub fn transform_vertex(rotation: &Mat3, y: &Vec3, c_old: &Vec3, c_new: &Vec3) -
 }
 
 /// Kabsch rotation of the neighborhood: the rotation best mapping `old − Ȳ` onto `new − Ȳ'`.
-/// With `fast`, the nearest rotation of the covariance comes from the Newton polar iteration
-/// where it applies (a full-rank covariance: a curved neighborhood), agreeing with the
-/// eigen-decomposition to round-off ([`crate::math::nearest_rotation_fast`]); a flat neighborhood's
-/// rank-2 covariance takes the eigen-decomposition either way.
+/// With `fast`, the nearest rotation of the covariance comes from the unit-quaternion solution
+/// (a flat neighborhood's rank-2 covariance included), agreeing with the eigen-decomposition
+/// to round-off ([`crate::math::nearest_rotation_fast`]).
 pub fn kabsch(
     ring: &[u32],
     old: &[[f64; 3]],
