@@ -170,13 +170,12 @@ fn cofactor_norm_squared(m: &Mat3) -> Real {
 }
 
 /// The 2×2 minors of a 4×4 matrix's first two rows (`s`) and last two rows (`c`), from which
-/// its determinant and every entry of its adjugate take one short sum (Laplace expansion by
-/// complementary minors).
+/// every entry of its adjugate takes one short sum (Laplace expansion by complementary
+/// minors).
 struct Adjugate4 {
     a: [[Real; 4]; 4],
     s: [Real; 6],
     c: [Real; 6],
-    det: Real,
 }
 
 impl Adjugate4 {
@@ -199,8 +198,7 @@ impl Adjugate4 {
             r2[1] * r3[3] - r3[1] * r2[3],
             r2[2] * r3[3] - r3[2] * r2[3],
         ];
-        let det = s[0] * c[5] - s[1] * c[4] + s[2] * c[3] + s[3] * c[2] - s[4] * c[1] + s[5] * c[0];
-        Self { a, s, c, det }
+        Self { a, s, c }
     }
 
     /// The adjugate's diagonal.
@@ -284,18 +282,19 @@ pub fn rotation_quaternion(m: &Mat3) -> Option<Mat3> {
     if !(norm2 > 0.0 && norm2.is_finite()) {
         return None;
     }
-    let det_n = Adjugate4::of(n).det;
+    // The quartic's coefficients from the invariants of m: with I₂ = Σ_{i<j} σᵢ²σⱼ² = ‖cof m‖²,
+    // det N = Π λᵢ = (Σσ²)² − 4 I₂.
     let det = m.determinant();
-    let (c2, c1, c0) = (-2.0 * norm2, -8.0 * det, det_n);
+    let i2 = cofactor_norm_squared(m);
+    let (c2, c1, c0) = (-2.0 * norm2, -8.0 * det, norm2 * norm2 - 4.0 * i2);
     let scale = (3.0 * norm2).sqrt();
     // The start: with det m ≥ 0, λ₁ = σ₁ + σ₂ + σ₃ is the fixed point of
-    // f(λ) = (‖m‖² + 2 (I₂ + 2 det(m) λ)^½)^½ (I₂ = Σ σᵢ²σⱼ² = ‖cof m‖²: (Σσ)² = Σσ² + 2 e₂
-    // and e₂² = I₂ + 2 σ₁σ₂σ₃ Σσ), increasing in λ, so f of an upper bound is a tighter one:
+    // f(λ) = (‖m‖² + 2 (I₂ + 2 det(m) λ)^½)^½ ((Σσ)² = Σσ² + 2 e₂ and
+    // e₂² = I₂ + 2 σ₁σ₂σ₃ Σσ), increasing in λ, so f of an upper bound is a tighter one:
     // two steps from √3 ‖m‖ leave Newton 2–3 iterations instead of 6–10 for a flat
     // covariance (f is exact there: det = 0). With det m < 0, f would undershoot.
     let mut lambda = scale;
     if det >= 0.0 {
-        let i2 = cofactor_norm_squared(m);
         let tighter = |l: Real| (norm2 + 2.0 * (i2 + 2.0 * det * l).max(0.0).sqrt()).sqrt();
         lambda = tighter(tighter(scale)).min(scale);
     }
