@@ -106,9 +106,10 @@ LEVERS = {
     "wrinkle field is computed once, after the last iteration. Nothing left to close",
     "update": "update: the coarse phase's 8-ring Kabsch fits, their sums of per-point moments "
     "taken from an adjacent ring's sum plus and minus the ~35 differing members "
-    "(`rings::RingDeltas`: a third of the reads on a grid); what is left is the nearest "
-    "rotations of the flat rings' rank-2 covariances (Jacobi, ~0.5 µs a vertex; a Newton path "
-    "for them was tried and saved nothing)",
+    "(`rings::RingDeltas`: a third of the reads on a grid), and their nearest rotations by "
+    "Horn's unit quaternion (`math::rotation_quaternion`: the flat rings' rank-2 covariances "
+    "included, about 500 instructions a vertex against 1,300 for the Jacobi path they took "
+    "before); what is left is the moments' reads and one quaternion solve a vertex",
     "setup": "setup: curvature of the scan, the scan tree and the coarse 8-ring BFS (shared "
     "by both schedules); the final wrinkle fields and the selection's scan distances and edge "
     "spreads",
