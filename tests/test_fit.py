@@ -354,7 +354,7 @@ def test_gil_is_released_during_the_fit(case):
 
 
 def test_matrix_series_changes_nothing_beyond_round_off(case):
-    """The fast matrix functions (series for Eq. 5, Newton polar factors, closed-form
+    """The fast matrix functions (series for Eq. 5, quaternion polar factors, closed-form
     eigenvalues for Eq. 4) agree with the kept eigen-decomposition path."""
     args = (case["template_vertices"], case["faces"], case["scan"])
     for preset in ("default", "paper"):
