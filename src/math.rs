@@ -169,6 +169,19 @@ fn cofactor_norm_squared(m: &Mat3) -> Real {
     sum
 }
 
+/// The six 2×2 minors of the rows `r` over `t`, columns (0,1) (0,2) (0,3) (1,2) (1,3) (2,3).
+#[inline]
+fn pair_minors(r: &[Real; 4], t: &[Real; 4]) -> [Real; 6] {
+    [
+        r[0] * t[1] - t[0] * r[1],
+        r[0] * t[2] - t[0] * r[2],
+        r[0] * t[3] - t[0] * r[3],
+        r[1] * t[2] - t[1] * r[2],
+        r[1] * t[3] - t[1] * r[3],
+        r[2] * t[3] - t[2] * r[3],
+    ]
+}
+
 /// The 2×2 minors of a 4×4 matrix's first two rows (`s`) and last two rows (`c`), from which
 /// every entry of its adjugate takes one short sum (Laplace expansion by complementary
 /// minors).
@@ -181,27 +194,11 @@ struct Adjugate4 {
 impl Adjugate4 {
     #[inline]
     fn of(a: [[Real; 4]; 4]) -> Self {
-        let [r0, r1, r2, r3] = &a;
-        let s = [
-            r0[0] * r1[1] - r1[0] * r0[1],
-            r0[0] * r1[2] - r1[0] * r0[2],
-            r0[0] * r1[3] - r1[0] * r0[3],
-            r0[1] * r1[2] - r1[1] * r0[2],
-            r0[1] * r1[3] - r1[1] * r0[3],
-            r0[2] * r1[3] - r1[2] * r0[3],
-        ];
-        let c = [
-            r2[0] * r3[1] - r3[0] * r2[1],
-            r2[0] * r3[2] - r3[0] * r2[2],
-            r2[0] * r3[3] - r3[0] * r2[3],
-            r2[1] * r3[2] - r3[1] * r2[2],
-            r2[1] * r3[3] - r3[1] * r2[3],
-            r2[2] * r3[3] - r3[2] * r2[3],
-        ];
+        let (s, c) = (pair_minors(&a[0], &a[1]), pair_minors(&a[2], &a[3]));
         Self { a, s, c }
     }
 
-    /// The adjugate's diagonal.
+    /// The adjugate's diagonal (the entries `row(i)[i]`, without the rest of each row).
     #[inline]
     fn diagonal(&self) -> [Real; 4] {
         let ([r0, r1, r2, r3], s, c) = (&self.a, &self.s, &self.c);
