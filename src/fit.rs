@@ -181,9 +181,9 @@ pub struct FitParams {
     /// truncated series for the logarithms and exponentials of Eq. 5 near the identity, the
     /// unit-quaternion (Horn / QCP) solution for polar factors and nearest rotations (Eq. 5's
     /// rotation mean, Eq. 8, the Kabsch fits of the rigid and coarse phases, of the rest-shape
-    /// rigidity and of NRGa), closed-form
-    /// eigenvalues and a direct inverse for well-conditioned Eq. 4 systems. `false` always uses
-    /// the Jacobi eigen-decomposition (the exact reference path).
+    /// rigidity and of NRGa), closed-form eigenvalues and a direct inverse for well-conditioned
+    /// Eq. 4 systems. `false` always uses the Jacobi eigen-decomposition (the exact reference
+    /// path).
     pub matrix_series: bool,
     /// Re-use earlier k-NN candidates when that is provably exact (see
     /// [`crate::knn::NeighborCache`]), and read the two-way attraction's nearest template

@@ -395,7 +395,7 @@ pub fn nearest_rotation_with(m: &Mat3, fast: bool) -> Mat3 {
 pub fn polar_fast(h: &Mat3) -> Polar {
     let scale = h.norm() / 3.0f64.sqrt();
     let oriented = h.determinant() > ORIENTED_MIN_NORMALIZED_DET * scale * scale * scale;
-    match rotation_quaternion(h).filter(|_| oriented) {
+    match oriented.then(|| rotation_quaternion(h)).flatten() {
         Some(rotation) => {
             let u = rotation.transpose() * h;
             Polar {

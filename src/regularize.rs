@@ -63,8 +63,9 @@ impl RegularizeBuffers {
 /// With `series`, logarithms and exponentials of near-identity matrices use truncated series
 /// ([`spd_log_near_identity`], [`sym_exp_small`]) and `U_k^{±½}` come from the polar
 /// decomposition's own eigen-decomposition, and polar factors and the chordal mean's rotation
-/// come from the unit-quaternion solution ([`polar_fast`], [`nearest_rotation_fast`]); the results
-/// agree with the eigen-decomposition path (`series = false`, kept as the exact reference) to round-off.
+/// come from the unit-quaternion solution ([`polar_fast`], [`nearest_rotation_fast`]); the
+/// results agree with the eigen-decomposition path (`series = false`, kept as the exact
+/// reference) to round-off.
 pub fn regularize(
     raw: &[Mat3],
     rings: &Neighborhoods,
