@@ -106,7 +106,7 @@ impl PointIndex {
 }
 
 /// Points per leaf of a [`BoxTree`].
-const BOX_LEAF: usize = 32;
+const BOX_LEAF: usize = 16;
 
 /// [`BoxTree::update`] rebuilds once the leaves' looseness exceeds this multiple of its value
 /// at the last rebuild.
