@@ -266,12 +266,22 @@ def selected(distances, spreads, margin):
     return min(tied, key=lambda i: (spreads[i], i))
 
 
-def test_accurate_preset_selects_among_three_schedules(case):
-    """preset="accurate" fits the given, sharp and gentle (⅔ two-way, longer annealing)
-    schedules and keeps the one the selection rule picks from brute-force scan→fit distances
-    and NumPy edge-length spreads; each equals its single run."""
+def test_accurate_preset_is_the_default_with_150_iterations(case):
+    """preset="accurate" is the default with 150 iterations: the same parameters otherwise,
+    and the same fit as asking the default for 150 iterations."""
     v, f, x = case["template_vertices"], case["faces"], case["scan"]
-    r = fm.fit(v, f, x, preset="accurate", iterations=20)
+    r = fm.fit(v, f, x, preset="accurate")
+    assert r.params == {**fm.DEFAULT_PARAMS, "iterations": 150}
+    assert r.iterations == 150
+    np.testing.assert_array_equal(r.vertices, fm.fit(v, f, x, iterations=150).vertices)
+
+
+def test_wide_selection_selects_among_three_schedules(case):
+    """selection="scan_distance_wide" fits the given, sharp and gentle (⅔ two-way, longer
+    annealing) schedules and keeps the one the selection rule picks from brute-force scan→fit
+    distances and NumPy edge-length spreads; each equals its single run."""
+    v, f, x = case["template_vertices"], case["faces"], case["scan"]
+    r = fm.fit(v, f, x, iterations=20, selection="scan_distance_wide", rigid_sample=1)
     single = dict(iterations=20, selection="single", rigid_sample=1)
     alone = [
         fm.fit(v, f, x, **single),

@@ -329,8 +329,8 @@ pub enum PrealignArg {
 #[command(next_help_heading = "Fit parameters")]
 pub struct ParamArgs {
     /// Starting values of every parameter: `default` (the most accurate configuration for its
-    /// cost), `accurate` (the default with a third candidate schedule: closer to the truth,
-    /// 2× the time), `paper` (the paper's method with only the converging readings) or
+    /// cost), `accurate` (the default with 150 iterations: closer to the truth and to the
+    /// scan, 1.3× the time), `paper` (the paper's method with only the converging readings) or
     /// `tracking` (the default without softening annealing, for warm-started fits)
     /// [default: default; for `sequence`: tracking].
     #[arg(long, value_name = "NAME")]
