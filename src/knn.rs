@@ -105,7 +105,9 @@ impl PointIndex {
     }
 }
 
-/// Points per leaf of a [`BoxTree`].
+/// Points per leaf of a [`BoxTree`]. Callgrind, one thread, whole default fits (2,500-vertex
+/// / paper-sized case): 32 points 2.806G / 25.97G instructions, 16 2.748G / 25.62G, 12 — /
+/// 25.72G, 8 2.754G / —; wall times equal within the machine's noise.
 const BOX_LEAF: usize = 16;
 
 /// [`BoxTree::update`] rebuilds once the leaves' looseness exceeds this multiple of its value

@@ -284,6 +284,37 @@ mod tests {
     use super::*;
 
     #[test]
+    fn pair_force_equals_the_printed_formula() {
+        // Eq. 2's term as printed, with powf: −G m m · numerator / ((d² + ε²)^{3/2} α^{3/2}).
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2);
+        for numerator in [ForceNumerator::Centered, ForceNumerator::Literal] {
+            let p = NBodyParams {
+                numerator,
+                ..Default::default()
+            };
+            for _ in 0..2000 {
+                let mut point = || Vec3::from_fn(|_, _| rng.random_range(-1.0..1.0));
+                let (y, x) = (point(), point());
+                let kappa = rng.random_range(-3.0..3.0);
+                let d2 = (y - x).norm_squared();
+                let a = alpha(kappa, d2, p.alpha_floor);
+                let num = match numerator {
+                    ForceNumerator::Centered => a * (y - x),
+                    ForceNumerator::Literal => a * y - x,
+                };
+                let denom = (d2 + p.softening.powi(2)).powf(1.5) * a.powf(1.5);
+                let printed = -p.gravity * p.template_mass * p.target_mass * num / denom;
+                let got = pair_force(&y, &x, kappa, &p);
+                assert!(
+                    (got - printed).norm() <= 1e-13 * printed.norm(),
+                    "{got:?} vs {printed:?}"
+                );
+            }
+        }
+    }
+
+    #[test]
     fn single_pair_force_is_newtonian_far_away() {
         // κ = 0, far field: |F| → G m m / d² pointing to the attractor.
         let p = NBodyParams {
