@@ -221,9 +221,10 @@ def fit(
         Where unset parameters come from: ``"default"`` (:data:`DEFAULT_PARAMS`, the most
         accurate configuration for its cost), ``"accurate"`` (the default with 150 iterations
         instead of 100, every phase lengthened in proportion: closer to the truth and to the
-        scan on the harness, about 1.3× the time), ``"paper"`` (:data:`PAPER_PARAMS`, the method as the paper
-        describes it) or ``"tracking"`` (the default without softening annealing, for a fit
-        warm-started close to its scan, e.g. the previous frame of a sequence).
+        scan on the harness, about 1.3× the time), ``"paper"`` (:data:`PAPER_PARAMS`, the
+        method as the paper describes it) or ``"tracking"`` (the default without softening
+        annealing, for a fit warm-started close to its scan, e.g. the previous frame of a
+        sequence).
     method : {"foldmatch", "nrga"}
         FoldMatch (default) or the NRGa point-based baseline.
     iterations : int
