@@ -105,9 +105,10 @@ impl PointIndex {
     }
 }
 
-/// Points per leaf of a [`BoxTree`]. Callgrind, one thread, whole default fits (2,500-vertex
-/// / paper-sized case): 32 points 2.806G / 25.97G instructions, 16 2.748G / 25.62G, 12 — /
-/// 25.72G, 8 2.754G / —; wall times equal within the machine's noise.
+/// Points per leaf of a [`BoxTree`]. Measured by callgrind on whole default fits, one thread:
+/// 32 points 2.806G instructions on the 2,500-vertex case and 25.97G on the paper-sized one,
+/// 16 points 2.748G and 25.62G, 12 points 25.72G (paper-sized), 8 points 2.754G (2,500
+/// vertices); the wall times were equal within the machine's noise.
 const BOX_LEAF: usize = 16;
 
 /// [`BoxTree::update`] rebuilds once the leaves' looseness exceeds this multiple of its value
