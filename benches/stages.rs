@@ -497,22 +497,22 @@ fn bench_stages(c: &mut Criterion) {
     });
     // The nearest rotation of the raw gradients: the eigen-decomposition (the exact reference
     // path) and the unit-quaternion solution the fast paths use.
-    g.bench_function("nearest_rotation/eigen", |b| {
-        b.iter(|| {
-            s.raw[..sample]
-                .iter()
-                .map(|h| nearest_rotation(black_box(h))[(0, 0)])
-                .sum::<f64>()
-        })
-    });
-    g.bench_function("nearest_rotation/quaternion", |b| {
-        b.iter(|| {
-            s.raw[..sample]
-                .iter()
-                .map(|h| nearest_rotation_fast(black_box(h))[(0, 0)])
-                .sum::<f64>()
-        })
-    });
+    type RotationPath = fn(&Mat3) -> Mat3;
+    let eigen: RotationPath = nearest_rotation;
+    let quaternion: RotationPath = nearest_rotation_fast;
+    for (name, rotation) in [
+        ("nearest_rotation/eigen", eigen),
+        ("nearest_rotation/quaternion", quaternion),
+    ] {
+        g.bench_function(name, |b| {
+            b.iter(|| {
+                s.raw[..sample]
+                    .iter()
+                    .map(|h| rotation(black_box(h))[(0, 0)])
+                    .sum::<f64>()
+            })
+        });
+    }
     g.finish();
 }
 
