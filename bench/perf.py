@@ -207,6 +207,10 @@ PEERS = ["cpd_rustcpd", "cpd_probreg", "cpd_pycpd", "nricp_amberg"]
 #: Dense methods: skipped when their M×N (and M×M) arrays would exceed this many bytes.
 DENSE = {"cpd_pycpd", "cpd_probreg"}
 DENSE_LIMIT_BYTES = 3 * 2**30
+#: The large case's second FoldMatch row: the rigid and coarse phases' k-NN slack σ
+#: (``knn_slack``), measured 0.3 on the harness (docs/performance.md, "Thirteenth round").
+LARGE_KNN_SLACK = 0.3
+
 #: Address-space cap of peer processes on the large case (protects the shared machine).
 LARGE_PEER_RLIMIT_GB = 12
 
@@ -632,6 +636,19 @@ def jobs_for(p: dict[str, Any]) -> list[dict[str, Any]]:
             timeout=2 * t,
         )
     )
+    # The same with the rigid and coarse phases' approximate neighbourhoods (an option, not
+    # the default: docs/performance.md, "Thirteenth round").
+    jobs.append(
+        fm_job(
+            "large",
+            "large",
+            "default",
+            repeats=1,
+            params={"iterations": p["large_iterations"], "knn_slack": LARGE_KNN_SLACK},
+            variant=f"knn_slack {LARGE_KNN_SLACK}",
+            timeout=2 * t,
+        )
+    )
     for method in PEERS:
         job = {
             "section": "large",
@@ -654,7 +671,7 @@ def jobs_for(p: dict[str, Any]) -> list[dict[str, Any]]:
 def describe(rec: dict[str, Any]) -> str:
     what = rec["kind"] if rec["kind"] != "peer" else rec["method"]
     if rec["kind"] == "foldmatch":
-        what += f" {rec['preset']}" + (f" t={rec['threads']}" if rec.get("threads") else "")
+        what += f" {run_name(rec)}" + (f" t={rec['threads']}" if rec.get("threads") else "")
     c = rec["case"]
     return f"[{rec['section']}] {what} on {c['nx']}×{c['ny']}/{c['scan_points']}"
 
@@ -958,9 +975,14 @@ def f_s(v: float | None, digits: int = 2) -> str:
     return f"{v:.3g}"
 
 
+def run_name(r: dict[str, Any]) -> str:
+    """A FoldMatch run's preset, and its variant when it has one."""
+    return r["preset"] + (f", {r['variant']}" if r.get("variant") else "")
+
+
 def label(r: dict[str, Any]) -> str:
     if r["kind"] == "foldmatch":
-        return f"FoldMatch ({r['preset']})"
+        return f"FoldMatch ({run_name(r)})"
     if r["kind"] == "reference":
         return "NumPy reference (tests/reference.py)"
     import peers
@@ -1332,7 +1354,7 @@ def md_large(recs: list[dict[str, Any]], p: dict[str, Any]) -> str:
     if not rs:
         return "_(not run)_"
     out = [f"{p['cases']['large']['label']}.\n", section_table(rs), ""]
-    out.append(stage_table(rs, lambda r: f"{r['preset']} ({r['iterations']} it.)"))
+    out.append(stage_table(rs, lambda r: f"{run_name(r)} ({r['iterations']} it.)"))
     peers_ = [r for r in rs if r["kind"] == "peer" and ok(r) and r.get("per_iteration_s")]
     ours = next((r for r in rs if r["kind"] == "foldmatch" and ok(r)), None)
     if ours and peers_:

@@ -93,6 +93,12 @@ pub const RIGID_SCAN_POINTS_PER_VERTEX: usize = 8;
 /// Iterations of the `"accurate"` preset ([`FitParams::accurate`]).
 pub const ACCURATE_ITERATIONS: usize = 150;
 
+/// The default [`FitParams::knn_slack`]: on the 91 harness cases σ = 0.1 leaves the fit's
+/// accuracy unchanged (f_R × 1.000, f_λ × 0.998 in geometric mean against σ = 0; 0.2: × 0.997
+/// / × 1.006; 0.3: × 1.017 / × 1.016) and spares a fifth of the fresh k-NN queries of the
+/// million-point case (docs/performance.md, "Thirteenth round").
+pub const DEFAULT_KNN_SLACK: f64 = 0.1;
+
 /// Distance (in target bounding-box diagonals) beyond which an unaligned template is refused.
 pub const FAR_AWAY: f64 = 1.0;
 
@@ -194,6 +200,14 @@ pub struct FitParams {
     /// `false` queries a k-d tree for every vertex and every scan point every iteration.
     /// Results are the same either way.
     pub knn_cache: bool,
+    /// σ of the rigid and coarse phases' approximate target neighborhoods: there the k-NN
+    /// cache ([`crate::knn::NeighborCache::set_slack`]) re-uses a vertex's candidates while
+    /// every returned neighbour is within `(1 + σ) ×` the true K-th nearest distance, sparing
+    /// the fresh queries of template points still far off the scan (their candidates all lie
+    /// at about their height, so the exact test fails at nearly every move). The FoldMatch
+    /// iterations stay exact. 0: exact throughout; without `knn_cache` every query is exact.
+    /// Default [`DEFAULT_KNN_SLACK`]; docs/performance.md, "Thirteenth round".
+    pub knn_slack: f64,
     /// Rest-shape rigidity β₀ of the FoldMatch iterations (as-rigid-as-possible blending): in
     /// the j-th of the J iterations after the rigid and coarse phases every vertex goes to
     /// `(1 − β) ·` its Eq. 8 update `+ β ·` the placement of its template n-ring, as given
@@ -250,6 +264,7 @@ impl Default for FitParams {
             rigid_scan_sample: 0,
             coarse_sample: 1,
             knn_cache: true,
+            knn_slack: DEFAULT_KNN_SLACK,
             matrix_series: true,
             rest_rigidity: 0.65,
             anneal: 3.0,
@@ -396,6 +411,17 @@ impl FitParams {
         (rigid, coarse.min(self.iterations.saturating_sub(rigid)))
     }
 
+    /// The k-NN slack σ in force at iteration `it` (1-based): [`FitParams::knn_slack`] in the
+    /// rigid and coarse phases, 0 in the FoldMatch (or NRGa) iterations.
+    pub fn knn_slack_at(&self, it: usize) -> f64 {
+        let (rigid, coarse) = self.phase_iterations();
+        if it <= rigid + coarse {
+            self.knn_slack
+        } else {
+            0.0
+        }
+    }
+
     /// Parses parameters from a JSON object; missing keys take their defaults, unknown keys are
     /// an error naming the key.
     pub fn from_json(text: &str) -> Result<Self> {
@@ -486,6 +512,13 @@ impl FitParams {
                 "tolerance",
                 self.tolerance,
                 "must be finite and >= 0",
+            ));
+        }
+        if !(0.0..=1.0).contains(&self.knn_slack) {
+            return Err(FoldMatchError::parameter(
+                "knn_slack",
+                self.knn_slack,
+                "must be in [0, 1]",
             ));
         }
         if !(self.selection_margin >= 0.0 && self.selection_margin.is_finite()) {
@@ -1333,7 +1366,10 @@ impl Attraction {
         let (points, kappa, index, k) = (&scan.points, &scan.kappa, &scan.index, scan.k);
         let (nn_idx, nn_d2) = (&mut self.nn_idx, &mut self.nn_d2);
         diagnostics.knn_queries += timed(&mut t.knn, || match self.nn_cache.as_mut() {
-            Some(cache) => cache.query(index, pos, nn_idx, nn_d2),
+            Some(cache) => {
+                cache.set_slack(params.knn_slack_at(it));
+                cache.query(index, pos, nn_idx, nn_d2)
+            }
             None => {
                 index.nearest_all(pos, k, nn_idx, nn_d2);
                 pos.len()

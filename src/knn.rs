@@ -456,6 +456,8 @@ pub struct NeighborCache {
     anchor_radius: Vec<f64>,
     /// Per point: 0 = no candidates yet, 1 = candidates re-used, 2 = queried afresh.
     state: Vec<u8>,
+    /// σ of the approximate re-use ([`NeighborCache::set_slack`]); 0: exact.
+    slack: f64,
 }
 
 impl NeighborCache {
@@ -469,7 +471,16 @@ impl NeighborCache {
             candidates: vec![0; m * c],
             anchor_radius: vec![0.0; m],
             state: vec![0; m],
+            slack: 0.0,
         }
+    }
+
+    /// Sets σ ≥ 0 for the next queries: candidates are re-used while their re-ranked K-th is
+    /// within `(1 + σ) ×` the distance beyond which every other point lies, so every returned
+    /// neighbour is within `(1 + σ) ×` the true K-th nearest distance (a (1 + σ)-approximate
+    /// K-NN); 0 (the default): exact.
+    pub fn set_slack(&mut self, slack: f64) {
+        self.slack = slack.max(0.0);
     }
 
     /// The `k` nearest indexed points of every query (same layout and order as
@@ -484,6 +495,7 @@ impl NeighborCache {
     ) -> usize {
         let (k, c) = (self.k, self.c);
         let whole_set = c == index.len();
+        let widen = 1.0 + self.slack;
         self.anchors
             .par_iter_mut()
             .zip(self.candidates.par_chunks_mut(c))
@@ -505,7 +517,7 @@ impl NeighborCache {
                         let moved = squared_distance(q, anchor).sqrt();
                         // Every non-candidate is at least `radius − moved` away; the margin
                         // keeps round-off from admitting a tie.
-                        let outside = (*radius - moved) * (1.0 - 1e-9);
+                        let outside = (*radius - moved) * (1.0 - 1e-9) * widen;
                         exact = whole_set || (outside > 0.0 && ranked[k - 1].0 < outside * outside);
                     }
                     if exact {
@@ -821,6 +833,59 @@ mod tests {
         assert!(
             reused > 5000,
             "the cache should re-use most queries, re-used {reused}"
+        );
+    }
+
+    #[test]
+    fn slack_gives_approximate_neighbours_within_the_bound_and_fewer_queries() {
+        // Queries descending onto a noisy plane of points from far above, as template
+        // vertices do in the rigid and coarse phases.
+        let mut rng = ChaCha8Rng::seed_from_u64(10);
+        let pts: Vec<[f64; 3]> = (0..4000)
+            .map(|_| [rng.random(), rng.random(), 0.01 * rng.random::<f64>()])
+            .collect();
+        let start: Vec<[f64; 3]> = (0..300)
+            .map(|_| [rng.random(), rng.random(), 0.3 + 0.1 * rng.random::<f64>()])
+            .collect();
+        let index = PointIndex::new(&pts);
+        let (k, m) = (16, start.len());
+        let mut fresh_total = [0usize; 2];
+        for (run, slack) in [0.0, 0.3].into_iter().enumerate() {
+            let mut queries = start.clone();
+            let mut cache = NeighborCache::new(m, k, pts.len());
+            cache.set_slack(slack);
+            let (mut ci, mut cd) = (vec![0; m * k], vec![0.0; m * k]);
+            let (mut fi, mut fd) = (vec![0; m * k], vec![0.0; m * k]);
+            for step in 0..40 {
+                fresh_total[run] += cache.query(&index, &queries, &mut ci, &mut cd);
+                index.nearest_all(&queries, k, &mut fi, &mut fd);
+                for (q, query) in queries.iter().enumerate() {
+                    let row = q * k..(q + 1) * k;
+                    let true_kth = fd[row.end - 1].sqrt();
+                    for s in row.clone() {
+                        // The distances reported are the returned points' own, nearest first.
+                        let own = squared_distance(query, index.point(ci[s]));
+                        assert_eq!(cd[s], own);
+                        assert!(s == row.start || cd[s - 1] <= cd[s]);
+                        assert!(
+                            cd[s].sqrt() <= (1.0 + slack) * true_kth * (1.0 + 1e-12),
+                            "step {step}, query {q}: {} beyond (1 + {slack}) × {true_kth}",
+                            cd[s].sqrt()
+                        );
+                    }
+                    if slack == 0.0 {
+                        assert_eq!(ci[row.clone()], fi[row.clone()], "step {step}");
+                    }
+                }
+                for q in &mut queries {
+                    q[2] *= 0.93; // descend
+                    q[0] += 0.003 * (rng.random::<f64>() - 0.5);
+                }
+            }
+        }
+        assert!(
+            2 * fresh_total[1] < fresh_total[0],
+            "slack should spare most far re-queries: {fresh_total:?}"
         );
     }
 

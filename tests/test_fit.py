@@ -232,17 +232,39 @@ def test_errors_are_typed_subclasses():
 
 
 def test_knn_cache_changes_nothing(case):
-    """The k-NN candidate cache is exact: the same fit as querying the tree every time, with
-    the rigid phase on every vertex and on the default sample."""
+    """The k-NN candidate cache is exact (without the slack of the rigid and coarse phases):
+    the same fit as querying the tree every time, with the rigid phase on every vertex and on
+    the default sample."""
     args = (case["template_vertices"], case["faces"], case["scan"])
     for rigid_sample in (1, 4):
-        cached = fm.fit(*args, iterations=40, rigid_sample=rigid_sample)
+        cached = fm.fit(*args, iterations=40, rigid_sample=rigid_sample, knn_slack=0.0)
         fresh = fm.fit(*args, iterations=40, rigid_sample=rigid_sample, knn_cache=False)
         np.testing.assert_allclose(cached.vertices, fresh.vertices, rtol=0, atol=1e-12)
         # Both caches (target neighborhoods and the two-way attraction's reverse queries) did
         # re-use queries: the comparison above is not vacuous.
         for key in ("knn_queries", "two_way_queries"):
             assert cached.diagnostics[key] < 0.75 * fresh.diagnostics[key], (key, rigid_sample)
+
+
+def test_knn_slack_spares_queries_in_the_early_phases_only():
+    """knn_slack (default 0.1) makes the rigid and coarse phases' neighbourhoods
+    (1 + σ)-approximate: fewer fresh k-d tree queries there, the same fit quality, and with
+    no rigid or coarse phase (the paper preset: FoldMatch iterations only) nothing changes."""
+    far = fm.folded_sheet(nx=N, ny=N, scan_points=3000, rotation_degrees=10.0,
+                          offset=(0.05, 0, 0.3))
+    args = (far["template_vertices"], far["faces"], far["scan"])
+    assert fm.DEFAULT_PARAMS["knn_slack"] == 0.1
+    exact = fm.fit(*args, selection="single", knn_slack=0.0)
+    slack = {s: fm.fit(*args, selection="single", knn_slack=s) for s in (0.1, 0.5)}
+    assert (exact.diagnostics["knn_queries"] > slack[0.1].diagnostics["knn_queries"]
+            > slack[0.5].diagnostics["knn_queries"])
+    for r in slack.values():
+        assert not np.array_equal(r.vertices, exact.vertices)
+        assert rmse(r.vertices, far["ground_truth"]) < 1.2 * rmse(exact.vertices, far["ground_truth"])
+    paper = [fm.fit(*args, preset="paper", iterations=20, knn_slack=s) for s in (0.0, 0.5)]
+    np.testing.assert_array_equal(paper[0].vertices, paper[1].vertices)
+    with pytest.raises(fm.InvalidParameterError, match="knn_slack"):
+        fm.fit(*args, knn_slack=1.5)
 
 
 def scan_distance(x, y):
@@ -368,7 +390,7 @@ def test_matrix_series_changes_nothing_beyond_round_off(case):
     eigenvalues for Eq. 4) agree with the kept eigen-decomposition path."""
     args = (case["template_vertices"], case["faces"], case["scan"])
     for preset in ("default", "paper"):
-        fast = fm.fit(*args, iterations=30, preset=preset)
+        fast = fm.fit(*args, iterations=30, preset=preset, knn_slack=0.0)
         exact = fm.fit(*args, iterations=30, preset=preset, matrix_series=False, knn_cache=False)
         scale = np.abs(exact.vertices).max()
         assert np.abs(fast.vertices - exact.vertices).max() <= 1e-9 * scale
@@ -458,7 +480,8 @@ def test_rigid_scan_sample_strides_only_dense_scans(case):
     strided, full = fm.fit(*dargs), fm.fit(*dargs, rigid_scan_sample=1)
     assert np.abs(strided.vertices - full.vertices).max() > 1e-9
     assert f_r(strided.vertices) < 0.5 * f_r(dense["template_vertices"])
-    assert abs(f_r(strided.vertices) - f_r(full.vertices)) < 0.05 * f_r(full.vertices)
+    # No less accurate (here the strided fit is the closer one: 0.0257 against 0.0274).
+    assert f_r(strided.vertices) < 1.05 * f_r(full.vertices)
     with pytest.raises(fm.InvalidParameterError, match="rigid_scan_sample"):
         fm.fit(*args, rigid_scan_sample=65)
 
