@@ -232,6 +232,12 @@ pub struct FitParams {
     /// distance compared, so it wins it by a few per cent even where its fit slid along the
     /// scan (docs/method.md "Eighth round").
     pub selection_margin: f64,
+    /// When schedule selection compares its candidates, as a fraction of the ξ iterations: at
+    /// iteration `⌈selection_at · ξ⌉` the candidates' fits are compared by the same rule
+    /// ([`select_schedule`]) and only the chosen one runs on; the others' remaining iterations
+    /// are spared. A case whose choice there is the one made at the end gets the same fit,
+    /// bit for bit (the chosen run never sees the others). 1: at the end.
+    pub selection_at: f64,
 }
 
 impl Default for FitParams {
@@ -271,6 +277,7 @@ impl Default for FitParams {
             anneal_fraction: 0.6,
             selection: Selection::ScanDistance,
             selection_margin: 0.06,
+            selection_at: 1.0,
         }
     }
 }
@@ -519,6 +526,13 @@ impl FitParams {
                 "knn_slack",
                 self.knn_slack,
                 "must be in [0, 1]",
+            ));
+        }
+        if !(self.selection_at > 0.0 && self.selection_at <= 1.0) {
+            return Err(FoldMatchError::parameter(
+                "selection_at",
+                self.selection_at,
+                "must be in (0, 1]",
             ));
         }
         if !(self.selection_margin >= 0.0 && self.selection_margin.is_finite()) {
@@ -952,24 +966,29 @@ pub fn fit(
         .map(|p| ScheduleRun::new(&prepared, p))
         .collect();
     let setup = clock.elapsed().as_secs_f64();
-    drive(&prepared, &mut runs, params.iterations, observer)?;
-    let iterations = clock.elapsed().as_secs_f64() - setup;
-    // Only the chosen run is finished (its wrinkle fields are a whole Eq. 4–8 pass); the
-    // candidates are compared on their fitted vertices alone.
-    let mut vertices: Vec<Vec<[f64; 3]>> =
-        runs.iter().map(|r| r.user_vertices(&prepared)).collect();
-    let walls = |r: &mut FitResult| {
-        let total = clock.elapsed().as_secs_f64();
-        r.diagnostics.wall_seconds = [setup, iterations, total - setup - iterations];
-    };
+    let total = params.iterations;
     if runs.len() == 1 {
-        let mut only = runs
-            .pop()
-            .expect("one run")
-            .finish(&prepared, vertices.pop().expect("one run"));
-        walls(&mut only);
+        let mut only = runs.pop().expect("one run");
+        drive(
+            &prepared,
+            std::slice::from_mut(&mut only),
+            1..=total,
+            total,
+            observer,
+        )?;
+        let iterations = clock.elapsed().as_secs_f64() - setup;
+        let vertices = only.user_vertices(&prepared);
+        let mut only = only.finish(&prepared, vertices);
+        let finish = clock.elapsed().as_secs_f64() - setup - iterations;
+        only.diagnostics.wall_seconds = [setup, iterations, finish];
         return Ok(only);
     }
+    // Side by side up to the comparison, by default the last iteration.
+    let compare_at = ((params.selection_at * total as f64).ceil() as usize).clamp(1, total);
+    drive(&prepared, &mut runs, 1..=compare_at, total, observer)?;
+    // The candidates are compared on their fitted vertices alone.
+    let mut vertices: Vec<Vec<[f64; 3]>> =
+        runs.iter().map(|r| r.user_vertices(&prepared)).collect();
     let distances: Vec<f64> = vertices
         .iter()
         .map(|v| {
@@ -980,8 +999,22 @@ pub fn fit(
     let rest_edges = crate::metrics::EdgeLengths::new(template_vertices, &prepared.faces);
     let spreads: Vec<f64> = vertices.iter().map(|v| rest_edges.spread(v)).collect();
     let best = select_schedule(&distances, &spreads, params.selection_margin);
-    let winner = runs.swap_remove(best);
-    let mut chosen = winner.finish(&prepared, vertices.swap_remove(best));
+    let mut winner = runs.swap_remove(best);
+    let mut vertices = vertices.swap_remove(best);
+    if compare_at < total && !winner.finished {
+        // The chosen run alone from here.
+        drive(
+            &prepared,
+            std::slice::from_mut(&mut winner),
+            compare_at + 1..=total,
+            total,
+            observer,
+        )?;
+        vertices = winner.user_vertices(&prepared);
+    }
+    let iterations = clock.elapsed().as_secs_f64() - setup;
+    // Only the chosen run is finished (its wrinkle fields are a whole Eq. 4–8 pass).
+    let mut chosen = winner.finish(&prepared, vertices);
     chosen.params = params.clone();
     let d = &mut chosen.diagnostics;
     d.schedule = SCHEDULE_NAMES[best].into();
@@ -992,7 +1025,8 @@ pub fn fit(
         d.two_way_queries += other.diagnostics.two_way_queries;
         d.stage_seconds.add(&other.ws.times);
     }
-    walls(&mut chosen);
+    let finish = clock.elapsed().as_secs_f64() - setup - iterations;
+    chosen.diagnostics.wall_seconds = [setup, iterations, finish];
     Ok(chosen)
 }
 
@@ -1025,10 +1059,11 @@ pub fn select_schedule(distances: &[f64], spreads: &[f64], margin: f64) -> usize
 fn drive(
     prepared: &Prepared,
     runs: &mut [ScheduleRun],
+    steps: std::ops::RangeInclusive<usize>,
     iterations: usize,
     observer: &mut (dyn FnMut(&Progress) -> bool + Send),
 ) -> Result<()> {
-    for it in 1..=iterations {
+    for it in steps {
         let record = match runs {
             [one] => one.step(prepared)?,
             [a, b] => {
@@ -2298,6 +2333,53 @@ mod tests {
                     ..FitParams::default()
                 },
                 "selection_margin",
+            );
+        }
+    }
+
+    #[test]
+    fn early_selection_compares_there_and_runs_the_chosen_schedule_alone() {
+        let (v, f, x) = grid_case();
+        let params = FitParams {
+            iterations: 20,
+            selection_at: 0.5,
+            ..FitParams::default()
+        };
+        let mut seen = Vec::new();
+        let early = fit(&v, &f, &x, None, &params, &mut |p| {
+            seen.push((p.iteration, p.iterations));
+            true
+        })
+        .unwrap();
+        assert_eq!(seen, (1..=20).map(|i| (i, 20)).collect::<Vec<_>>());
+        let given = FitParams {
+            selection: Selection::Single,
+            ..params.clone()
+        };
+        let schedules = [given, params.sharp_schedule()];
+        // Each candidate at iteration 10: its single run stopped there.
+        let at_10: Vec<FitResult> = schedules
+            .iter()
+            .map(|p| fit(&v, &f, &x, None, p, &mut |p| p.iteration < 10).unwrap())
+            .collect();
+        let d: Vec<f64> = at_10.iter().map(|r| mean_scan_distance(&x, r)).collect();
+        assert_eq!(early.diagnostics.candidate_scan_distances, d);
+        let spreads = edge_spreads(&v, &f, &at_10);
+        assert_eq!(early.diagnostics.candidate_edge_spreads, spreads);
+        let k = select_schedule(&d, &spreads, params.selection_margin);
+        assert_eq!(early.diagnostics.schedule, ["given", "sharp"][k]);
+        // The chosen schedule then ran on alone: its single run's fit, bit for bit.
+        let alone = fit_simple(&v, &f, &x, None, &schedules[k]).unwrap();
+        assert_eq!(early.iterations, 20);
+        assert_eq!(early.vertices, alone.vertices);
+        assert_eq!(early.wvf_accumulated, alone.wvf_accumulated);
+        for bad in [0.0, -0.1, 1.5, f64::NAN] {
+            assert_refused(
+                &FitParams {
+                    selection_at: bad,
+                    ..FitParams::default()
+                },
+                "selection_at",
             );
         }
     }

@@ -203,6 +203,7 @@ def fit(
     anneal_fraction: Optional[float] = None,
     selection: Optional[str] = None,
     selection_margin: Optional[float] = None,
+    selection_at: Optional[float] = None,
     callback: Optional[Callable[[dict[str, Any]], Optional[bool]]] = None,
     threads: Optional[int] = None,
 ) -> FitResult:
@@ -342,6 +343,11 @@ def fit(
         wins (0.06; 0: the closest fit alone). The given schedule's strong two-way pull
         minimizes the very distance compared, so it wins it narrowly even where its fit slid
         along the scan (docs/method.md "Eighth round").
+    selection_at : float
+        When schedule selection compares its candidates, as a fraction in (0, 1] of the
+        iterations: there the same rule picks one and only it runs on, sparing the others'
+        remaining iterations; a case whose choice there is the end's gets the same fit, bit for
+        bit (1: at the end; docs/method.md "Twelfth round").
     callback : callable, optional
         Called after every iteration with a dict (``iteration``, ``iterations``,
         ``mean_displacement``, ``max_displacement``); returning ``False`` stops the fit, which
@@ -382,7 +388,8 @@ def fit(
         coarse_levels=coarse_levels, rigid_sample=rigid_sample,
         rigid_scan_sample=rigid_scan_sample, coarse_sample=coarse_sample,
         rest_rigidity=rest_rigidity, anneal=anneal, anneal_fraction=anneal_fraction,
-        selection=selection, selection_margin=selection_margin, knn_cache=knn_cache,
+        selection=selection, selection_margin=selection_margin, selection_at=selection_at,
+        knn_cache=knn_cache,
         knn_slack=knn_slack, matrix_series=matrix_series,
     )
     raw = _core.fit_raw(tv, tf, x, xf, _params_json(params), callback, threads, preset)
