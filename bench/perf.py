@@ -629,29 +629,21 @@ def jobs_for(p: dict[str, Any]) -> list[dict[str, Any]]:
     # (b) the large case last (longest), with capped peers.
     spec = cases["large"]["spec"]
     m, n = spec["nx"] * spec["ny"], spec["scan_points"]
-    jobs.append(
-        fm_job(
-            "large",
-            "large",
-            "default",
-            repeats=1,
-            params={"iterations": p["large_iterations"]},
-            timeout=2 * t,
+    # The default, then the same with a larger k-NN slack in the rigid and coarse phases (an
+    # option: docs/performance.md, "Thirteenth round").
+    slack = {"knn_slack": LARGE_KNN_SLACK}
+    for extra, variant in (({}, None), (slack, f"knn_slack {LARGE_KNN_SLACK}")):
+        jobs.append(
+            fm_job(
+                "large",
+                "large",
+                "default",
+                repeats=1,
+                params={"iterations": p["large_iterations"], **extra},
+                variant=variant,
+                timeout=2 * t,
+            )
         )
-    )
-    # The same with the rigid and coarse phases' approximate neighbourhoods (an option, not
-    # the default: docs/performance.md, "Thirteenth round").
-    jobs.append(
-        fm_job(
-            "large",
-            "large",
-            "default",
-            repeats=1,
-            params={"iterations": p["large_iterations"], "knn_slack": LARGE_KNN_SLACK},
-            variant=f"knn_slack {LARGE_KNN_SLACK}",
-            timeout=2 * t,
-        )
-    )
     for method in PEERS:
         job = {
             "section": "large",
