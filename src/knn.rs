@@ -115,7 +115,7 @@ const BOX_LEAF: usize = 16;
 /// gathered and selected. Measured by callgrind on whole fits, one thread, one schedule:
 /// lists of 16 (the 2,025-vertex case, K = 8, both schedules) 2.693G instructions by insertion
 /// against 2.743G gathered, 56 (paper-sized, K = 28) 11.683G against 11.688G, 128 (a 71×71
-/// sheet on 50,000 points, K = 64, as on the million-point case) 10.316G against 9.639G: an
+/// sheet on 50,000 points, K = 64, as on the million-point case) 10.316G against 9.490G: an
 /// insertion shifts ~k/2 entries when the points arrive in no order (a query far off the
 /// scan sees them all at about its height).
 const SORTED_LIST_MAX: usize = 64;
@@ -361,9 +361,35 @@ impl BoxTree {
         }
     }
 
+    /// Visits, nearest leaves first, every point within squared distance `radius2` of `q` that
+    /// comes before the bound (ties to the lower index), offering it to `offer`, which returns
+    /// the new bound (the k-th found so far) when it has one.
+    #[inline(always)]
+    fn offer_nearest(
+        &self,
+        q: &[f64; 3],
+        radius2: f64,
+        mut offer: impl FnMut(f64, u32) -> Option<(f64, u32)>,
+    ) {
+        let mut worst = (radius2, u32::MAX);
+        self.descend(q, radius2, |leaf| {
+            for (p, id) in leaf {
+                let d2 = squared_distance(p, q);
+                if d2 > worst.0 || (d2 == worst.0 && *id > worst.1) {
+                    continue;
+                }
+                if let Some(bound) = offer(d2, *id) {
+                    worst = bound;
+                }
+            }
+            worst.0
+        });
+    }
+
     /// [`BoxTree::nearest_k_within`] for long lists: the points that may belong are gathered
     /// unsorted and cut back to the k nearest by a selection each time 2k have come (amortized
-    /// O(1) a point), then sorted once.
+    /// O(1) a point), then sorted once. The bound is the radius until k points are found, then
+    /// the k-th of them, re-tightened at each cut.
     fn nearest_k_gathered(
         &self,
         q: &[f64; 3],
@@ -376,30 +402,18 @@ impl BoxTree {
             found.clear();
             // (squared distance's bits, index): for non-negative floats the bits order as the
             // values, so the tuples' own order is the answer's, ties to the lower index.
-            // A bound on the k-th: the radius until k points are found, then the k-th of them,
-            // re-tightened each time 2k have been gathered and cut back to the k nearest.
-            let mut worst = (radius2, u32::MAX);
-            self.descend(q, radius2, |leaf| {
-                for (p, id) in leaf {
-                    let d2 = squared_distance(p, q);
-                    if d2 > worst.0 || (d2 == worst.0 && *id > worst.1) {
-                        continue;
-                    }
-                    found.push((d2.to_bits(), *id));
-                    let kth = if found.len() == k {
-                        found.iter().copied().max()
-                    } else if found.len() == 2 * k {
-                        found.select_nth_unstable(k - 1);
-                        found.truncate(k);
-                        Some(found[k - 1])
-                    } else {
-                        None
-                    };
-                    if let Some((bits, j)) = kth {
-                        worst = (f64::from_bits(bits), j);
-                    }
-                }
-                worst.0
+            self.offer_nearest(q, radius2, |d2, id| {
+                found.push((d2.to_bits(), id));
+                let kth = if found.len() == k {
+                    found.iter().copied().max()
+                } else if found.len() == 2 * k {
+                    found.select_nth_unstable(k - 1);
+                    found.truncate(k);
+                    Some(found[k - 1])
+                } else {
+                    None
+                };
+                kth.map(|(bits, j)| (f64::from_bits(bits), j))
             });
             if found.len() > k {
                 found.select_nth_unstable(k - 1);
@@ -415,7 +429,8 @@ impl BoxTree {
     }
 
     /// [`BoxTree::nearest_k_within`] for short lists: a sorted insertion into the outputs (the
-    /// leaves come nearest first, so most points enter near the end or not at all).
+    /// leaves come nearest first, so most points enter near the end or not at all), the bound
+    /// the radius until k are found, then the k-th.
     fn nearest_k_sorted(
         &self,
         q: &[f64; 3],
@@ -425,32 +440,20 @@ impl BoxTree {
     ) -> usize {
         let k = indices.len();
         let mut filled = 0;
-        // The k-th found so far (until then, the radius): a point must come before it to
-        // enter.
-        let mut worst = (radius2, u32::MAX);
-        self.descend(q, radius2, |leaf| {
-            for (p, id) in leaf {
-                let d2 = squared_distance(p, q);
-                if d2 > worst.0 || (d2 == worst.0 && *id > worst.1) {
-                    continue;
-                }
-                // Insert into the sorted list, dropping its last when full.
-                let mut slot = filled.min(k - 1);
-                filled = (filled + 1).min(k);
-                while slot > 0
-                    && (dist2[slot - 1] > d2 || (dist2[slot - 1] == d2 && indices[slot - 1] > *id))
-                {
-                    dist2[slot] = dist2[slot - 1];
-                    indices[slot] = indices[slot - 1];
-                    slot -= 1;
-                }
-                dist2[slot] = d2;
-                indices[slot] = *id;
-                if filled == k {
-                    worst = (dist2[k - 1], indices[k - 1]);
-                }
+        self.offer_nearest(q, radius2, |d2, id| {
+            // Insert into the sorted list, dropping its last when full.
+            let mut slot = filled.min(k - 1);
+            filled = (filled + 1).min(k);
+            while slot > 0
+                && (dist2[slot - 1] > d2 || (dist2[slot - 1] == d2 && indices[slot - 1] > id))
+            {
+                dist2[slot] = dist2[slot - 1];
+                indices[slot] = indices[slot - 1];
+                slot -= 1;
             }
-            worst.0
+            dist2[slot] = d2;
+            indices[slot] = id;
+            (filled == k).then(|| (dist2[k - 1], indices[k - 1]))
         });
         filled
     }
