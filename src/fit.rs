@@ -967,42 +967,33 @@ pub fn fit(
         .collect();
     let setup = clock.elapsed().as_secs_f64();
     let total = params.iterations;
-    if runs.len() == 1 {
-        let mut only = runs.pop().expect("one run");
-        drive(
-            &prepared,
-            std::slice::from_mut(&mut only),
-            1..=total,
-            total,
-            observer,
-        )?;
-        let iterations = clock.elapsed().as_secs_f64() - setup;
-        let vertices = only.user_vertices(&prepared);
-        let mut only = only.finish(&prepared, vertices);
-        let finish = clock.elapsed().as_secs_f64() - setup - iterations;
-        only.diagnostics.wall_seconds = [setup, iterations, finish];
-        return Ok(only);
-    }
-    // Side by side up to the comparison, by default the last iteration.
-    let compare_at = ((params.selection_at * total as f64).ceil() as usize).clamp(1, total);
+    // Side by side up to the comparison (by default the last iteration; a single run: all).
+    let compare_at = if runs.len() > 1 {
+        ((params.selection_at * total as f64).ceil() as usize).clamp(1, total)
+    } else {
+        total
+    };
     drive(&prepared, &mut runs, 1..=compare_at, total, observer)?;
     // The candidates are compared on their fitted vertices alone.
-    let mut vertices: Vec<Vec<[f64; 3]>> =
-        runs.iter().map(|r| r.user_vertices(&prepared)).collect();
-    let distances: Vec<f64> = vertices
-        .iter()
-        .map(|v| {
-            let d = crate::metrics::nearest_distances(target, v);
-            d.iter().sum::<f64>() / d.len() as f64
-        })
-        .collect();
-    let rest_edges = crate::metrics::EdgeLengths::new(template_vertices, &prepared.faces);
-    let spreads: Vec<f64> = vertices.iter().map(|v| rest_edges.spread(v)).collect();
-    let best = select_schedule(&distances, &spreads, params.selection_margin);
+    let mut selection = (runs.len() > 1).then(|| {
+        let vertices: Vec<Vec<[f64; 3]>> =
+            runs.iter().map(|r| r.user_vertices(&prepared)).collect();
+        let distances: Vec<f64> = vertices
+            .iter()
+            .map(|v| {
+                let d = crate::metrics::nearest_distances(target, v);
+                d.iter().sum::<f64>() / d.len() as f64
+            })
+            .collect();
+        let rest_edges = crate::metrics::EdgeLengths::new(template_vertices, &prepared.faces);
+        let spreads: Vec<f64> = vertices.iter().map(|v| rest_edges.spread(v)).collect();
+        let best = select_schedule(&distances, &spreads, params.selection_margin);
+        (best, vertices, distances, spreads)
+    });
+    let best = selection.as_ref().map_or(0, |s| s.0);
     let mut winner = runs.swap_remove(best);
-    let mut vertices = vertices.swap_remove(best);
+    // The chosen run alone from the comparison on (nothing to do when it was the end).
     if compare_at < total && !winner.finished {
-        // The chosen run alone from here.
         drive(
             &prepared,
             std::slice::from_mut(&mut winner),
@@ -1010,20 +1001,25 @@ pub fn fit(
             total,
             observer,
         )?;
-        vertices = winner.user_vertices(&prepared);
     }
     let iterations = clock.elapsed().as_secs_f64() - setup;
+    let vertices = match selection.as_mut() {
+        Some((_, compared, ..)) if compare_at == total => compared.swap_remove(best),
+        _ => winner.user_vertices(&prepared),
+    };
     // Only the chosen run is finished (its wrinkle fields are a whole Eq. 4–8 pass).
     let mut chosen = winner.finish(&prepared, vertices);
-    chosen.params = params.clone();
-    let d = &mut chosen.diagnostics;
-    d.schedule = SCHEDULE_NAMES[best].into();
-    d.candidate_scan_distances = distances;
-    d.candidate_edge_spreads = spreads;
-    for other in &runs {
-        d.knn_queries += other.diagnostics.knn_queries;
-        d.two_way_queries += other.diagnostics.two_way_queries;
-        d.stage_seconds.add(&other.ws.times);
+    if let Some((_, _, distances, spreads)) = selection {
+        chosen.params = params.clone();
+        let d = &mut chosen.diagnostics;
+        d.schedule = SCHEDULE_NAMES[best].into();
+        d.candidate_scan_distances = distances;
+        d.candidate_edge_spreads = spreads;
+        for other in &runs {
+            d.knn_queries += other.diagnostics.knn_queries;
+            d.two_way_queries += other.diagnostics.two_way_queries;
+            d.stage_seconds.add(&other.ws.times);
+        }
     }
     let finish = clock.elapsed().as_secs_f64() - setup - iterations;
     chosen.diagnostics.wall_seconds = [setup, iterations, finish];

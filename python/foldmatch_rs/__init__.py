@@ -389,8 +389,7 @@ def fit(
         rigid_scan_sample=rigid_scan_sample, coarse_sample=coarse_sample,
         rest_rigidity=rest_rigidity, anneal=anneal, anneal_fraction=anneal_fraction,
         selection=selection, selection_margin=selection_margin, selection_at=selection_at,
-        knn_cache=knn_cache,
-        knn_slack=knn_slack, matrix_series=matrix_series,
+        knn_cache=knn_cache, knn_slack=knn_slack, matrix_series=matrix_series,
     )
     raw = _core.fit_raw(tv, tf, x, xf, _params_json(params), callback, threads, preset)
     return FitResult(
