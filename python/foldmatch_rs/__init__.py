@@ -234,7 +234,8 @@ def fit(
     rings : int
         n of the n-ring template neighborhoods (2).
     rho, k_min, k_max : float, int, int
-        Target neighborhood size ``K = clamp(floor(rho * N), k_min, k_max)`` (0.002, 8, 64).
+        Target neighborhood size ``K = clamp(floor(rho * N), k_min, k_max)`` (0.001, 8, 32;
+        the ``"paper"`` preset keeps the paper's rho = 0.002 and SPEC's k_max = 64).
     gravity, softening, damping, time_step, template_mass, target_mass : float
         N-body constants G, ε, η, Δt, m(Y), m(X) (1.67, 0.1, 0.1, 0.006, 1, 1), in the
         normalized frame.

@@ -348,13 +348,13 @@ pub struct ParamArgs {
     /// n of the n-ring template neighborhoods, 1..=8 [default: 2].
     #[arg(long, value_name = "N")]
     pub rings: Option<usize>,
-    /// ρ, the scan neighborhood size as a fraction of the scan's points [default: 0.002].
+    /// ρ, the scan neighborhood size as a fraction of the scan's points [default: 0.001] (the paper preset: 0.002).
     #[arg(long, value_name = "F")]
     pub rho: Option<f64>,
     /// Lower clamp of the scan neighborhood size K [default: 8].
     #[arg(long, value_name = "N")]
     pub k_min: Option<usize>,
-    /// Upper clamp of K [default: 64].
+    /// Upper clamp of K [default: 32] (the paper preset: 64).
     #[arg(long, value_name = "N")]
     pub k_max: Option<usize>,
     /// G, the gravitational constant [default: 1.67].
