@@ -1,0 +1,68 @@
+"""Held-out check of the target-neighbourhood size on dense scans (docs/method.md, "Thirteenth
+round"): cases the harness does not have, where ρN exceeds `k_min` so ρ matters.
+
+* every real garment pair of ``../shared/data`` as a 15,000-point noisy cloud (the harness
+  uses 5,000, where K = 8 for either ρ), and
+* 8 random folded sheets (81 × 81 vertices, seeds the harness does not use) on 15,000 points.
+
+Each is fitted with the default and with the paper's neighbourhoods (ρ = 0.2 %, K ≤ 64);
+prints f_R and f_λ per case and their geometric-mean ratios::
+
+    .venv/bin/python bench/heldout_density.py
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+
+import cases as cases_mod
+import harness
+import numpy as np
+
+POINTS = 15_000
+PAPER_NEIGHBOURHOODS = {"rho": 0.002, "k_max": 64}
+
+
+def dense_cases():
+    cases_mod.REAL_POINTS = POINTS
+    if cases_mod.real_data_missing() is None:
+        yield from cases_mod.real_cases(kinds=("points",))
+    rng = np.random.default_rng(900)
+    for i in range(8):
+        v, f, gt = cases_mod.folded_sheet(
+            81, seed=900 + i, fold_amplitude=float(rng.uniform(0.03, 0.10)),
+            folds=float(rng.uniform(1.5, 4.0)), rotation_degrees=float(rng.uniform(0, 20)),
+            offset=tuple(float(x) for x in rng.uniform(-0.05, 0.05, 3)),
+        )
+        pts = cases_mod.sample_surface(gt, f, POINTS, rng)
+        pts = pts + rng.normal(scale=0.002 * cases_mod.bbox_diagonal(gt), size=pts.shape)
+        yield cases_mod.Case(f"dense-sheet-{i}", "heldout", v, f, pts, None, gt, {})
+
+
+def main() -> int:
+    import foldmatch_rs as fm
+
+    ratios = []
+    print(f"{'case':<26} {'K':>7}  {'f_R paper-K → default':>24}  {'f_λ paper-K → default':>24}")
+    for case in dense_cases():
+        arrays = {"template_vertices": case.template_vertices, "faces": case.faces,
+                  "target": case.target, "ground_truth": case.ground_truth}
+        row = []
+        for extra in (PAPER_NEIGHBOURHOODS, {}):
+            r = fm.fit(case.template_vertices, case.faces, case.target, **extra)
+            e = harness.evaluate(arrays, np.asarray(r.vertices))
+            row.append((e["f_R"], e["f_lambda"], r.diagnostics["target_neighbours"]))
+        (ra, la, ka), (rb, lb, kb) = row
+        ratios.append((rb / ra, lb / la))
+        print(f"{case.name:<26} {ka:>3}→{kb:<3}  {ra:>10.4f} → {rb:<10.4f}  {la:>10.4f} → {lb:<10.4f}",
+              flush=True)
+    gm = [math.exp(sum(math.log(r[i]) for r in ratios) / len(ratios)) for i in (0, 1)]
+    better = sum(r[0] < 1 for r in ratios)
+    print(f"geometric mean, default ÷ paper neighbourhoods: f_R ×{gm[0]:.3f}, f_λ ×{gm[1]:.3f}; "
+          f"f_R lower on {better} of {len(ratios)}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
