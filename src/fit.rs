@@ -510,13 +510,6 @@ impl FitParams {
                 ));
             }
         }
-        if !(0.0..=1.0).contains(&p.damping) {
-            return Err(FoldMatchError::parameter(
-                "damping",
-                p.damping,
-                "must be in [0, 1]",
-            ));
-        }
         if !(p.alpha_floor > 0.0 && p.alpha_floor <= 1.0) {
             return Err(FoldMatchError::parameter(
                 "alpha_floor",
@@ -531,27 +524,6 @@ impl FitParams {
                 "must be finite with |psi| < 1",
             ));
         }
-        if !(self.normal_completion >= 0.0 && self.normal_completion.is_finite()) {
-            return Err(FoldMatchError::parameter(
-                "normal_completion",
-                self.normal_completion,
-                "must be finite and >= 0",
-            ));
-        }
-        if !(self.tolerance >= 0.0 && self.tolerance.is_finite()) {
-            return Err(FoldMatchError::parameter(
-                "tolerance",
-                self.tolerance,
-                "must be finite and >= 0",
-            ));
-        }
-        if !(0.0..=1.0).contains(&self.knn_slack) {
-            return Err(FoldMatchError::parameter(
-                "knn_slack",
-                self.knn_slack,
-                "must be in [0, 1]",
-            ));
-        }
         if !(self.selection_at > 0.0 && self.selection_at <= 1.0) {
             return Err(FoldMatchError::parameter(
                 "selection_at",
@@ -559,26 +531,30 @@ impl FitParams {
                 "must be in (0, 1]",
             ));
         }
-        if !(self.selection_margin >= 0.0 && self.selection_margin.is_finite()) {
-            return Err(FoldMatchError::parameter(
-                "selection_margin",
-                self.selection_margin,
-                "must be finite and >= 0",
-            ));
+        let non_negative = [
+            ("normal_completion", self.normal_completion),
+            ("tolerance", self.tolerance),
+            ("selection_margin", self.selection_margin),
+            ("two_way", self.two_way),
+        ];
+        for (name, v) in non_negative {
+            if !(v >= 0.0 && v.is_finite()) {
+                return Err(FoldMatchError::parameter(
+                    name,
+                    v,
+                    "must be finite and >= 0",
+                ));
+            }
         }
-        if !(self.two_way >= 0.0 && self.two_way.is_finite()) {
-            return Err(FoldMatchError::parameter(
-                "two_way",
-                self.two_way,
-                "must be finite and >= 0",
-            ));
-        }
-        for (name, v) in [
+        let unit_interval = [
+            ("damping", p.damping),
+            ("knn_slack", self.knn_slack),
             ("rigid_fraction", self.rigid_fraction),
             ("coarse_fraction", self.coarse_fraction),
             ("anneal_fraction", self.anneal_fraction),
             ("rest_rigidity", self.rest_rigidity),
-        ] {
+        ];
+        for (name, v) in unit_interval {
             if !(0.0..=1.0).contains(&v) {
                 return Err(FoldMatchError::parameter(name, v, "must be in [0, 1]"));
             }
