@@ -78,7 +78,8 @@ LEVERS = {
     "vertex-iterations at 1M points); since the thirteenth round those two phases re-use the "
     "candidates while every neighbour is within (1 + σ) × the true K-th distance (`knn_slack`, "
     "default 0.1, which costs no accuracy on the harness: 5.5M → 4.25M fresh queries at 1M "
-    "points; 0.3, the large case's second row, 3.4M, at f_R ×1.017 on the harness). "
+    "points and K = 64; 0.3, the large case's second row, 3.4M, at f_R ×1.017 on the harness, "
+    "no faster since K = 32 in the fourteenth round). "
     "Re-ranking the 2K candidates is memory-bound. Re-queries and first queries are best-first "
     "searches of the box tree writing a sorted list in place (bounded by the old candidates' "
     "ball for re-queries). Closing: what is left is mostly points that moved beyond their "
@@ -211,7 +212,8 @@ PEERS = ["cpd_rustcpd", "cpd_probreg", "cpd_pycpd", "nricp_amberg"]
 DENSE = {"cpd_pycpd", "cpd_probreg"}
 DENSE_LIMIT_BYTES = 3 * 2**30
 #: The large case's second FoldMatch row: the rigid and coarse phases' k-NN slack σ
-#: (``knn_slack``), measured 0.3 on the harness (docs/performance.md, "Thirteenth round").
+#: (``knn_slack``), measured 0.3 on the harness (docs/performance.md, "Thirteenth round"; at
+#: K = 32, since the fourteenth round, it no longer beats the default's 0.1).
 LARGE_KNN_SLACK = 0.3
 
 #: Address-space cap of peer processes on the large case (protects the shared machine).
@@ -303,28 +305,35 @@ def _normalized(case: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, An
     return (case["template_vertices"] - c) / s, (x - c) / s, (lambda y: y * s + c)
 
 
+def timed_repeats(job: dict[str, Any], call: Any) -> tuple[list[float], list[Any]]:
+    """Runs ``call()`` ``job["repeats"]`` times (1 by default), stopping early once the runs
+    have taken ``job["repeat_budget_s"]`` (20 s); returns every run's wall time and result. The
+    same rule for FoldMatch and the peers: each is reported by its best wall time."""
+    walls, results = [], []
+    budget = job.get("repeat_budget_s", 20.0)
+    for _ in range(job.get("repeats", 1)):
+        t0 = time.perf_counter()
+        results.append(call())
+        walls.append(time.perf_counter() - t0)
+        if sum(walls) > budget:
+            break
+    return walls, results
+
+
 def work_foldmatch(job: dict[str, Any], case: dict[str, np.ndarray]) -> dict[str, Any]:
     import foldmatch_rs as fm
 
     kw = dict(job.get("params", {}))
-    walls, results = [], []
-    budget = job.get("repeat_budget_s", 20.0)
     cpu0 = _cpu_s()
     with ThreadSampler() as ts:
-        for _ in range(job.get("repeats", 1)):
-            t0 = time.perf_counter()
-            r = fm.fit(
-                case["template_vertices"],
-                case["faces"],
-                case["scan"],
-                preset=job["preset"],
-                threads=job.get("threads"),
-                **kw,
-            )
-            walls.append(time.perf_counter() - t0)
-            results.append(r)
-            if sum(walls) > budget:
-                break
+        walls, results = timed_repeats(job, lambda: fm.fit(
+            case["template_vertices"],
+            case["faces"],
+            case["scan"],
+            preset=job["preset"],
+            threads=job.get("threads"),
+            **kw,
+        ))
     cpu = _cpu_s() - cpu0
     peak = _status_kib("VmHWM") / 1024
     best = int(np.argmin(walls))
@@ -451,22 +460,15 @@ def work_peer(job: dict[str, Any], case: dict[str, np.ndarray]) -> dict[str, Any
         resource.setrlimit(resource.RLIMIT_AS, (lim, lim))
     params = {**spec["params"], **job.get("overrides", {})}
     run = run_rustcpd if method == "cpd_rustcpd" else spec["run"]
-    # Repeated like FoldMatch's runs (work_foldmatch: up to `repeats` within the budget, the
-    # best wall time kept), so that a short peer run's noise does not decide a ratio.
-    walls = []
-    budget = job.get("repeat_budget_s", 20.0)
+    # Repeated like FoldMatch's runs, so that a short peer run's noise does not decide a ratio.
     cpu0 = _cpu_s()
     with warnings.catch_warnings(), ThreadSampler() as ts:
         warnings.simplefilter("ignore")
-        for _ in range(job.get("repeats", 1)):
-            t0 = time.perf_counter()
-            fitted, _, extra = run(
-                case["template_vertices"], case["faces"], case["scan"], None, False, **params
-            )
-            walls.append(time.perf_counter() - t0)
-            if sum(walls) > budget:
-                break
+        walls, results = timed_repeats(job, lambda: run(
+            case["template_vertices"], case["faces"], case["scan"], None, False, **params
+        ))
     cpu = _cpu_s() - cpu0
+    fitted, _, extra = results[-1]
     wall = min(walls)
     out = {
         "wall_s": wall,
