@@ -365,7 +365,8 @@ def load_mesh(path: pathlib.Path) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _real_pair(
-    name: str, group: str, tpl: pathlib.Path, tgt: pathlib.Path, seed: int, kinds: tuple[str, ...]
+    name: str, group: str, tpl: pathlib.Path, tgt: pathlib.Path, seed: int, kinds: tuple[str, ...],
+    points: int = REAL_POINTS,
 ) -> Iterator[Case]:
     tv, tf = load_mesh(tpl)
     gv, gf = load_mesh(tgt)
@@ -386,37 +387,38 @@ def _real_pair(
                    {**meta, "variant": "mesh target (vertices + faces)"})
     if "points" in kinds:
         rng = np.random.default_rng(seed)
-        pts = sample_surface(gv, gf, REAL_POINTS, rng)
+        pts = sample_surface(gv, gf, points, rng)
         pts = pts + rng.normal(scale=REAL_NOISE * bbox_diagonal(gv), size=pts.shape)
         yield Case(f"{name}-pts", group, placed, tf, pts, None, gv,
-                   {**meta, "variant": f"{REAL_POINTS} resampled points, noise "
-                    f"{REAL_NOISE * 100:.1f}% of diagonal", "resampled_points": REAL_POINTS,
+                   {**meta, "variant": f"{points} resampled points, noise "
+                    f"{REAL_NOISE * 100:.1f}% of diagonal", "resampled_points": points,
                     "noise_sigma_rel": REAL_NOISE})
 
 
-def real_cases(kinds: tuple[str, ...] = ("mesh", "points")) -> Iterator[Case]:
+def real_cases(kinds: tuple[str, ...] = ("mesh", "points"), points: int = REAL_POINTS
+               ) -> Iterator[Case]:
     """The garments of ../shared/data with ground truth (arcsim T-shirt template → its 3
     wrinkled frames; the 2 skirt pairs; the T-shirt folding states from the rest shape;
-    wind-sequence frames 50, 150, 250 from frame 0)."""
+    wind-sequence frames 50, 150, 250 from frame 0); `points`: the point-cloud variants' size."""
     d = SHARED_DATA
     a = d / "arcsim_smpl_vto_tshirt"
     for i, fr in enumerate(("0000", "0200", "arm")):
         yield from _real_pair(f"vto-tshirt-{fr}", "real", a / "vto_tshirt.obj",
-                              a / f"{fr}_garment.obj", 10 + i, kinds)
+                              a / f"{fr}_garment.obj", 10 + i, kinds, points)
     g = d / "garment_pattern_generator"
     yield from _real_pair("skirt-penetrate", "real",
                           g / "skirt_pair_basic_vs_penetrate/skirt_maya_coords_sim.obj",
                           g / "skirt_pair_basic_vs_penetrate/skirt_maya_penetrate_sim.obj",
-                          20, kinds)
+                          20, kinds, points)
     yield from _real_pair("skirt-small", "real", g / "skirt_pair_too_small/midway.obj",
-                          g / "skirt_pair_too_small/skirt_maya_coords_small_sim.obj", 21, kinds)
+                          g / "skirt_pair_too_small/skirt_maya_coords_small_sim.obj", 21, kinds, points)
     f = d / "diffcloth/tshirt1900_folding"
     for i, st in enumerate(("flattened", "folding-biFolded", "folding-triFolded")):
         yield from _real_pair(f"tshirt-{st.replace('folding-', '')}", "real",
-                              f / "tshirt1900.obj", f / f"tshirt1900-{st}.obj", 30 + i, kinds)
+                              f / "tshirt1900.obj", f / f"tshirt1900-{st}.obj", 30 + i, kinds, points)
     w = d / "diffcloth/tshirt1000_wind_sim/iter0"
     for i, fr in enumerate((50, 150, 250)):
-        yield from _real_pair(f"wind-{fr}", "real", w / "0.obj", w / f"{fr}.obj", 40 + i, kinds)
+        yield from _real_pair(f"wind-{fr}", "real", w / "0.obj", w / f"{fr}.obj", 40 + i, kinds, points)
 
 
 def wind_samples() -> Iterator[Case]:

@@ -25,9 +25,8 @@ PAPER_NEIGHBOURHOODS = {"rho": 0.002, "k_max": 64}
 
 
 def dense_cases():
-    cases_mod.REAL_POINTS = POINTS
     if cases_mod.real_data_missing() is None:
-        yield from cases_mod.real_cases(kinds=("points",))
+        yield from cases_mod.real_cases(kinds=("points",), points=POINTS)
     rng = np.random.default_rng(900)
     for i in range(8):
         v, f, gt = cases_mod.folded_sheet(
