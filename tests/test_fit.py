@@ -480,7 +480,7 @@ def test_rigid_scan_sample_strides_only_dense_scans(case):
     strided, full = fm.fit(*dargs), fm.fit(*dargs, rigid_scan_sample=1)
     assert np.abs(strided.vertices - full.vertices).max() > 1e-9
     assert f_r(strided.vertices) < 0.5 * f_r(dense["template_vertices"])
-    # No less accurate (here the strided fit is the closer one: 0.0257 against 0.0274).
+    # No less accurate (here the strided fit is the closer one: 0.0260 against 0.0270).
     assert f_r(strided.vertices) < 1.05 * f_r(full.vertices)
     with pytest.raises(fm.InvalidParameterError, match="rigid_scan_sample"):
         fm.fit(*args, rigid_scan_sample=65)
