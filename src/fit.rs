@@ -304,6 +304,38 @@ impl Default for FitParams {
     }
 }
 
+/// A real parameter's allowed range ([`FitParams::validate`]): the test and the rule it states.
+#[derive(Clone, Copy)]
+struct Range {
+    contains: fn(f64) -> bool,
+    rule: &'static str,
+}
+
+const POSITIVE: Range = Range {
+    contains: |v| v > 0.0 && v.is_finite(),
+    rule: "must be positive and finite",
+};
+const NON_NEGATIVE: Range = Range {
+    contains: |v| v >= 0.0 && v.is_finite(),
+    rule: "must be finite and >= 0",
+};
+const UNIT: Range = Range {
+    contains: |v| (0.0..=1.0).contains(&v),
+    rule: "must be in [0, 1]",
+};
+const OPEN_UNIT: Range = Range {
+    contains: |v| v > 0.0 && v <= 1.0,
+    rule: "must be in (0, 1]",
+};
+const PSI: Range = Range {
+    contains: |v| v.is_finite() && v.abs() < 1.0,
+    rule: "must be finite with |psi| < 1",
+};
+const AT_LEAST_ONE: Range = Range {
+    contains: |v| v >= 1.0 && v.is_finite(),
+    rule: "must be finite and >= 1",
+};
+
 impl FitParams {
     /// The paper's method as printed, with only the converging readings of SPEC §2: one-way
     /// attraction, no rigid or coarse phase, constant softening, Eq. 5 as the affine-invariant
@@ -493,70 +525,32 @@ impl FitParams {
     /// Checks every parameter's range.
     pub fn validate(&self) -> Result<()> {
         let p = &self.nbody;
-        let positive = [
-            ("rho", self.rho),
-            ("gravity", p.gravity),
-            ("softening", p.softening),
-            ("time_step", p.time_step),
-            ("template_mass", p.template_mass),
-            ("target_mass", p.target_mass),
+        // Every real-valued parameter's range.
+        let rules = [
+            ("rho", self.rho, POSITIVE),
+            ("gravity", p.gravity, POSITIVE),
+            ("softening", p.softening, POSITIVE),
+            ("time_step", p.time_step, POSITIVE),
+            ("template_mass", p.template_mass, POSITIVE),
+            ("target_mass", p.target_mass, POSITIVE),
+            ("alpha_floor", p.alpha_floor, OPEN_UNIT),
+            ("psi", self.psi, PSI),
+            ("selection_at", self.selection_at, OPEN_UNIT),
+            ("normal_completion", self.normal_completion, NON_NEGATIVE),
+            ("tolerance", self.tolerance, NON_NEGATIVE),
+            ("selection_margin", self.selection_margin, NON_NEGATIVE),
+            ("two_way", self.two_way, NON_NEGATIVE),
+            ("damping", p.damping, UNIT),
+            ("knn_slack", self.knn_slack, UNIT),
+            ("rigid_fraction", self.rigid_fraction, UNIT),
+            ("coarse_fraction", self.coarse_fraction, UNIT),
+            ("anneal_fraction", self.anneal_fraction, UNIT),
+            ("rest_rigidity", self.rest_rigidity, UNIT),
+            ("anneal", self.anneal, AT_LEAST_ONE),
         ];
-        for (name, v) in positive {
-            if !(v > 0.0 && v.is_finite()) {
-                return Err(FoldMatchError::parameter(
-                    name,
-                    v,
-                    "must be positive and finite",
-                ));
-            }
-        }
-        if !(p.alpha_floor > 0.0 && p.alpha_floor <= 1.0) {
-            return Err(FoldMatchError::parameter(
-                "alpha_floor",
-                p.alpha_floor,
-                "must be in (0, 1]",
-            ));
-        }
-        if !(self.psi.is_finite() && self.psi.abs() < 1.0) {
-            return Err(FoldMatchError::parameter(
-                "psi",
-                self.psi,
-                "must be finite with |psi| < 1",
-            ));
-        }
-        if !(self.selection_at > 0.0 && self.selection_at <= 1.0) {
-            return Err(FoldMatchError::parameter(
-                "selection_at",
-                self.selection_at,
-                "must be in (0, 1]",
-            ));
-        }
-        let non_negative = [
-            ("normal_completion", self.normal_completion),
-            ("tolerance", self.tolerance),
-            ("selection_margin", self.selection_margin),
-            ("two_way", self.two_way),
-        ];
-        for (name, v) in non_negative {
-            if !(v >= 0.0 && v.is_finite()) {
-                return Err(FoldMatchError::parameter(
-                    name,
-                    v,
-                    "must be finite and >= 0",
-                ));
-            }
-        }
-        let unit_interval = [
-            ("damping", p.damping),
-            ("knn_slack", self.knn_slack),
-            ("rigid_fraction", self.rigid_fraction),
-            ("coarse_fraction", self.coarse_fraction),
-            ("anneal_fraction", self.anneal_fraction),
-            ("rest_rigidity", self.rest_rigidity),
-        ];
-        for (name, v) in unit_interval {
-            if !(0.0..=1.0).contains(&v) {
-                return Err(FoldMatchError::parameter(name, v, "must be in [0, 1]"));
+        for (name, v, range) in rules {
+            if !(range.contains)(v) {
+                return Err(FoldMatchError::parameter(name, v, range.rule));
             }
         }
         if self.rigid_fraction + self.coarse_fraction > 1.0 {
@@ -606,13 +600,6 @@ impl FitParams {
                 "coarse_rings",
                 self.coarse_rings,
                 "must be in 1..=32",
-            ));
-        }
-        if !(self.anneal >= 1.0 && self.anneal.is_finite()) {
-            return Err(FoldMatchError::parameter(
-                "anneal",
-                self.anneal,
-                "must be finite and >= 1",
             ));
         }
         if !(1..=8).contains(&self.rings) {
