@@ -304,6 +304,7 @@ fn bench_stages(c: &mut Criterion) {
         indices: &s.nn_idx,
         dist2: &s.nn_d2,
         k: s.k,
+        exact: true,
     };
     for (name, from_forward) in [
         ("two_way/reverse_attraction", true),

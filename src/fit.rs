@@ -1383,9 +1383,14 @@ impl Attraction {
     ) {
         let (points, kappa, index, k) = (&scan.points, &scan.kappa, &scan.index, scan.k);
         let (nn_idx, nn_d2) = (&mut self.nn_idx, &mut self.nn_d2);
+        let slack = if self.nn_cache.is_some() {
+            params.knn_slack_at(it)
+        } else {
+            0.0
+        };
         diagnostics.knn_queries += timed(&mut t.knn, || match self.nn_cache.as_mut() {
             Some(cache) => {
-                cache.set_slack(params.knn_slack_at(it));
+                cache.set_slack(slack);
                 cache.query(index, pos, nn_idx, nn_d2)
             }
             None => {
@@ -1400,6 +1405,7 @@ impl Attraction {
                     indices: nn_idx,
                     dist2: nn_d2,
                     k,
+                    exact: slack == 0.0,
                 };
                 diagnostics.two_way_queries += timed(&mut t.two_way, || {
                     reverse.compute(

@@ -384,6 +384,7 @@ mod tests {
                 indices: &[0, 0],
                 dist2: &[0.0, 0.0],
                 k: 1,
+                exact: true,
             };
             let mut out = [[0.0; 3]; 2];
             reverse.compute(&template, target, &kappa, forward, 2.0, rule, &p, &mut out);
