@@ -9,10 +9,18 @@ Each is fitted with the default and with the paper's neighbourhoods (ρ = 0.2 %,
 prints f_R and f_λ per case and their geometric-mean ratios::
 
     .venv/bin/python bench/heldout_density.py
+
+``--points`` and ``--against`` (the parameters the default is compared with, JSON) make it the
+held-out check of other density-dependent options, e.g. the coarse phase's scan sample
+(docs/method.md, "Fourteenth round")::
+
+    .venv/bin/python bench/heldout_density.py --points 60000 --against '{"coarse_scan_sample": 1}'
 """
 
 from __future__ import annotations
 
+import argparse
+import json
 import math
 import sys
 
@@ -24,9 +32,9 @@ POINTS = 15_000
 PAPER_NEIGHBOURHOODS = {"rho": 0.002, "k_max": 64}
 
 
-def dense_cases():
+def dense_cases(points: int = POINTS):
     if cases_mod.real_data_missing() is None:
-        yield from cases_mod.real_cases(kinds=("points",), points=POINTS)
+        yield from cases_mod.real_cases(kinds=("points",), points=points)
     rng = np.random.default_rng(900)
     for i in range(8):
         v, f, gt = cases_mod.folded_sheet(
@@ -34,21 +42,28 @@ def dense_cases():
             folds=float(rng.uniform(1.5, 4.0)), rotation_degrees=float(rng.uniform(0, 20)),
             offset=tuple(float(x) for x in rng.uniform(-0.05, 0.05, 3)),
         )
-        pts = cases_mod.sample_surface(gt, f, POINTS, rng)
+        pts = cases_mod.sample_surface(gt, f, points, rng)
         pts = pts + rng.normal(scale=0.002 * cases_mod.bbox_diagonal(gt), size=pts.shape)
         yield cases_mod.Case(f"dense-sheet-{i}", "heldout", v, f, pts, None, gt, {})
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
     import foldmatch_rs as fm
 
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--points", type=int, default=POINTS, help="scan points per case")
+    ap.add_argument("--against", default=json.dumps(PAPER_NEIGHBOURHOODS),
+                    help="JSON parameters the default is compared with (default: the paper's ρ, k_max)")
+    args = ap.parse_args(argv)
+    against = json.loads(args.against)
     ratios = []
-    print(f"{'case':<26} {'K':>7}  {'f_R paper-K → default':>24}  {'f_λ paper-K → default':>24}")
-    for case in dense_cases():
+    print(f"{args.points:,} points; the default against {against}")
+    print(f"{'case':<26} {'K':>7}  {'f_R against → default':>24}  {'f_λ against → default':>24}")
+    for case in dense_cases(args.points):
         arrays = {"template_vertices": case.template_vertices, "faces": case.faces,
                   "target": case.target, "ground_truth": case.ground_truth}
         row = []
-        for extra in (PAPER_NEIGHBOURHOODS, {}):
+        for extra in (against, {}):
             r = fm.fit(case.template_vertices, case.faces, case.target, **extra)
             e = harness.evaluate(arrays, np.asarray(r.vertices))
             row.append((e["f_R"], e["f_lambda"], r.diagnostics["target_neighbours"]))
@@ -58,7 +73,7 @@ def main() -> int:
               flush=True)
     gm = [math.exp(sum(math.log(r[i]) for r in ratios) / len(ratios)) for i in (0, 1)]
     better = sum(r[0] < 1 for r in ratios)
-    print(f"geometric mean, default ÷ paper neighbourhoods: f_R ×{gm[0]:.3f}, f_λ ×{gm[1]:.3f}; "
+    print(f"geometric mean, default ÷ against: f_R ×{gm[0]:.3f}, f_λ ×{gm[1]:.3f}; "
           f"f_R lower on {better} of {len(ratios)}")
     return 0
 

@@ -90,6 +90,17 @@ pub const SCHEDULE_NAMES: [&str; 3] = ["given", "sharp", "gentle"];
 /// [`FitParams::rigid_scan_sample`] does not sample the scan.
 pub const RIGID_SCAN_POINTS_PER_VERTEX: usize = 8;
 
+/// Scan points per coarse-phase vertex that the automatic [`FitParams::coarse_scan_sample`]
+/// leaves at least: it samples only scans with twice as many points as that per vertex.
+pub const COARSE_SCAN_POINTS_PER_VERTEX: usize = 4;
+
+/// The largest stride the automatic [`FitParams::coarse_scan_sample`] takes. Measured on 19
+/// held-out dense scans (`bench/heldout_density.py --points 60000`, 9–42 points per vertex):
+/// stride 2 f_R ×1.002 in geometric mean (worst ×1.036), 4 ×1.006 (worst ×1.068), the
+/// uncapped stride (up to 42) ×1.017 with one wind frame ×1.40 (docs/method.md,
+/// "Fourteenth round").
+pub const COARSE_SCAN_MAX_AUTO_STRIDE: usize = 2;
+
 /// Iterations of the `"accurate"` preset ([`FitParams::accurate`]).
 pub const ACCURATE_ITERATIONS: usize = 150;
 
@@ -199,6 +210,16 @@ pub struct FitParams {
     /// as many points, e.g. 4 for a 1M-point scan under a 100K-vertex template); 1: the whole
     /// scan.
     pub rigid_scan_sample: usize,
+    /// Coarse phase on a scan sample, as [`FitParams::rigid_scan_sample`] for the rigid
+    /// phase: the coarse phase sees every `coarse_scan_sample`-th scan point, with `⌈K / s⌉`
+    /// target neighbours; each vertex there moves by the Kabsch fit of its coarse ring, which
+    /// the sampled forces estimate. 0 (the default): automatic, the largest stride leaving
+    /// [`COARSE_SCAN_POINTS_PER_VERTEX`] scan points per vertex of the coarse phase's sample,
+    /// at most [`COARSE_SCAN_MAX_AUTO_STRIDE`] (so 2 where the scan has at least 8 points per
+    /// vertex, as a 1M-point scan under a 100K-vertex template, else 1 — the whole scan; every
+    /// harness case is at 1); 1: the whole scan. Measured on dense scans: the million-point
+    /// case 32.4 s → 24.4 s at f_R ×0.999.
+    pub coarse_scan_sample: usize,
     /// Coarse phase on a sample: the forces are computed for every `coarse_sample`-th vertex
     /// only, and every vertex moves by the Kabsch fit of the sampled members of its coarse
     /// ring (1: every vertex; more needs coarse rings of radius ≥ 3 at every level).
@@ -290,6 +311,7 @@ impl Default for FitParams {
             coarse_levels: 1,
             rigid_sample: 4,
             rigid_scan_sample: 0,
+            coarse_scan_sample: 0,
             coarse_sample: 1,
             knn_cache: true,
             knn_slack: DEFAULT_KNN_SLACK,
@@ -455,13 +477,28 @@ impl FitParams {
     /// The stride of the rigid phase's scan sample ([`FitParams::rigid_scan_sample`]) for a
     /// template of `m` vertices and a scan of `n` points.
     pub fn rigid_scan_stride(&self, m: usize, n: usize) -> usize {
-        match self.rigid_scan_sample {
-            0 => {
-                let vertices = m.div_ceil(self.rigid_sample.max(1)).max(1);
-                (n / (RIGID_SCAN_POINTS_PER_VERTEX * vertices)).clamp(1, 64)
-            }
-            s => s,
-        }
+        let per_vertex = RIGID_SCAN_POINTS_PER_VERTEX;
+        scan_stride(
+            self.rigid_scan_sample,
+            self.rigid_sample,
+            per_vertex,
+            64,
+            m,
+            n,
+        )
+    }
+
+    /// The stride of the coarse phase's scan sample ([`FitParams::coarse_scan_sample`]).
+    pub fn coarse_scan_stride(&self, m: usize, n: usize) -> usize {
+        let (per_vertex, most) = (COARSE_SCAN_POINTS_PER_VERTEX, COARSE_SCAN_MAX_AUTO_STRIDE);
+        scan_stride(
+            self.coarse_scan_sample,
+            self.coarse_sample,
+            per_vertex,
+            most,
+            m,
+            n,
+        )
     }
 
     /// Iterations of the rigid and coarse phases: `(rigid, coarse)`, both 0 for NRGa.
@@ -581,12 +618,17 @@ impl FitParams {
                 "needs coarse rings of radius >= 3 at every level (coarse_rings / 2^(coarse_levels-1))",
             ));
         }
-        if self.rigid_scan_sample > 64 {
-            return Err(FoldMatchError::parameter(
-                "rigid_scan_sample",
-                self.rigid_scan_sample,
-                "must be in 0..=64 (0: automatic)",
-            ));
+        for (name, value) in [
+            ("rigid_scan_sample", self.rigid_scan_sample),
+            ("coarse_scan_sample", self.coarse_scan_sample),
+        ] {
+            if value > 64 {
+                return Err(FoldMatchError::parameter(
+                    name,
+                    value,
+                    "must be in 0..=64 (0: automatic)",
+                ));
+            }
         }
         if !(1..=64).contains(&self.rigid_sample) {
             return Err(FoldMatchError::parameter(
@@ -1105,8 +1147,11 @@ struct Prepared {
     coarse_sampled: Vec<Neighborhoods>,
     /// Every vertex index (the rigid phase's "ring"; empty when no schedule has one).
     all_vertices: Vec<u32>,
-    /// The rigid phase's scan sample ([`FitParams::rigid_scan_sample`]; `None`: the scan).
-    rigid_scan: Option<ScanPoints>,
+    /// The phases' scan samples ([`FitParams::rigid_scan_sample`],
+    /// [`FitParams::coarse_scan_sample`]), one per stride > 1 in use.
+    scan_samples: Vec<ScanPoints>,
+    /// The strides of the rigid and the coarse phase's scan samples (1: the whole scan).
+    scan_strides: [usize; 2],
     /// The diagnostics every run starts from.
     diagnostics: Diagnostics,
 }
@@ -1196,9 +1241,25 @@ impl Prepared {
             index,
             k,
         };
-        let stride = params.rigid_scan_stride(m, target.points.len());
-        let rigid_scan =
-            (stride > 1 && phases.iter().any(|p| p.0 > 0)).then(|| target.sample(stride));
+        let n = target.points.len();
+        let scan_strides = [
+            if phases.iter().any(|p| p.0 > 0) {
+                params.rigid_scan_stride(m, n)
+            } else {
+                1
+            },
+            if phases.iter().any(|p| p.1 > 0) {
+                params.coarse_scan_stride(m, n)
+            } else {
+                1
+            },
+        ];
+        let mut scan_samples: Vec<ScanPoints> = Vec::new();
+        for &stride in &scan_strides {
+            if stride > 1 && !scan_samples.iter().any(|s| s.stride == stride) {
+                scan_samples.push(target.sample(stride));
+            }
+        }
         let all_vertices = if phases.iter().any(|p| p.0 > 0) {
             (0..m as u32).collect()
         } else {
@@ -1276,26 +1337,19 @@ impl Prepared {
             coarse_deltas,
             coarse_sampled,
             all_vertices,
-            rigid_scan,
+            scan_samples,
+            scan_strides,
             diagnostics,
         })
     }
 
-    /// The scan points a phase sees: the whole scan, or under `stride` > 1 the rigid phase's
-    /// scan sample.
+    /// The scan points a phase sees: the whole scan (`stride` 1), or the scan sample of that
+    /// stride.
     fn scan_points(&self, stride: usize) -> &ScanPoints {
-        match &self.rigid_scan {
-            Some(sample) if stride > 1 => {
-                debug_assert_eq!(sample.stride, stride);
-                sample
-            }
-            _ => &self.target,
-        }
-    }
-
-    /// The stride of the rigid phase's scan sample (1: the whole scan).
-    fn rigid_scan_stride(&self) -> usize {
-        self.rigid_scan.as_ref().map_or(1, |s| s.stride)
+        self.scan_samples
+            .iter()
+            .find(|s| s.stride == stride)
+            .unwrap_or(&self.target)
     }
 
     fn topology(&self) -> TemplateTopology<'_> {
@@ -1499,13 +1553,10 @@ impl ScheduleRun {
         let (rigid_iterations, coarse_iterations) = params.phase_iterations();
         let mut samples: Vec<PhaseSample> = Vec::new();
         let mut phase_sample = [None, None];
+        let [rigid_scan, coarse_scan] = prepared.scan_strides;
         let wanted = [
-            (
-                params.rigid_sample,
-                prepared.rigid_scan_stride(),
-                rigid_iterations,
-            ),
-            (params.coarse_sample, 1, coarse_iterations),
+            (params.rigid_sample, rigid_scan, rigid_iterations),
+            (params.coarse_sample, coarse_scan, coarse_iterations),
         ];
         for (slot, (stride, scan_stride, iterations)) in phase_sample.iter_mut().zip(wanted) {
             if (stride > 1 || scan_stride > 1) && iterations > 0 {
@@ -1603,6 +1654,13 @@ impl ScheduleRun {
                     (it - self.rigid_iterations - 1) * levels.len() / self.coarse_iterations;
                 // Each vertex moves by the fit of its ring (or of the ring's sampled members).
                 let (rings, deltas, ring_old, ring_new) = match sampled.map(|i| &self.samples[i]) {
+                    // Every vertex, on a scan sample: the whole rings, the sample's proposal.
+                    Some(sample) if sample.stride == 1 => (
+                        &levels[level],
+                        Some(&prepared.coarse_deltas[level]),
+                        &old[..],
+                        &sample.attraction.proposed[..],
+                    ),
                     Some(sample) => (
                         &prepared.coarse_sampled[level],
                         None,
@@ -1799,6 +1857,26 @@ fn kabsch_update(
         let r = kabsch(ring, ring_old, ring_new, &c_old, &c_new, fast);
         *out = transform_vertex(&r, &vec3(&old[v]), &c_old, &c_new).into();
     });
+}
+
+/// The stride of a phase's scan sample: `sample` when set, else (0, automatic) the largest
+/// stride that leaves `per_vertex` scan points for each of the phase's `⌈m / vertex_stride⌉`
+/// vertices, within `1..=most`.
+fn scan_stride(
+    sample: usize,
+    vertex_stride: usize,
+    per_vertex: usize,
+    most: usize,
+    m: usize,
+    n: usize,
+) -> usize {
+    match sample {
+        0 => {
+            let vertices = m.div_ceil(vertex_stride.max(1)).max(1);
+            (n / (per_vertex * vertices)).clamp(1, most)
+        }
+        s => s,
+    }
 }
 
 /// The rest-shape rigidity β of the `fine`-th of the `total` FoldMatch iterations (1-based):
@@ -2118,6 +2196,60 @@ mod tests {
         assert_eq!(auto, twelve);
         // Still one rigid motion, not the one every scan point drives, but close to it.
         assert_rigidly_moved(&v, &auto);
+        let (apart, moved) = (max_apart(&auto, &every), max_apart(&every, &v));
+        assert!(apart > 1e-9 && apart < 0.2 * moved, "{apart} vs {moved}");
+    }
+
+    #[test]
+    fn coarse_scan_sample_halves_only_scans_of_eight_points_a_vertex() {
+        let default = FitParams::default();
+        // Paper-sized (1.1 points a vertex) and the harness's densest (3.5): the whole scan.
+        assert_eq!(default.coarse_scan_stride(13_225, 14_400), 1);
+        assert_eq!(default.coarse_scan_stride(1_426, 5_000), 1);
+        // From 8 points a vertex every 2nd, and never more by itself.
+        assert_eq!(default.coarse_scan_stride(1_000, 7_999), 1);
+        assert_eq!(default.coarse_scan_stride(1_000, 8_000), 2);
+        assert_eq!(default.coarse_scan_stride(100_489, 1_000_000), 2);
+        assert_eq!(default.coarse_scan_stride(1_426, 60_000), 2);
+        // The rigid phase's automatic stride keeps its own rule.
+        assert_eq!(default.rigid_scan_stride(100_489, 1_000_000), 4);
+        for given in [1, 3, 64] {
+            let params = FitParams {
+                coarse_scan_sample: given,
+                ..default.clone()
+            };
+            assert_eq!(params.coarse_scan_stride(1_000, 1_000_000), given);
+        }
+        assert_refused(
+            &FitParams {
+                coarse_scan_sample: 65,
+                ..default.clone()
+            },
+            "coarse_scan_sample",
+        );
+
+        // A coarse-only fit of an 8×8 template on a 40×40-point scan (25 points a vertex):
+        // the automatic stride is the explicit 2, and it changes the fit by a fraction of the
+        // motion.
+        let (v, f, _) = small_grid_case();
+        let (_, _, x) = wavy_grid_case(40, 0.1);
+        let coarse_only = FitParams {
+            iterations: 6,
+            rigid_fraction: 0.0,
+            coarse_fraction: 1.0,
+            selection: Selection::Single,
+            ..default
+        };
+        assert_eq!(coarse_only.coarse_scan_stride(v.len(), x.len()), 2);
+        let with = |coarse_scan_sample| {
+            let params = FitParams {
+                coarse_scan_sample,
+                ..coarse_only.clone()
+            };
+            fit_simple(&v, &f, &x, None, &params).unwrap().vertices
+        };
+        let (auto, two, every) = (with(0), with(2), with(1));
+        assert_eq!(auto, two);
         let (apart, moved) = (max_apart(&auto, &every), max_apart(&every, &v));
         assert!(apart > 1e-9 && apart < 0.2 * moved, "{apart} vs {moved}");
     }

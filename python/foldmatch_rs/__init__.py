@@ -194,6 +194,7 @@ def fit(
     coarse_levels: Optional[int] = None,
     rigid_sample: Optional[int] = None,
     rigid_scan_sample: Optional[int] = None,
+    coarse_scan_sample: Optional[int] = None,
     coarse_sample: Optional[int] = None,
     knn_cache: Optional[bool] = None,
     knn_slack: Optional[float] = None,
@@ -296,6 +297,11 @@ def fit(
         default: automatic, a stride only where the scan has more than 8 points per vertex of
         the rigid phase's sample, e.g. 4 for 1M points under 100K vertices; 1: the whole scan;
         0..=64).
+    coarse_scan_sample : int
+        The same for the coarse phase: every ``coarse_scan_sample``-th scan point, ``ceil(K / s)``
+        neighbours (0, the default: automatic, 2 where the scan has at least 8 points per
+        vertex of the coarse phase, e.g. 1M points under 100K vertices, else 1; 1: the whole
+        scan; 0..=64).
     coarse_sample : int
         Coarse phase on a sample: only every ``coarse_sample``-th vertex feels the forces, and
         every vertex moves by the Kabsch fit of its coarse ring's sampled members (1: every
@@ -387,7 +393,8 @@ def fit(
         rigid_fraction=rigid_fraction,
         coarse_fraction=coarse_fraction, coarse_rings=coarse_rings,
         coarse_levels=coarse_levels, rigid_sample=rigid_sample,
-        rigid_scan_sample=rigid_scan_sample, coarse_sample=coarse_sample,
+        rigid_scan_sample=rigid_scan_sample, coarse_scan_sample=coarse_scan_sample,
+        coarse_sample=coarse_sample,
         rest_rigidity=rest_rigidity, anneal=anneal, anneal_fraction=anneal_fraction,
         selection=selection, selection_margin=selection_margin, selection_at=selection_at,
         knn_cache=knn_cache, knn_slack=knn_slack, matrix_series=matrix_series,
