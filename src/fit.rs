@@ -90,6 +90,10 @@ pub const SCHEDULE_NAMES: [&str; 3] = ["given", "sharp", "gentle"];
 /// [`FitParams::rigid_scan_sample`] does not sample the scan.
 pub const RIGID_SCAN_POINTS_PER_VERTEX: usize = 8;
 
+/// The largest scan-sample stride ([`FitParams::rigid_scan_sample`],
+/// [`FitParams::coarse_scan_sample`]), given or automatic.
+pub const MAX_SCAN_SAMPLE: usize = 64;
+
 /// Scan points per coarse-phase vertex that the automatic [`FitParams::coarse_scan_sample`]
 /// leaves at least: it samples only scans with twice as many points as that per vertex.
 pub const COARSE_SCAN_POINTS_PER_VERTEX: usize = 4;
@@ -477,12 +481,12 @@ impl FitParams {
     /// The stride of the rigid phase's scan sample ([`FitParams::rigid_scan_sample`]) for a
     /// template of `m` vertices and a scan of `n` points.
     pub fn rigid_scan_stride(&self, m: usize, n: usize) -> usize {
-        let per_vertex = RIGID_SCAN_POINTS_PER_VERTEX;
+        let (per_vertex, most) = (RIGID_SCAN_POINTS_PER_VERTEX, MAX_SCAN_SAMPLE);
         scan_stride(
             self.rigid_scan_sample,
             self.rigid_sample,
             per_vertex,
-            64,
+            most,
             m,
             n,
         )
@@ -622,7 +626,7 @@ impl FitParams {
             ("rigid_scan_sample", self.rigid_scan_sample),
             ("coarse_scan_sample", self.coarse_scan_sample),
         ] {
-            if value > 64 {
+            if value > MAX_SCAN_SAMPLE {
                 return Err(FoldMatchError::parameter(
                     name,
                     value,

@@ -528,9 +528,9 @@ const SERIES_TOLERANCE: Real = 1e-16;
 /// preset's time with the radius at [`SERIES_RADIUS`]).
 pub const LOG_SERIES_RADIUS: Real = 0.5;
 
-/// `1/(2k+1)` for the terms of [`spd_log_near_identity`]'s series.
 /// `1/k` for k = 0..=16 (the 0th unused): [`sym_exp_small`]'s Horner factors, multiplied
-/// instead of divided (a division's latency sat on Horner's dependency chain).
+/// instead of divided (a division's latency sat on Horner's dependency chain); its series has
+/// at most 16 terms.
 const RECIPROCALS: [Real; 17] = {
     let mut r = [0.0; 17];
     let mut k = 1;
@@ -541,6 +541,7 @@ const RECIPROCALS: [Real; 17] = {
     r
 };
 
+/// `1/(2k+1)` for the terms of [`spd_log_near_identity`]'s series.
 const ODD_RECIPROCALS: [Real; 25] = {
     let mut r = [0.0; 25];
     let mut k = 0;
@@ -661,7 +662,7 @@ pub fn sym_exp_small(s: &Mat3) -> Mat3 {
     }
     let mut n = 0;
     let mut term = 1.0; // r^n / n!
-    while term > SERIES_TOLERANCE && n < 16 {
+    while term > SERIES_TOLERANCE && n < RECIPROCALS.len() - 1 {
         n += 1;
         term *= r / n as Real;
     }
