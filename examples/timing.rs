@@ -31,12 +31,15 @@ fn main() {
     .unwrap();
     let total = t.elapsed().as_secs_f64();
     println!(
-        "M={} N={} iterations={} threads={} total {:.3}s",
+        "M={} N={} iterations={} threads={} total {:.3}s (setup {:.3}, iterations {:.3}, finish {:.3})",
         case.template_vertices.len(),
         case.scan.len(),
         r.iterations,
         rayon::current_num_threads(),
-        total
+        total,
+        r.diagnostics.wall_seconds[0],
+        r.diagnostics.wall_seconds[1],
+        r.diagnostics.wall_seconds[2]
     );
     println!(
         "{:#?}\nfresh k-NN queries: {} of {}; two-way tree queries: {} of {}",

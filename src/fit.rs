@@ -21,7 +21,7 @@ use crate::mesh::{clean_faces, validate_faces, validate_points, vertex_normals, 
 use crate::nbody::{self, NBodyParams, TwoWayPull};
 use crate::normalize::Frame;
 use crate::regularize::{regularize, Regularization, RegularizeBuffers};
-use crate::rings::{adjacency, n_rings, Neighborhoods, RingDeltas};
+use crate::rings::{adjacency, n_rings, n_rings_of, Neighborhoods, RingDeltas};
 use crate::rotation::{
     kabsch, point_moments, ring_centroids, ring_fit_from_moments, ring_fit_from_sum,
     solve_rotation, transform_vertex, PointMoments,
@@ -1232,8 +1232,9 @@ impl Prepared {
         let isolated = (0..m)
             .filter(|&v| incidence.offsets[v] == incidence.offsets[v + 1])
             .count();
+        let one_rings = adjacency(&faces, m);
         let rings = match params.method {
-            Method::FoldMatch => n_rings(&faces, m, params.rings),
+            Method::FoldMatch => n_rings_of(&one_rings, params.rings),
             Method::Nrga => knn_neighborhoods(&start, params),
         };
         let phases: Vec<(usize, usize)> =
@@ -1271,7 +1272,7 @@ impl Prepared {
         };
         let coarse_levels = if phases.iter().any(|p| p.1 > 0) {
             (0..params.coarse_levels)
-                .map(|l| n_rings(&faces, m, (params.coarse_rings >> l).max(1)))
+                .map(|l| n_rings_of(&one_rings, (params.coarse_rings >> l).max(1)))
                 .collect()
         } else {
             Vec::new()
@@ -1290,7 +1291,6 @@ impl Prepared {
         let coarse_deltas = if coarse_levels.is_empty() {
             Vec::new()
         } else {
-            let one_rings = adjacency(&faces, m);
             coarse_levels
                 .iter()
                 .map(|rings| RingDeltas::new(rings, &one_rings))

@@ -66,15 +66,43 @@ pub fn adjacency(faces: &[[u32; 3]], n_vertices: usize) -> Neighborhoods {
 /// The n-ring neighborhoods of every vertex: all vertices at graph distance ≤ `rings`
 /// (including the vertex itself), by a bounded breadth-first search from each vertex.
 pub fn n_rings(faces: &[[u32; 3]], n_vertices: usize, rings: usize) -> Neighborhoods {
-    let adj = adjacency(faces, n_vertices);
-    let rows: Vec<Vec<u32>> = (0..n_vertices)
+    n_rings_of(&adjacency(faces, n_vertices), rings)
+}
+
+/// Vertices per parallel task of [`n_rings_of`].
+const RING_CHUNK: usize = 256;
+
+/// [`n_rings`] from the one-rings `adjacency` ([`adjacency`]'s), so that a caller building
+/// several ring sizes builds the adjacency once. Each task appends its vertices' rows to one
+/// buffer (no list per vertex; the 8-rings of the paper-sized template, about 2M members, were
+/// 13,225 growing lists and a copy), and the buffers are concatenated in vertex order.
+pub fn n_rings_of(adjacency: &Neighborhoods, rings: usize) -> Neighborhoods {
+    let m = adjacency.len();
+    let chunks: Vec<(Vec<u32>, Vec<usize>)> = (0..m.div_ceil(RING_CHUNK))
         .into_par_iter()
         .map_init(
-            || Visited::new(n_vertices),
-            |visited, k| bfs_ring(&adj, k as u32, rings, visited),
+            || Visited::new(m),
+            |visited, c| {
+                let (lo, hi) = (c * RING_CHUNK, ((c + 1) * RING_CHUNK).min(m));
+                let mut members = Vec::new();
+                let mut ends = Vec::with_capacity(hi - lo);
+                for v in lo..hi {
+                    bfs_ring(adjacency, v as u32, rings, visited, &mut members);
+                    ends.push(members.len());
+                }
+                (members, ends)
+            },
         )
         .collect();
-    Neighborhoods::from_rows(rows)
+    let mut offsets = Vec::with_capacity(m + 1);
+    offsets.push(0);
+    let mut members = Vec::with_capacity(chunks.iter().map(|c| c.0.len()).sum());
+    for (chunk, ends) in chunks {
+        let base = members.len();
+        members.extend_from_slice(&chunk);
+        offsets.extend(ends.iter().map(|e| base + e));
+    }
+    Neighborhoods { offsets, members }
 }
 
 /// Per-thread "seen" marks of a breadth-first search: vertex `v` was seen in the current search
@@ -101,6 +129,12 @@ impl Visited {
         }
     }
 
+    /// Whether `v` is marked.
+    #[inline]
+    fn contains(&self, v: u32) -> bool {
+        self.stamp[v as usize] == self.search
+    }
+
     /// Marks `v`; returns whether it was unmarked.
     #[inline]
     fn insert(&mut self, v: u32) -> bool {
@@ -111,12 +145,20 @@ impl Visited {
     }
 }
 
-/// Bounded BFS from `start`; returns the visited set in BFS order (each ring sorted by index).
-fn bfs_ring(adj: &Neighborhoods, start: u32, rings: usize, visited: &mut Visited) -> Vec<u32> {
+/// Bounded BFS from `start`, appending the visited set to `out` in BFS order (each ring sorted
+/// by index).
+fn bfs_ring(
+    adj: &Neighborhoods,
+    start: u32,
+    rings: usize,
+    visited: &mut Visited,
+    out: &mut Vec<u32>,
+) {
     visited.clear();
     visited.insert(start);
-    let mut out = vec![start];
-    let mut frontier_start = 0;
+    let base = out.len();
+    out.push(start);
+    let mut frontier_start = base;
     for _ in 0..rings {
         let frontier_end = out.len();
         if frontier_start == frontier_end {
@@ -132,7 +174,6 @@ fn bfs_ring(adj: &Neighborhoods, start: u32, rings: usize, visited: &mut Visited
         out[frontier_end..].sort_unstable();
         frontier_start = frontier_end;
     }
-    out
 }
 
 /// Consecutive vertices whose neighborhood sums [`RingDeltas`] evaluates in order (one block
@@ -151,7 +192,7 @@ pub const MAX_DELTA_CHAIN: u8 = 32;
 /// A row with no such parent, or one that differs from it in half its members or more, is
 /// summed directly; chains are at most [`MAX_DELTA_CHAIN`] long. The sums equal the direct
 /// ones to round-off (a few ulps of the row's magnitude per step).
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct RingDeltas {
     /// Per vertex: the vertex its row derives from (`u32::MAX`: summed directly).
     parent: Vec<u32>,
@@ -163,62 +204,101 @@ pub struct RingDeltas {
 }
 
 impl RingDeltas {
-    /// The differences of `rings` (rows of any order) between mesh-adjacent vertices
-    /// (`adjacency`, [`adjacency`]'s one-rings).
+    /// The differences of `rings` (rows of any order, no member repeated) between
+    /// mesh-adjacent vertices (`adjacency`, [`adjacency`]'s one-rings).
+    ///
+    /// Set operations by per-thread marks ([`Visited`]): a row's members are marked once and
+    /// each candidate parent's row is counted against the marks, and only the chosen parent's
+    /// two difference lists are sorted (sorting every row and merging it with each candidate's
+    /// took 24 ms of the paper-sized fit's setup, 2 threads; the lists are the same).
     pub fn new(rings: &Neighborhoods, adjacency: &Neighborhoods) -> Self {
         let m = rings.len();
-        let sorted: Vec<Vec<u32>> = (0..m)
-            .into_par_iter()
-            .map(|v| {
-                let mut row = rings.of(v).to_vec();
-                row.sort_unstable();
-                row
-            })
-            .collect();
         // Per block, in order: each vertex's parent (the adjacent earlier vertex of the block,
-        // below the chain limit, with the fewest differing members) and its two lists.
-        type Row = (u32, Vec<u32>, Vec<u32>);
-        let blocks: Vec<Vec<Row>> = (0..m.div_ceil(DELTA_BLOCK))
+        // below the chain limit, with the fewest differing members, ties to the lower index)
+        // and its two lists, appended to the block's buffer.
+        struct Block {
+            parent: Vec<u32>,
+            members: Vec<u32>,
+            /// Per vertex: where its removals start and where its row ends in `members`.
+            split_end: Vec<(usize, usize)>,
+        }
+        let blocks: Vec<Block> = (0..m.div_ceil(DELTA_BLOCK))
             .into_par_iter()
-            .map(|b| {
-                let start = b * DELTA_BLOCK;
-                let end = (start + DELTA_BLOCK).min(m);
-                let mut depth = vec![0u8; end - start];
-                (start..end)
-                    .map(|v| {
-                        let row = &sorted[v];
+            .map_init(
+                || (Visited::new(m), Visited::new(m)),
+                |(in_row, in_parent), b| {
+                    let start = b * DELTA_BLOCK;
+                    let end = (start + DELTA_BLOCK).min(m);
+                    let mut depth = vec![0u8; end - start];
+                    let mut block = Block {
+                        parent: Vec::with_capacity(end - start),
+                        members: Vec::new(),
+                        split_end: Vec::with_capacity(end - start),
+                    };
+                    for v in start..end {
+                        let row = rings.of(v);
+                        in_row.clear();
+                        row.iter().for_each(|&x| {
+                            in_row.insert(x);
+                        });
                         let best = adjacency
                             .of(v)
                             .iter()
                             .map(|&u| u as usize)
                             .filter(|&u| u >= start && u < v && depth[u - start] < MAX_DELTA_CHAIN)
-                            .map(|u| (symmetric_difference_len(row, &sorted[u]), u))
+                            .map(|u| {
+                                let other = rings.of(u);
+                                let common = other.iter().filter(|&&x| in_row.contains(x)).count();
+                                (row.len() + other.len() - 2 * common, u)
+                            })
                             .min();
                         match best {
                             Some((cost, u)) if 2 * cost < row.len() => {
                                 depth[v - start] = depth[u - start] + 1;
-                                let (add, remove) = differences(row, &sorted[u]);
-                                (u as u32, add, remove)
+                                let other = rings.of(u);
+                                in_parent.clear();
+                                other.iter().for_each(|&x| {
+                                    in_parent.insert(x);
+                                });
+                                let from = block.members.len();
+                                block
+                                    .members
+                                    .extend(row.iter().filter(|&&x| !in_parent.contains(x)));
+                                block.members[from..].sort_unstable();
+                                let split = block.members.len();
+                                block
+                                    .members
+                                    .extend(other.iter().filter(|&&x| !in_row.contains(x)));
+                                block.members[split..].sort_unstable();
+                                block.parent.push(u as u32);
+                                block.split_end.push((split, block.members.len()));
                             }
-                            _ => (u32::MAX, Vec::new(), Vec::new()),
+                            _ => {
+                                let at = block.members.len();
+                                block.parent.push(u32::MAX);
+                                block.split_end.push((at, at));
+                            }
                         }
-                    })
-                    .collect()
-            })
+                    }
+                    block
+                },
+            )
             .collect();
         let mut out = Self {
             parent: Vec::with_capacity(m),
             offsets: Vec::with_capacity(m + 1),
             split: Vec::with_capacity(m),
-            members: Vec::new(),
+            members: Vec::with_capacity(blocks.iter().map(|b| b.members.len()).sum()),
         };
         out.offsets.push(0);
-        for (parent, add, remove) in blocks.into_iter().flatten() {
-            out.parent.push(parent);
-            out.members.extend_from_slice(&add);
-            out.split.push(out.members.len());
-            out.members.extend_from_slice(&remove);
-            out.offsets.push(out.members.len());
+        for block in blocks {
+            let base = out.members.len();
+            out.members.extend_from_slice(&block.members);
+            out.parent.extend_from_slice(&block.parent);
+            for (split, end) in block.split_end {
+                out.split.push(base + split);
+                out.offsets.push(base + end);
+            }
         }
         out
     }
@@ -262,51 +342,6 @@ impl RingDeltas {
                 }
             });
     }
-}
-
-/// `|a Δ b|` of two sorted lists.
-fn symmetric_difference_len(a: &[u32], b: &[u32]) -> usize {
-    let (mut i, mut j, mut common) = (0, 0, 0);
-    while i < a.len() && j < b.len() {
-        match a[i].cmp(&b[j]) {
-            std::cmp::Ordering::Less => i += 1,
-            std::cmp::Ordering::Greater => j += 1,
-            std::cmp::Ordering::Equal => {
-                common += 1;
-                i += 1;
-                j += 1;
-            }
-        }
-    }
-    a.len() + b.len() - 2 * common
-}
-
-/// `(a \ b, b \ a)` of two sorted lists.
-fn differences(a: &[u32], b: &[u32]) -> (Vec<u32>, Vec<u32>) {
-    let (mut only_a, mut only_b) = (Vec::new(), Vec::new());
-    let (mut i, mut j) = (0, 0);
-    while i < a.len() || j < b.len() {
-        match (a.get(i), b.get(j)) {
-            (Some(x), Some(y)) if x == y => {
-                i += 1;
-                j += 1;
-            }
-            (Some(x), Some(y)) if x < y => {
-                only_a.push(*x);
-                i += 1;
-            }
-            (Some(x), None) => {
-                only_a.push(*x);
-                i += 1;
-            }
-            (_, Some(y)) => {
-                only_b.push(*y);
-                j += 1;
-            }
-            (None, None) => unreachable!(),
-        }
-    }
-    (only_a, only_b)
 }
 
 #[cfg(test)]
@@ -374,6 +409,94 @@ mod tests {
         assert_eq!(n_rings(&faces, n, 2).of(63), &[63]);
     }
 
+    /// The parents and lists of [`RingDeltas::new`] by the earlier method (every row sorted,
+    /// each candidate merged with it): the reference its marks must reproduce exactly.
+    fn reference_deltas(rings: &Neighborhoods, adjacency: &Neighborhoods) -> RingDeltas {
+        let m = rings.len();
+        let sorted: Vec<Vec<u32>> = (0..m)
+            .map(|v| {
+                let mut row = rings.of(v).to_vec();
+                row.sort_unstable();
+                row
+            })
+            .collect();
+        let mut out = RingDeltas {
+            offsets: vec![0],
+            ..Default::default()
+        };
+        let mut depth = vec![0u8; m];
+        for v in 0..m {
+            let start = v / DELTA_BLOCK * DELTA_BLOCK;
+            let row = &sorted[v];
+            let best = adjacency
+                .of(v)
+                .iter()
+                .map(|&u| u as usize)
+                .filter(|&u| u >= start && u < v && depth[u] < MAX_DELTA_CHAIN)
+                .map(|u| (symmetric_difference_len(row, &sorted[u]), u))
+                .min();
+            let (parent, add, remove) = match best {
+                Some((cost, u)) if 2 * cost < row.len() => {
+                    depth[v] = depth[u] + 1;
+                    let (add, remove) = differences(row, &sorted[u]);
+                    (u as u32, add, remove)
+                }
+                _ => (u32::MAX, Vec::new(), Vec::new()),
+            };
+            out.parent.push(parent);
+            out.members.extend_from_slice(&add);
+            out.split.push(out.members.len());
+            out.members.extend_from_slice(&remove);
+            out.offsets.push(out.members.len());
+        }
+        out
+    }
+
+    /// `|a Δ b|` of two sorted lists.
+    fn symmetric_difference_len(a: &[u32], b: &[u32]) -> usize {
+        let (mut i, mut j, mut common) = (0, 0, 0);
+        while i < a.len() && j < b.len() {
+            match a[i].cmp(&b[j]) {
+                std::cmp::Ordering::Less => i += 1,
+                std::cmp::Ordering::Greater => j += 1,
+                std::cmp::Ordering::Equal => {
+                    common += 1;
+                    i += 1;
+                    j += 1;
+                }
+            }
+        }
+        a.len() + b.len() - 2 * common
+    }
+
+    /// `(a \ b, b \ a)` of two sorted lists.
+    fn differences(a: &[u32], b: &[u32]) -> (Vec<u32>, Vec<u32>) {
+        let (mut only_a, mut only_b) = (Vec::new(), Vec::new());
+        let (mut i, mut j) = (0, 0);
+        while i < a.len() || j < b.len() {
+            match (a.get(i), b.get(j)) {
+                (Some(x), Some(y)) if x == y => {
+                    i += 1;
+                    j += 1;
+                }
+                (Some(x), Some(y)) if x < y => {
+                    only_a.push(*x);
+                    i += 1;
+                }
+                (Some(x), None) => {
+                    only_a.push(*x);
+                    i += 1;
+                }
+                (_, Some(y)) => {
+                    only_b.push(*y);
+                    j += 1;
+                }
+                (None, None) => unreachable!(),
+            }
+        }
+        (only_a, only_b)
+    }
+
     /// Rows of `deltas` summed directly (no parent), and the values read per evaluation (the
     /// direct rows' members and every delta) as a fraction of direct sums' reads.
     fn direct_rows_and_read_ratio(deltas: &RingDeltas, rings: &Neighborhoods) -> (usize, f64) {
@@ -400,6 +523,7 @@ mod tests {
         let check = |faces: &[[u32; 3]], rings: usize| {
             let nb = n_rings(faces, n, rings);
             let deltas = RingDeltas::new(&nb, &adjacency(faces, n));
+            assert_eq!(deltas, reference_deltas(&nb, &adjacency(faces, n)));
             let mut sums = vec![[0.0; 3]; n];
             deltas.sums(&nb, &values, &mut sums);
             for (v, s) in sums.iter().enumerate() {
@@ -419,6 +543,18 @@ mod tests {
         };
         let (ratio, direct) = check(&grid(w, h), 8);
         assert!(ratio < 0.4, "read {ratio} of the members");
+        // Rows of any order: the same sets with their members reversed.
+        let nb = n_rings(&grid(w, h), n, 8);
+        let reversed = Neighborhoods::from_rows(
+            (0..n)
+                .map(|v| nb.of(v).iter().rev().copied().collect())
+                .collect(),
+        );
+        let adj = adjacency(&grid(w, h), n);
+        assert_eq!(
+            RingDeltas::new(&reversed, &adj),
+            reference_deltas(&reversed, &adj)
+        );
         // Block starts, chain restarts and the boundary rows are the direct ones.
         assert!(direct < n / 8, "{direct} direct rows");
         // A random relabelling: most adjacent vertices fall in other blocks.
