@@ -19,7 +19,10 @@ use foldmatch::curvature::gaussian_curvature_points;
 use foldmatch::deformation::deformation_gradient;
 use foldmatch::fit::{deformation_model, fit_simple, FitParams, TemplateTopology, Workspace};
 use foldmatch::knn::{neighborhood_size, NeighborCache, PointIndex, TargetNeighbours};
-use foldmatch::math::{nearest_rotation, nearest_rotation_fast, polar, sym_eigen3, vec3, Mat3};
+use foldmatch::math::{
+    nearest_rotation, nearest_rotation_fast, nearest_rotation_of_near_rotation, polar, sym_eigen3,
+    vec3, Mat3,
+};
 use foldmatch::mesh::{vertex_normals, VertexFaces};
 use foldmatch::nbody::{self, TwoWayPull};
 use foldmatch::normalize::Frame;
@@ -497,13 +500,16 @@ fn bench_stages(c: &mut Criterion) {
         })
     });
     // The nearest rotation of the raw gradients: the eigen-decomposition (the exact reference
-    // path) and the unit-quaternion solution the fast paths use.
+    // path), the unit-quaternion solution and the Newton–Schulz iteration the fast paths use
+    // (the latter for near-rotations such as these per-iteration gradients).
     type RotationPath = fn(&Mat3) -> Mat3;
     let eigen: RotationPath = nearest_rotation;
     let quaternion: RotationPath = nearest_rotation_fast;
+    let newton_schulz: RotationPath = nearest_rotation_of_near_rotation;
     for (name, rotation) in [
         ("nearest_rotation/eigen", eigen),
         ("nearest_rotation/quaternion", quaternion),
+        ("nearest_rotation/newton_schulz", newton_schulz),
     ] {
         g.bench_function(name, |b| {
             b.iter(|| {

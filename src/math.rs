@@ -371,6 +371,72 @@ pub fn rotation_quaternion(m: &Mat3) -> Option<Mat3> {
     ))
 }
 
+/// Largest entry of `|XᵀX − I|` at which [`rotation_near_orthogonal`] iterates: then the
+/// squared singular values lie within `1 ± 3 × 0.25`, inside the Newton–Schulz iteration's
+/// region of convergence `(0, 3)`.
+pub const NEAR_ORTHOGONAL_MAX_DEFECT: Real = 0.25;
+
+/// The rotation nearest to `m` (its orthogonal polar factor) when `m` is close to a rotation —
+/// a per-iteration deformation gradient, or the chordal mean of a ring's nearby rotations (Eq.
+/// 5) — by the Newton–Schulz polar iteration `X ← X (3I − XᵀX) / 2` from `X = m`; `None` when
+/// `det m ≤ 0` or `max |mᵀm − I| > ` [`NEAR_ORTHOGONAL_MAX_DEFECT`] (the callers then take
+/// [`rotation_quaternion`]).
+///
+/// Each step squares the defect (a singular value `1 + e` becomes `1 − 1.5 e² − …`), so a
+/// defect of 1e-2 takes four steps to round-off; the iteration stops after the step taken at
+/// a defect below 1e-8. Nothing but multiplications and additions (about 60 a step), where the
+/// quaternion solution is one dependent chain of square roots, Newton divisions and a 4 × 4
+/// adjugate: on the FoldMatch iterations' near-identity inputs it is the faster of the two.
+/// Equal to [`nearest_rotation`] to round-off (tested).
+#[inline]
+pub fn rotation_near_orthogonal(m: &Mat3) -> Option<Mat3> {
+    let det = m.determinant();
+    if det.is_nan() || det <= 0.0 {
+        return None;
+    }
+    let mut x = *m;
+    for _ in 0..8 {
+        // XᵀX is symmetric: its six distinct entries, the columns' dot products.
+        let (c0, c1, c2) = (x.column(0), x.column(1), x.column(2));
+        let (g00, g11, g22) = (c0.dot(&c0), c1.dot(&c1), c2.dot(&c2));
+        let (g01, g02, g12) = (c0.dot(&c1), c0.dot(&c2), c1.dot(&c2));
+        let defect = (g00 - 1.0)
+            .abs()
+            .max((g11 - 1.0).abs())
+            .max((g22 - 1.0).abs())
+            .max(g01.abs())
+            .max(g02.abs())
+            .max(g12.abs());
+        if defect.is_nan() || defect > NEAR_ORTHOGONAL_MAX_DEFECT {
+            return None;
+        }
+        // (3I − XᵀX) / 2.
+        let step = Mat3::new(
+            1.5 - 0.5 * g00,
+            -0.5 * g01,
+            -0.5 * g02,
+            -0.5 * g01,
+            1.5 - 0.5 * g11,
+            -0.5 * g12,
+            -0.5 * g02,
+            -0.5 * g12,
+            1.5 - 0.5 * g22,
+        );
+        x *= step;
+        if defect < 1e-8 {
+            return Some(x);
+        }
+    }
+    None
+}
+
+/// [`nearest_rotation`] for an input expected near a rotation: [`rotation_near_orthogonal`],
+/// else [`nearest_rotation_fast`].
+#[inline]
+pub fn nearest_rotation_of_near_rotation(m: &Mat3) -> Mat3 {
+    rotation_near_orthogonal(m).unwrap_or_else(|| nearest_rotation_fast(m))
+}
+
 /// [`nearest_rotation`] by [`rotation_quaternion`] where it applies, else by the
 /// eigen-decomposition.
 #[inline]
@@ -388,14 +454,16 @@ pub fn nearest_rotation_with(m: &Mat3, fast: bool) -> Mat3 {
     }
 }
 
-/// [`polar`] with the rotation from [`rotation_quaternion`] and `U = Rᵀ H` (symmetrized) where
+/// [`polar`] with the rotation from [`rotation_near_orthogonal`] (near a rotation) or
+/// [`rotation_quaternion`] and `U = Rᵀ H` (symmetrized) where
 /// `h` is well inside the orientation-preserving matrices (its normalized determinant above
 /// [`ORIENTED_MIN_NORMALIZED_DET`], so that `Rᵀ H` is the positive-definite stretch), else by
 /// the eigen-decomposition (whose stretch `√(HᵀH)` stays positive semi-definite there).
 pub fn polar_fast(h: &Mat3) -> Polar {
     let scale = h.norm() / 3.0f64.sqrt();
     let oriented = h.determinant() > ORIENTED_MIN_NORMALIZED_DET * scale * scale * scale;
-    match oriented.then(|| rotation_quaternion(h)).flatten() {
+    let rotation = oriented.then(|| rotation_near_orthogonal(h).or_else(|| rotation_quaternion(h)));
+    match rotation.flatten() {
         Some(rotation) => {
             let u = rotation.transpose() * h;
             Polar {
@@ -811,6 +879,39 @@ mod tests {
             polar(&reflecting).stretch,
             epsilon = 1e-14
         );
+    }
+
+    #[test]
+    fn newton_schulz_rotation_matches_eigen_path_near_rotations() {
+        let mut rng = ChaCha8Rng::seed_from_u64(29);
+        for i in 0..3000 {
+            let r = random_rotation(&mut rng);
+            // Per-iteration gradients and rings' mean rotations: rotations times a stretch
+            // within a few per cent of the identity, up to the refusal bound.
+            let spread = [1e-6, 1e-3, 2e-2, 0.07][i % 4];
+            let m =
+                r * (Mat3::identity() + Mat3::from_fn(|_, _| spread * rng.random_range(-1.0..1.0)));
+            let fast = rotation_near_orthogonal(&m).expect("near a rotation");
+            assert_relative_eq!(fast, nearest_rotation(&m), epsilon = 1e-13);
+            assert_relative_eq!(fast, rotation_quaternion(&m).unwrap(), epsilon = 1e-13);
+            assert_relative_eq!(nearest_rotation_of_near_rotation(&m), fast);
+            let p = polar_fast(&m);
+            assert_relative_eq!(p.rotation, fast);
+            assert_relative_eq!(p.stretch, polar(&m).stretch, epsilon = 1e-13);
+        }
+        // Refused: a reflection however orthogonal, a stretch beyond the bound, non-finite
+        // input; the fallback still answers.
+        let r = random_rotation(&mut rng);
+        let reflection = r * Mat3::from_diagonal(&Vec3::new(1.0, 1.0, -1.0));
+        assert!(rotation_near_orthogonal(&reflection).is_none());
+        let stretched = r * Mat3::from_diagonal(&Vec3::new(1.3, 1.0, 1.0));
+        assert!(rotation_near_orthogonal(&stretched).is_none());
+        assert_relative_eq!(
+            nearest_rotation_of_near_rotation(&stretched),
+            r,
+            epsilon = 1e-13
+        );
+        assert!(rotation_near_orthogonal(&(r * Real::NAN)).is_none());
     }
 
     #[test]

@@ -11,8 +11,8 @@
 //! The regularized gradient is `H̄_k = R̄_k Ū_k`.
 
 use crate::math::{
-    nearest_rotation, nearest_rotation_fast, polar, polar_fast, polar_with_roots, spd_log,
-    spd_log_near_identity, spd_roots, sym_exp, sym_exp_small, Mat3, SpdRoots,
+    nearest_rotation, nearest_rotation_of_near_rotation, polar, polar_fast, polar_with_roots,
+    spd_log, spd_log_near_identity, spd_roots, sym_exp, sym_exp_small, Mat3, SpdRoots,
 };
 use crate::rings::Neighborhoods;
 use rayon::prelude::*;
@@ -63,9 +63,9 @@ impl RegularizeBuffers {
 /// With `series`, logarithms and exponentials of near-identity matrices use truncated series
 /// ([`spd_log_near_identity`], [`sym_exp_small`]) and `U_k^{±½}` come from the polar
 /// decomposition's own eigen-decomposition, and polar factors and the chordal mean's rotation
-/// come from the unit-quaternion solution ([`polar_fast`], [`nearest_rotation_fast`]); the
-/// results agree with the eigen-decomposition path (`series = false`, kept as the exact
-/// reference) to round-off.
+/// come from the Newton–Schulz or unit-quaternion solutions ([`polar_fast`],
+/// [`nearest_rotation_of_near_rotation`]); the results agree with the eigen-decomposition path
+/// (`series = false`, kept as the exact reference) to round-off.
 pub fn regularize(
     raw: &[Mat3],
     rings: &Neighborhoods,
@@ -145,7 +145,7 @@ pub fn regularize(
                 Regularization::None => unreachable!(),
             }
             *r_out = if series {
-                nearest_rotation_fast(&r_sum)
+                nearest_rotation_of_near_rotation(&r_sum)
             } else {
                 nearest_rotation(&r_sum)
             };
