@@ -384,7 +384,7 @@ pub const NEAR_ORTHOGONAL_MAX_DEFECT: Real = 0.25;
 ///
 /// Each step squares the defect (a singular value `1 + e` becomes `1 − 1.5 e² − …`), so a
 /// defect of 1e-2 takes four steps to round-off; the iteration stops after the step taken at
-/// a defect below 1e-8. Nothing but multiplications and additions (about 60 a step), where the
+/// a defect below 1e-8. Nothing but multiplications and additions (about 90 a step), where the
 /// quaternion solution is one dependent chain of square roots, Newton divisions and a 4 × 4
 /// adjugate: on the FoldMatch iterations' near-identity inputs it is the faster of the two.
 /// Equal to [`nearest_rotation`] to round-off (tested).

@@ -74,7 +74,7 @@ const RING_CHUNK: usize = 256;
 
 /// [`n_rings`] from the one-rings `adjacency` ([`adjacency`]'s), so that a caller building
 /// several ring sizes builds the adjacency once. Each task appends its vertices' rows to one
-/// buffer (no list per vertex; the 8-rings of the paper-sized template, about 2M members, were
+/// buffer (no list per vertex; the 8-rings of the paper-sized template, 2.7M members, were
 /// 13,225 growing lists and a copy), and the buffers are concatenated in vertex order.
 pub fn n_rings_of(adjacency: &Neighborhoods, rings: usize) -> Neighborhoods {
     let m = adjacency.len();
