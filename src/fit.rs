@@ -630,7 +630,7 @@ impl FitParams {
                 return Err(FoldMatchError::parameter(
                     name,
                     value,
-                    "must be in 0..=64 (0: automatic)",
+                    &format!("must be in 0..={MAX_SCAN_SAMPLE} (0: automatic)"),
                 ));
             }
         }
@@ -1232,7 +1232,9 @@ impl Prepared {
         let isolated = (0..m)
             .filter(|&v| incidence.offsets[v] == incidence.offsets[v + 1])
             .count();
-        let one_rings = adjacency(&faces, m);
+        // The one-rings, for the n-rings and the ring deltas (built once, and only if used:
+        // NRGa's neighbourhoods are k-nearest, and it has no coarse phase).
+        let one_rings = std::cell::LazyCell::new(|| adjacency(&faces, m));
         let rings = match params.method {
             Method::FoldMatch => n_rings_of(&one_rings, params.rings),
             Method::Nrga => knn_neighborhoods(&start, params),

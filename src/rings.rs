@@ -129,6 +129,14 @@ impl Visited {
         }
     }
 
+    /// Starts a new search with exactly `members` marked.
+    fn mark_all(&mut self, members: &[u32]) {
+        self.clear();
+        for &x in members {
+            self.insert(x);
+        }
+    }
+
     /// Whether `v` is marked.
     #[inline]
     fn contains(&self, v: u32) -> bool {
@@ -237,10 +245,7 @@ impl RingDeltas {
                     };
                     for v in start..end {
                         let row = rings.of(v);
-                        in_row.clear();
-                        row.iter().for_each(|&x| {
-                            in_row.insert(x);
-                        });
+                        in_row.mark_all(row);
                         let best = adjacency
                             .of(v)
                             .iter()
@@ -256,10 +261,7 @@ impl RingDeltas {
                             Some((cost, u)) if 2 * cost < row.len() => {
                                 depth[v - start] = depth[u - start] + 1;
                                 let other = rings.of(u);
-                                in_parent.clear();
-                                other.iter().for_each(|&x| {
-                                    in_parent.insert(x);
-                                });
+                                in_parent.mark_all(other);
                                 let from = block.members.len();
                                 block
                                     .members
