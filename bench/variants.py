@@ -202,6 +202,17 @@ def best_peers_from_markdown(report: pathlib.Path) -> Best:
     return best
 
 
+def verdict(row: dict[str, Any], best: dict[str, float]) -> dict[str, Any]:
+    """One fit of a case against the best peer of the case, by the issue's criteria: the lowest
+    f_R and the lowest f_λ of all methods (ties count as won), flipped faces within the truth's
+    own f_F + 1 point (None without ground truth), a mean scan→fit distance no worse than the
+    best peer's."""
+    truth_f_f = best["truth_f_F"]
+    return {"f_R": row["f_R"] <= best["f_R"], "f_lambda": row["f_lambda"] <= best["f_lambda"],
+            "flips": None if truth_f_f != truth_f_f else row["f_F"] <= truth_f_f + 0.01,
+            "s2f": row["s2f_mean_rel"] <= best["s2f_mean_rel"]}
+
+
 def against_peers(rows: list[dict[str, Any]], best: Best, source: str) -> None:
     """Per variant, the issue's criteria case by case: the cases where it has the lowest f_R /
     f_λ of all methods, where its flipped faces stay within the truth's + 1 point, and where
@@ -221,11 +232,11 @@ def against_peers(rows: list[dict[str, Any]], best: Best, source: str) -> None:
             if not gs:
                 cells.append("— (no peer figures)")
                 continue
-            flips = [r["f_F"] <= b["truth_f_F"] + 0.01 for r, b in gs if b["truth_f_F"] == b["truth_f_F"]]
-            cells.append(f"{sum(r['f_R'] <= b['f_R'] for r, b in gs)} / "
-                         f"{sum(r['f_lambda'] <= b['f_lambda'] for r, b in gs)} / "
+            vs = [verdict(r, b) for r, b in gs]
+            flips = [v["flips"] for v in vs if v["flips"] is not None]
+            cells.append(f"{sum(v['f_R'] for v in vs)} / {sum(v['f_lambda'] for v in vs)} / "
                          f"{sum(flips)} of {len(flips)} / "
-                         f"{sum(r['s2f_mean_rel'] <= b['s2f_mean_rel'] for r, b in gs)} of {len(gs)}")
+                         f"{sum(v['s2f'] for v in vs)} of {len(gs)}")
 
         def geo(rs: list[dict[str, Any]], m: str) -> float:
             return geo_mean(r[m] / best[r["case"]][m] for r in rs)
@@ -287,31 +298,16 @@ def summary(rows: list[dict[str, Any]]) -> None:
     against_first(rows)
 
 
-def main() -> int:
-    import foldmatch_rs as fm
-
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--groups", default="real,small")
-    ap.add_argument("--variant", action="append", default=[], metavar="NAME=JSON")
-    ap.add_argument("--preset", choices=sorted(PRESETS))
-    ap.add_argument("--out", default=str(HERE / "out" / "variants.json"))
-    ap.add_argument("--from-json", metavar="FILE", help="print the summary of an earlier run")
-    ap.add_argument("--peers", metavar="FILE", action="append", default=None,
-                    help="the peers to score against: a bench/compare.py results.json, or the "
-                         "report it generated (docs/results.md, its per-case tables); repeat "
-                         "to merge several (a later file's cases replace an earlier's); "
-                         "default bench/out/results.json if present, else bench/peer_figures.json, "
-                         "else docs/results.md")
-    ap.add_argument("--save-peers", metavar="FILE",
-                    help="write the merged best-peer figures (JSON, per case) and exit; "
-                         "bench/peer_figures.json is read by default when present")
-    args = ap.parse_args()
-    if args.peers is None:
+def load_best(names: list[str] | None) -> tuple[Best, str]:
+    """The best-peer figures of the files `names` (merged, a later file's cases replacing an
+    earlier's; see ``--peers``), and a label naming them. None: ``bench/out/results.json`` if a
+    bench/compare.py run left one, else :data:`PEER_FIGURES`, else docs/results.md."""
+    if names is None:
         json_run = HERE / "out" / "results.json"
         fallback = PEER_FIGURES if PEER_FIGURES.is_file() else HERE.parent / "docs" / "results.md"
-        args.peers = [str(json_run if json_run.is_file() else fallback)]
+        names = [str(json_run if json_run.is_file() else fallback)]
     best: Best = {}
-    for name in args.peers:
+    for name in names:
         peers_file = pathlib.Path(name)
         if not peers_file.is_file():
             raise SystemExit(f"--peers {peers_file}: no such file")
@@ -321,26 +317,15 @@ def main() -> int:
             best.update(best_peers(peers_file))
         else:
             best.update(data["cases"])
-    if args.save_peers:
-        pathlib.Path(args.save_peers).write_text(json.dumps(
-            {"about": "per case, the lowest f_R, f_lambda and s2f_mean_rel of the peers "
-                      f"({', '.join(PEERS)}) and the truth's f_F; written by "
-                      "bench/variants.py --save-peers from " + " + ".join(args.peers),
-             "cases": best}, indent=1, sort_keys=True) + "\n")
-        return 0
+    return best, " + ".join(names)
 
-    def report(rows: list[dict[str, Any]]) -> None:
-        summary(rows)
-        against_peers(rows, best, " + ".join(args.peers))
 
-    if args.from_json:
-        report(json.loads(pathlib.Path(args.from_json).read_text()))
-        return 0
-    variants = list(PRESETS[args.preset]) if args.preset else []
-    variants += [parse_variant(v) for v in args.variant]
-    if not variants:
-        raise SystemExit("no variant: give --preset or --variant")
-    groups = args.groups.split(",")
+def fit_rows(groups: list[str], variants: list[tuple[str, dict[str, Any]]]) -> list[dict[str, Any]]:
+    """Every variant (name, keyword arguments of ``fm.fit``) fitted on every case of
+    `groups`: one row per case and variant (group, case, variant, seconds and :data:`METRICS`),
+    each case's f_R / f_λ printed as a markdown row as it comes."""
+    import foldmatch_rs as fm
+
     rows = []
     print("| case | " + " | ".join(v for v, _ in variants) + " |")
     print("| :--- |" + " ---: |" * len(variants))
@@ -358,6 +343,47 @@ def main() -> int:
                              "seconds": seconds, **{m: e[m] for m in METRICS}})
                 cells.append(f"{e['f_R']:.4f} / {e['f_lambda']:.3f}")
             print(f"| {case.name} | " + " | ".join(cells) + " |", flush=True)
+    return rows
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--groups", default="real,small")
+    ap.add_argument("--variant", action="append", default=[], metavar="NAME=JSON")
+    ap.add_argument("--preset", choices=sorted(PRESETS))
+    ap.add_argument("--out", default=str(HERE / "out" / "variants.json"))
+    ap.add_argument("--from-json", metavar="FILE", help="print the summary of an earlier run")
+    ap.add_argument("--peers", metavar="FILE", action="append", default=None,
+                    help="the peers to score against: a bench/compare.py results.json, or the "
+                         "report it generated (docs/results.md, its per-case tables); repeat "
+                         "to merge several (a later file's cases replace an earlier's); "
+                         "default bench/out/results.json if present, else bench/peer_figures.json, "
+                         "else docs/results.md")
+    ap.add_argument("--save-peers", metavar="FILE",
+                    help="write the merged best-peer figures (JSON, per case) and exit; "
+                         "bench/peer_figures.json is read by default when present")
+    args = ap.parse_args()
+    best, source = load_best(args.peers)
+    if args.save_peers:
+        pathlib.Path(args.save_peers).write_text(json.dumps(
+            {"about": "per case, the lowest f_R, f_lambda and s2f_mean_rel of the peers "
+                      f"({', '.join(PEERS)}) and the truth's f_F; written by "
+                      "bench/variants.py --save-peers from " + source,
+             "cases": best}, indent=1, sort_keys=True) + "\n")
+        return 0
+
+    def report(rows: list[dict[str, Any]]) -> None:
+        summary(rows)
+        against_peers(rows, best, source)
+
+    if args.from_json:
+        report(json.loads(pathlib.Path(args.from_json).read_text()))
+        return 0
+    variants = list(PRESETS[args.preset]) if args.preset else []
+    variants += [parse_variant(v) for v in args.variant]
+    if not variants:
+        raise SystemExit("no variant: give --preset or --variant")
+    rows = fit_rows(args.groups.split(","), variants)
     report(rows)
     pathlib.Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     pathlib.Path(args.out).write_text(json.dumps(rows, indent=1))
