@@ -163,13 +163,17 @@ def render(rows: list[dict[str, Any]], best: variants.Best, source: str, stamp: 
     return "\n".join(out)
 
 
-def stamp_line() -> str:
+def stamp_line(from_json: str | None = None) -> str:
+    """The block's first line: when and at which commit it was generated, and from what."""
     try:
         head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=HERE, check=False,
                               capture_output=True, text=True).stdout.strip()
     except OSError:
         head = "?"
     now = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    if from_json:
+        return (f"_Re-rendered {now} at commit {head} by `.venv/bin/python bench/standing.py "
+                f"--from-json {pathlib.Path(from_json).name}` (the fits of an earlier run)._")
     return (f"_Generated {now} at commit {head} by `.venv/bin/python bench/standing.py` "
             "(the 91 harness cases, the library's current default and paper preset)._")
 
@@ -197,7 +201,7 @@ def main() -> int:
         rows = variants.fit_rows(args.groups.split(","), CONFIGS)
         pathlib.Path(args.out).parent.mkdir(parents=True, exist_ok=True)
         pathlib.Path(args.out).write_text(json.dumps(rows, indent=1))
-    block = render(rows, best, source, stamp_line())
+    block = render(rows, best, source, stamp_line(args.from_json))
     if args.print:
         print(block)
         return 0
