@@ -15,6 +15,15 @@ held-out check of other density-dependent options, e.g. the coarse phase's scan 
 (docs/method.md, "Fourteenth round")::
 
     .venv/bin/python bench/heldout_density.py --points 60000 --against '{"coarse_scan_sample": 1}'
+
+``--peers`` (comma-separated bench/peers.py methods, run in this process with their harness
+parameters) scores the default, and the compared parameters, against those peers on the same
+held-out cases: per case the lowest f_R and f_λ of the peers, and at the end how many cases
+each configuration has the lowest f_R / f_λ of all (the harness's first two criteria on cases
+nothing was tuned on)::
+
+    .venv/bin/python bench/heldout_density.py --points 5000 --against '{"iterations": 150}' \
+        --peers cpd_rustcpd,nricp_amberg
 """
 
 from __future__ import annotations
@@ -23,10 +32,12 @@ import argparse
 import json
 import math
 import sys
+import warnings
 
 import cases as cases_mod
 import harness
 import numpy as np
+import peers
 
 POINTS = 15_000
 PAPER_NEIGHBOURHOODS = {"rho": 0.002, "k_max": 64}
@@ -54,11 +65,20 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--points", type=int, default=POINTS, help="scan points per case")
     ap.add_argument("--against", default=json.dumps(PAPER_NEIGHBOURHOODS),
                     help="JSON parameters the default is compared with (default: the paper's ρ, k_max)")
+    ap.add_argument("--peers", default="",
+                    help="comma-separated bench/peers.py methods to score both against")
     args = ap.parse_args(argv)
     against = json.loads(args.against)
+    methods = [m for m in args.peers.split(",") if m]
+    unknown = [m for m in methods if m not in peers.METHODS]
+    if unknown:
+        raise SystemExit(f"--peers: unknown {unknown} (known: {', '.join(peers.METHODS)})")
     ratios = []
-    print(f"{args.points:,} points; the default against {against}")
-    print(f"{'case':<26} {'K':>7}  {'f_R against → default':>24}  {'f_λ against → default':>24}")
+    wins = {"against": [0, 0], "default": [0, 0]}
+    print(f"{args.points:,} points; the default against {against}"
+          + (f"; peers {', '.join(methods)}" if methods else ""))
+    print(f"{'case':<26} {'K':>7}  {'f_R against → default':>24}  {'f_λ against → default':>24}"
+          + ("  best peer f_R / f_λ" if methods else ""))
     for case in dense_cases(args.points):
         arrays = {"template_vertices": case.template_vertices, "faces": case.faces,
                   "target": case.target, "ground_truth": case.ground_truth}
@@ -69,13 +89,43 @@ def main(argv: list[str] | None = None) -> int:
             row.append((e["f_R"], e["f_lambda"], r.diagnostics["target_neighbours"]))
         (ra, la, ka), (rb, lb, kb) = row
         ratios.append((rb / ra, lb / la))
-        print(f"{case.name:<26} {ka:>3}→{kb:<3}  {ra:>10.4f} → {rb:<10.4f}  {la:>10.4f} → {lb:<10.4f}",
-              flush=True)
+        line = f"{case.name:<26} {ka:>3}→{kb:<3}  {ra:>10.4f} → {rb:<10.4f}  {la:>10.4f} → {lb:<10.4f}"
+        if methods:
+            best = peer_best(case, arrays, methods)
+            for name, (f_r, f_l) in (("against", row[0][:2]), ("default", row[1][:2])):
+                wins[name][0] += f_r <= best[0]
+                wins[name][1] += f_l <= best[1]
+            line += f"  {best[0]:.4f} / {best[1]:.4f}"
+        print(line, flush=True)
     gm = [math.exp(sum(math.log(r[i]) for r in ratios) / len(ratios)) for i in (0, 1)]
     better = sum(r[0] < 1 for r in ratios)
     print(f"geometric mean, default ÷ against: f_R ×{gm[0]:.3f}, f_λ ×{gm[1]:.3f}; "
           f"f_R lower on {better} of {len(ratios)}")
+    if methods:
+        for name, (w_r, w_l) in wins.items():
+            print(f"{name}: the lowest f_R of all on {w_r} of {len(ratios)}, "
+                  f"the lowest f_λ on {w_l}")
     return 0
+
+
+def peer_best(case, arrays, methods: list[str]) -> tuple[float, float]:
+    """The lowest f_R and f_λ of `methods` on `case` (each run in this process with its
+    harness parameters; a method that fails or is too large for the case is left out)."""
+    found = []
+    m, n = len(case.template_vertices), len(case.target)
+    for method in methods:
+        spec = peers.METHODS[method]
+        if peers.size_skip_reason(method, m, n) or peers.missing_reason(method):
+            continue
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            fitted, _, _ = spec["run"](case.template_vertices, case.faces, case.target, None,
+                                       False, **spec["params"])
+        e = harness.evaluate(arrays, np.asarray(fitted, dtype=np.float64))
+        found.append((e["f_R"], e["f_lambda"]))
+    if not found:
+        return math.inf, math.inf
+    return min(f for f, _ in found), min(f for _, f in found)
 
 
 if __name__ == "__main__":
