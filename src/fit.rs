@@ -105,6 +105,21 @@ pub const COARSE_SCAN_POINTS_PER_VERTEX: usize = 4;
 /// "Fourteenth round").
 pub const COARSE_SCAN_MAX_AUTO_STRIDE: usize = 2;
 
+/// The automatic coarse ring radius ([`FitParams::coarse_rings`] = 0) at
+/// [`COARSE_RINGS_REFERENCE_VERTICES`] template vertices and below.
+pub const AUTO_COARSE_RINGS: usize = 8;
+
+/// The template size at which the automatic coarse radius is [`AUTO_COARSE_RINGS`] (a 41 × 41
+/// sheet, the size most harness cases were tuned at); above it the radius grows as the square
+/// root of the vertex count, so each rigid piece keeps about the same share of the surface.
+pub const COARSE_RINGS_REFERENCE_VERTICES: f64 = 1_700.0;
+
+/// The largest automatic coarse radius: an 8-ring holds ~130 vertices of a grid, a 12-ring
+/// ~290, and the ring rows and their sums grow with it (at the paper's size +6 % wall time;
+/// on the held-out 81 × 81 sheets 12 rings fitted closer than 16, docs/method.md
+/// "Seventeenth round").
+pub const AUTO_COARSE_RINGS_MAX: usize = 12;
+
 /// Iterations of the `"accurate"` preset ([`FitParams::accurate`]).
 pub const ACCURATE_ITERATIONS: usize = 150;
 
@@ -195,7 +210,12 @@ pub struct FitParams {
     /// fit of its large geodesic neighborhood (`coarse_rings`), i.e. piecewise rigidly, before
     /// the FoldMatch n-ring model takes over. FoldMatch only.
     pub coarse_fraction: f64,
-    /// Radius (graph distance) of the neighborhoods of the coarse phase.
+    /// Radius (graph distance) of the neighborhoods of the coarse phase; 0 (the default):
+    /// automatic, scaled with the template's resolution ([`FitParams::coarse_radius`]):
+    /// [`AUTO_COARSE_RINGS`] up to [`COARSE_RINGS_REFERENCE_VERTICES`] vertices, then growing
+    /// as √M up to [`AUTO_COARSE_RINGS_MAX`]. A fixed radius covers a smaller share of a finer
+    /// mesh, and the coarse phase's rigid pieces then no longer turn a sleeve or a panel as a
+    /// unit (docs/method.md "Seventeenth round": held out, f_R ×0.88 against a fixed 8).
     pub coarse_rings: usize,
     /// Rigid phase on a sample: the N-body forces (and the two-way attraction's pulls) are
     /// computed for every `rigid_sample`-th template vertex only, and the one Kabsch fit of
@@ -229,7 +249,8 @@ pub struct FitParams {
     /// ring (1: every vertex; more needs coarse rings of radius ≥ 3 at every level).
     pub coarse_sample: usize,
     /// Levels of the coarse phase: its iterations are split evenly into this many levels, level
-    /// `l` using neighborhoods of radius `max(1, coarse_rings / 2^l)` (1: one radius throughout),
+    /// `l` using neighborhoods of radius `max(1, r / 2^l)`, r the coarse radius
+    /// ([`FitParams::coarse_radius`]) (1: one radius throughout),
     /// so the pieces that move rigidly shrink as the fit proceeds, like the decreasing
     /// stiffness of non-rigid ICP.
     pub coarse_levels: usize,
@@ -311,7 +332,7 @@ impl Default for FitParams {
             two_way_pull: TwoWayPull::Coverage,
             rigid_fraction: 0.3,
             coarse_fraction: 0.5,
-            coarse_rings: 8,
+            coarse_rings: 0,
             coarse_levels: 1,
             rigid_sample: 4,
             rigid_scan_sample: 0,
@@ -505,6 +526,17 @@ impl FitParams {
         )
     }
 
+    /// The coarse phase's ring radius for a template of `m` vertices: [`FitParams::coarse_rings`]
+    /// when given, else `clamp(round(8 √(m / 1,700)), 8, 12)` ([`AUTO_COARSE_RINGS`],
+    /// [`COARSE_RINGS_REFERENCE_VERTICES`], [`AUTO_COARSE_RINGS_MAX`]).
+    pub fn coarse_radius(&self, m: usize) -> usize {
+        if self.coarse_rings > 0 {
+            return self.coarse_rings;
+        }
+        let scaled = AUTO_COARSE_RINGS as f64 * (m as f64 / COARSE_RINGS_REFERENCE_VERTICES).sqrt();
+        (scaled.round() as usize).clamp(AUTO_COARSE_RINGS, AUTO_COARSE_RINGS_MAX)
+    }
+
     /// Iterations of the rigid and coarse phases: `(rigid, coarse)`, both 0 for NRGa.
     pub fn phase_iterations(&self) -> (usize, usize) {
         if self.method == Method::Nrga {
@@ -615,7 +647,13 @@ impl FitParams {
                 "must be in 1..=64",
             ));
         }
-        if self.coarse_sample > 1 && (self.coarse_rings >> (self.coarse_levels.max(1) - 1)) < 3 {
+        // The automatic radius is at least AUTO_COARSE_RINGS.
+        let smallest_radius = if self.coarse_rings > 0 {
+            self.coarse_rings
+        } else {
+            AUTO_COARSE_RINGS
+        };
+        if self.coarse_sample > 1 && (smallest_radius >> (self.coarse_levels.max(1) - 1)) < 3 {
             return Err(FoldMatchError::parameter(
                 "coarse_sample",
                 self.coarse_sample,
@@ -641,11 +679,11 @@ impl FitParams {
                 "must be in 1..=64",
             ));
         }
-        if !(1..=32).contains(&self.coarse_rings) {
+        if self.coarse_rings > 32 {
             return Err(FoldMatchError::parameter(
                 "coarse_rings",
                 self.coarse_rings,
-                "must be in 1..=32",
+                "must be in 0..=32 (0: automatic)",
             ));
         }
         if !(1..=8).contains(&self.rings) {
@@ -742,6 +780,9 @@ fn timed<T>(slot: &mut f64, f: impl FnOnce() -> T) -> T {
 pub struct Diagnostics {
     /// K, the target neighborhood size used.
     pub target_neighbours: usize,
+    /// The coarse phase's ring radius used ([`FitParams::coarse_radius`]; 0 when no schedule
+    /// has a coarse phase).
+    pub coarse_rings: usize,
     /// Mean size of the template neighborhoods (the vertex included).
     pub mean_ring_size: f64,
     /// Indices of template faces with a repeated vertex (ignored by the fit).
@@ -1272,9 +1313,14 @@ impl Prepared {
         } else {
             Vec::new()
         };
-        let coarse_levels = if phases.iter().any(|p| p.1 > 0) {
+        let coarse_radius = if phases.iter().any(|p| p.1 > 0) {
+            params.coarse_radius(m)
+        } else {
+            0
+        };
+        let coarse_levels = if coarse_radius > 0 {
             (0..params.coarse_levels)
-                .map(|l| n_rings_of(&one_rings, (params.coarse_rings >> l).max(1)))
+                .map(|l| n_rings_of(&one_rings, (coarse_radius >> l).max(1)))
                 .collect()
         } else {
             Vec::new()
@@ -1321,6 +1367,7 @@ impl Prepared {
 
         let diagnostics = Diagnostics {
             target_neighbours: k,
+            coarse_rings: coarse_radius,
             mean_ring_size: rings.members.len() as f64 / m as f64,
             degenerate_faces: cleaned.degenerate,
             duplicate_faces: cleaned.duplicate,
@@ -2065,6 +2112,73 @@ mod tests {
     fn assert_refused(params: &FitParams, field: &str) {
         let err = params.validate().unwrap_err().to_string();
         assert!(err.contains(field), "{err}");
+    }
+
+    #[test]
+    fn automatic_coarse_radius_grows_with_the_square_root_of_the_template_and_is_clamped() {
+        let auto = FitParams::default();
+        assert_eq!(auto.coarse_rings, 0);
+        // 8 rings up to the reference size, √M above it, at most 12.
+        for (m, want) in [
+            (10, 8),
+            (1_700, 8),
+            (1_921, 9),  // 8 √(1921 / 1700) = 8.50
+            (3_845, 12), // 12.03
+            (3_509, 11), // 11.49
+            (6_561, 12), // 15.7, clamped
+            (100_489, 12),
+        ] {
+            assert_eq!(auto.coarse_radius(m), want, "M = {m}");
+        }
+        // A given radius is used as given, whatever the size.
+        let given = FitParams {
+            coarse_rings: 5,
+            ..FitParams::default()
+        };
+        assert_eq!(given.coarse_radius(100_489), 5);
+        assert_refused(
+            &FitParams {
+                coarse_rings: 33,
+                ..FitParams::default()
+            },
+            "coarse_rings",
+        );
+        // The automatic radius is the given one for that size: the same fit, bit for bit, and
+        // the diagnostics report it (a 50 × 50 grid: 2,500 vertices, radius 10).
+        let (v, f) = crate::synthetic::grid_sheet(50, 50, 1.0, 1.0);
+        let x: Vec<[f64; 3]> = v
+            .iter()
+            .map(|p| [p[0], p[1], 0.1 * (3.0 * p[0]).sin() + 0.05])
+            .collect();
+        let base = FitParams {
+            iterations: 10,
+            selection: Selection::Single,
+            ..FitParams::default()
+        };
+        let auto_fit = fit_simple(&v, &f, &x, None, &base).unwrap();
+        let ten = fit_simple(
+            &v,
+            &f,
+            &x,
+            None,
+            &FitParams {
+                coarse_rings: 10,
+                ..base.clone()
+            },
+        );
+        let eight = fit_simple(
+            &v,
+            &f,
+            &x,
+            None,
+            &FitParams {
+                coarse_rings: 8,
+                ..base
+            },
+        );
+        assert_eq!(auto_fit.diagnostics.coarse_rings, 10);
+        assert_eq!(auto_fit.vertices, ten.unwrap().vertices);
+        assert_ne!(auto_fit.vertices, eight.unwrap().vertices);
     }
 
     #[test]

@@ -283,10 +283,14 @@ def fit(
         rigidly under the N-body forces (0.3; FoldMatch only).
     coarse_fraction, coarse_rings : float, int
         Coarse phase: the next fraction of the iterations moves every vertex by the rigid fit
-        of its ``coarse_rings``-ring neighborhood, i.e. piecewise rigidly (0.5, 8).
+        of its ``coarse_rings``-ring neighborhood, i.e. piecewise rigidly (0.5, 0). 0 (the
+        default): automatic, scaled with the template's resolution, ``clamp(round(8 *
+        sqrt(M / 1700)), 8, 12)`` for M template vertices, so that the rigid pieces keep their
+        share of the surface on finer meshes; the radius used is in
+        ``diagnostics["coarse_rings"]``.
     coarse_levels : int
         Split the coarse phase into this many levels, level ``l`` with radius
-        ``max(1, coarse_rings // 2**l)`` (1: one radius throughout).
+        ``max(1, r // 2**l)``, r the coarse radius (1: one radius throughout).
     rigid_sample : int
         Rigid phase on a sample: only every ``rigid_sample``-th template vertex feels the
         N-body and two-way forces, and their one Kabsch fit moves the whole template (1: every
