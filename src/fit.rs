@@ -2156,29 +2156,16 @@ mod tests {
             ..FitParams::default()
         };
         let auto_fit = fit_simple(&v, &f, &x, None, &base).unwrap();
-        let ten = fit_simple(
-            &v,
-            &f,
-            &x,
-            None,
-            &FitParams {
-                coarse_rings: 10,
+        let given = |coarse_rings| {
+            let params = FitParams {
+                coarse_rings,
                 ..base.clone()
-            },
-        );
-        let eight = fit_simple(
-            &v,
-            &f,
-            &x,
-            None,
-            &FitParams {
-                coarse_rings: 8,
-                ..base
-            },
-        );
+            };
+            fit_simple(&v, &f, &x, None, &params).unwrap().vertices
+        };
         assert_eq!(auto_fit.diagnostics.coarse_rings, 10);
-        assert_eq!(auto_fit.vertices, ten.unwrap().vertices);
-        assert_ne!(auto_fit.vertices, eight.unwrap().vertices);
+        assert_eq!(auto_fit.vertices, given(10));
+        assert_ne!(auto_fit.vertices, given(8));
     }
 
     #[test]
