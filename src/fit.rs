@@ -115,9 +115,9 @@ pub const AUTO_COARSE_RINGS: usize = 8;
 pub const COARSE_RINGS_REFERENCE_VERTICES: f64 = 1_700.0;
 
 /// The largest automatic coarse radius: an 8-ring holds ~130 vertices of a grid, a 12-ring
-/// ~290, and the ring rows and their sums grow with it (at the paper's size +6 % wall time;
-/// on the held-out 81 × 81 sheets 12 rings fitted closer than 16, docs/method.md
-/// "Seventeenth round").
+/// ~290, and the ring rows and their sums grow with it (the paper-sized fit +8 % wall time).
+/// Held out, caps of 10 or 11 fit 4–6 % farther from the truth than 12, and 12 rings fitted
+/// the 81 × 81 sheets closer than 16 on 6 of 8 (docs/method.md "Seventeenth round").
 pub const AUTO_COARSE_RINGS_MAX: usize = 12;
 
 /// Iterations of the `"accurate"` preset ([`FitParams::accurate`]).
