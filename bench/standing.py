@@ -168,6 +168,12 @@ def stamp_line(from_json: str | None = None) -> str:
     try:
         head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=HERE, check=False,
                               capture_output=True, text=True).stdout.strip()
+        # The fits come from the working tree: say so when its code differs from the commit.
+        dirty = subprocess.run(["git", "status", "--porcelain", "--", "src", "python",
+                                "Cargo.toml", "Cargo.lock"], cwd=HERE.parent, check=False,
+                               capture_output=True, text=True).stdout.strip()
+        if dirty:
+            head += " + uncommitted changes to the code"
     except OSError:
         head = "?"
     now = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
