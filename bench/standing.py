@@ -42,42 +42,43 @@ CRITERIA = [("f_R", "lowest f_R"), ("f_lambda", "lowest f_λ"),
 SHORT = {"f_R": "f_R", "f_lambda": "f_λ", "flips": "flips", "s2f": "scan→fit"}
 
 #: Why the default loses a case, as found (docs/method.md names the round that measured it):
-#: the first pattern matching the case's name gives its reason.
-REASONS: list[tuple[str, str]] = [
-    (r"^tshirt-triFolded", "self-contact: three layers of cloth pressed together, which no "
-     "nearest-point method separates (every method ends at f_R 0.21–0.25, the template as "
+#: (pattern on the case's name, whether the reason also explains a loss of f_λ alone, the
+#: reason). The first pattern that matches and applies gives the reason.
+REASONS: list[tuple[str, bool, str]] = [
+    (r"^tshirt-triFolded", True, "self-contact: three layers of cloth pressed together, which "
+     "no nearest-point method separates (every method ends at f_R 0.21–0.25, the template as "
      "given at 0.24)"),
-    (r"holes$", "holes: a vertex over a hole is pulled to the hole's rim, where NRICP-Amberg's "
-     "smoothness term fills it; robust weights that hold such vertices fix the holed cases "
-     "but cost the real garments and the wind frames (method.md, Ninth round)"),
-    (r"^wind-(150|250)-mesh", "large articulated motion still under way at iteration 100: "
-     "a region of ~17 % of the vertices lies on the scan but slid along it; 150 iterations "
-     "(the `accurate` preset) bring f_R to 0.0186 / 0.0270 (method.md, Thirteenth and "
-     "Fifteenth rounds)"),
-    (r"^wind-iter0-0[1-5]0-pts", "the template starts on the truth (early frames): Eq. 2's "
-     "mean over a boundary vertex's one-sided neighbours pulls the boundary inward "
-     "(4r/3π for a half disc); releasing that pull fixes these frames but costs the random "
-     "sheets (method.md, Ninth round)"),
-    (r"^wind-iter0-(1[7-9]|2[01])0-pts", "curled frames: a boundary flap stays straight across "
-     "the concave side of the curl, where the pulls of the two sides balance (f_H); more "
-     "FoldMatch iterations resolve it (method.md, Tenth round)"),
-    (r"^wind-", "large articulated motion (sleeves blown up), which CPD's one smooth "
+    (r"holes$", True, "holes: a vertex over a hole is pulled to the hole's rim, where "
+     "NRICP-Amberg's smoothness term fills it; robust weights that hold such vertices fix the "
+     "holed cases but cost the real garments and the wind frames (method.md, Ninth round)"),
+    (r"^wind-(150|250)-mesh", False, "large articulated motion still under way at iteration "
+     "100: a region of ~17 % of the vertices lies on the scan but slid along it; 150 "
+     "iterations (the `accurate` preset) bring f_R to 0.0186 / 0.0270 (method.md, Thirteenth "
+     "and Fifteenth rounds)"),
+    (r"^wind-iter0-0[1-5]0-pts", True, "the template starts on the truth (early frames): Eq. "
+     "2's mean over a boundary vertex's one-sided neighbours pulls the boundary inward "
+     "(4r/3π for a half disc), leaving the scan's edge uncovered; releasing that pull fixes "
+     "these frames but costs the random sheets (method.md, Ninth round)"),
+    (r"^wind-iter0-(1[7-9]|2[01])0-pts", True, "curled frames: a boundary flap stays straight "
+     "across the concave side of the curl, where the pulls of the two sides balance (f_H); "
+     "more FoldMatch iterations resolve it (method.md, Tenth round)"),
+    (r"^wind-", False, "large articulated motion (sleeves blown up), which CPD's one smooth "
      "displacement field over all points finds and attraction to the nearest points over "
      "8-ring rigid pieces only partly makes (results.md, real garments)"),
-    (r"^sheet-sample-(00|07)$", "schedule selection: the sharp candidate's fit is nearer "
-     "the truth but 4–39 % farther from the scan, so the other is kept (method.md, Tenth "
-     "round)"),
-    (r"^(tshirt-biFolded|vto-tshirt-0200)", "folding / articulated motion, as the wind "
+    (r"^sheet-sample-(00|07)$", False, "schedule selection: the sharp candidate's fit is "
+     "nearer the truth but 4–39 % farther from the scan, so the other is kept (method.md, "
+     "Tenth round)"),
+    (r"^(tshirt-biFolded|vto-tshirt-0200)", False, "folding / articulated motion, as the wind "
      "frames: CPD's global field finds it (results.md, real garments)"),
-    (r"^skirt-small-pts$", "the template starts on the truth (the template as given: f_R "
-     "0.0101): the fit barely moves it (0.0100) where NRICP's stiffness holds it and ends "
+    (r"^skirt-small-pts$", False, "the template starts on the truth (the template as given: "
+     "f_R 0.0101): the fit barely moves it (0.010) where NRICP's stiffness holds it and ends "
      "at 0.008, as in the early wind frames"),
-    (r"^skirt-penetrate", "the truth passes through itself (its own f_F 11 %): the default's "
-     "rest-shape rigidity keeps the skirt from following it (f_F 0.4 %), where the paper "
+    (r"^skirt-penetrate", False, "the truth passes through itself (its own f_F 11 %): the "
+     "default's rest-shape rigidity keeps the skirt from following it, where the paper "
      "preset, without it, ends at f_R 0.0237 and NRGa at 0.0245"),
-    (r"^skirt-small-(clean|noisy)$", "pleated tube skirt: f_R 1–12 % above NRICP-Amberg's; "
-     "f_λ through f_H, a fit vertex off the scan (clean: 0.042 from it, the truth's farthest "
-     "0.038)"),
+    (r"^skirt-small-(clean|noisy)$", True, "pleated tube skirt: f_R 1–12 % above "
+     "NRICP-Amberg's; f_λ through f_H, a fit vertex off the scan (clean: 0.042 from it, the "
+     "truth's farthest 0.038)"),
 ]
 
 
@@ -88,10 +89,12 @@ F_LAMBDA_ONLY = ("f_λ alone, through f_H (the symmetric Hausdorff distance: one
 
 def reason(case: str, verdict: dict[str, Any]) -> str:
     """Why the default loses `case` (its :func:`variants.verdict`): the first of
-    :data:`REASONS` matching its name, else :data:`F_LAMBDA_ONLY` where only f_λ is lost, else
-    "not investigated"."""
-    found = next((why for pat, why in REASONS if re.search(pat, case)), None)
-    if found is None and verdict["f_R"]:
+    :data:`REASONS` matching its name that applies (where only f_λ is lost, one that explains
+    f_λ), else :data:`F_LAMBDA_ONLY` where only f_λ is lost, else "not investigated"."""
+    f_lambda_only = verdict["f_R"]
+    found = next((why for pat, explains_f_lambda, why in REASONS
+                  if re.search(pat, case) and (explains_f_lambda or not f_lambda_only)), None)
+    if found is None and f_lambda_only:
         found = F_LAMBDA_ONLY
     return found or "not investigated"
 

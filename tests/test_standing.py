@@ -44,6 +44,11 @@ def test_reason_by_name_then_by_what_was_lost():
     assert standing.reason("sheet-paper-holes", lost_f_r).startswith("holes")
     assert standing.reason("sheet-sample-21", won_f_r) == standing.F_LAMBDA_ONLY
     assert standing.reason("sheet-sample-21", lost_f_r) == "not investigated"
+    # A reason about f_R (articulated motion) does not explain a loss of f_λ alone; one about
+    # f_H (a curled frame's stranded flap) does.
+    assert standing.reason("wind-iter0-120-pts", won_f_r) == standing.F_LAMBDA_ONLY
+    assert "articulated motion" in standing.reason("wind-iter0-120-pts", lost_f_r)
+    assert standing.reason("wind-iter0-190-pts", won_f_r).startswith("curled frames")
 
 
 def test_render_scores_both_configurations_and_lists_the_default_s_losses():
