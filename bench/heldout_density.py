@@ -73,6 +73,9 @@ def main(argv: list[str] | None = None) -> int:
     unknown = [m for m in methods if m not in peers.METHODS]
     if unknown:
         raise SystemExit(f"--peers: unknown {unknown} (known: {', '.join(peers.METHODS)})")
+    for m in [m for m in methods if peers.missing_reason(m)]:
+        print(f"--peers: {m} left out: {peers.missing_reason(m)}")
+        methods.remove(m)
     ratios = []
     wins = {"against": [0, 0], "default": [0, 0]}
     print(f"{args.points:,} points; the default against {against}"
@@ -109,13 +112,13 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def peer_best(case, arrays, methods: list[str]) -> tuple[float, float]:
-    """The lowest f_R and f_λ of `methods` on `case` (each run in this process with its
-    harness parameters; a method that fails or is too large for the case is left out)."""
+    """The lowest f_R and f_λ of `methods` (importable) on `case`, each run in this process
+    with its harness parameters; a method too large for the case is left out."""
     found = []
     m, n = len(case.template_vertices), len(case.target)
     for method in methods:
         spec = peers.METHODS[method]
-        if peers.size_skip_reason(method, m, n) or peers.missing_reason(method):
+        if peers.size_skip_reason(method, m, n):
             continue
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")

@@ -24,13 +24,13 @@ import datetime
 import json
 import pathlib
 import re
-import subprocess
 import sys
 from typing import Any
 
 HERE = pathlib.Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
+import harness  # noqa: E402
 import report  # noqa: E402
 import variants  # noqa: E402
 
@@ -99,10 +99,6 @@ def reason(case: str, verdict: dict[str, Any]) -> str:
     return found or "not investigated"
 
 
-def ratio(ours: float, best: float) -> str:
-    return f"{ours / best:.2f}×" if best > 0 else "—"
-
-
 def render(rows: list[dict[str, Any]], best: variants.Best, source: str, stamp: str) -> str:
     """The block's markdown: the criteria per configuration and group, the default's lost
     cases with their reasons, every case folded."""
@@ -136,8 +132,8 @@ def render(rows: list[dict[str, Any]], best: variants.Best, source: str, stamp: 
             "largest loss first (ratio = ours ÷ the best peer's; > 1: lost):", ""]
     out.append(report.table(
         ["case", "group", "f_R ours / best", "ratio", "f_λ ours / best", "ratio", "reason found"],
-        [[r["case"], r["group"], f"{r['f_R']:.4f} / {b['f_R']:.4f}", ratio(r["f_R"], b["f_R"]),
-          f"{r['f_lambda']:.3f} / {b['f_lambda']:.3f}", ratio(r["f_lambda"], b["f_lambda"]),
+        [[r["case"], r["group"], f"{r['f_R']:.4f} / {b['f_R']:.4f}", report.ratio(r["f_R"], b["f_R"]),
+          f"{r['f_lambda']:.3f} / {b['f_lambda']:.3f}", report.ratio(r["f_lambda"], b["f_lambda"]),
           reason(r["case"], v)] for r, b, v in lost],
         ["l", "l", "r", "r", "r", "r", "l"]))
     out += ["", "<details><summary>Every case (default, paper preset, best peer)</summary>", ""]
@@ -167,23 +163,14 @@ def render(rows: list[dict[str, Any]], best: variants.Best, source: str, stamp: 
 
 
 def stamp_line(from_json: str | None = None) -> str:
-    """The block's first line: when and at which commit it was generated, and from what."""
-    try:
-        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=HERE, check=False,
-                              capture_output=True, text=True).stdout.strip()
-        # The fits come from the working tree: say so when its code differs from the commit.
-        dirty = subprocess.run(["git", "status", "--porcelain", "--", "src", "python",
-                                "Cargo.toml", "Cargo.lock"], cwd=HERE.parent, check=False,
-                               capture_output=True, text=True).stdout.strip()
-        if dirty:
-            head += " + uncommitted changes to the code"
-    except OSError:
-        head = "?"
+    """The block's first line: when, from which code (:func:`harness.code_version`: the commit,
+    whether the tree differs from it, when the extension was built) and from what."""
     now = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    code = harness.code_version()
     if from_json:
-        return (f"_Re-rendered {now} at commit {head} by `.venv/bin/python bench/standing.py "
+        return (f"_Re-rendered {now} ({code}) by `.venv/bin/python bench/standing.py "
                 f"--from-json {pathlib.Path(from_json).name}` (the fits of an earlier run)._")
-    return (f"_Generated {now} at commit {head} by `.venv/bin/python bench/standing.py` "
+    return (f"_Generated {now} ({code}) by `.venv/bin/python bench/standing.py` "
             "(the 91 harness cases, the library's current default and paper preset)._")
 
 

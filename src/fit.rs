@@ -647,12 +647,8 @@ impl FitParams {
                 "must be in 1..=64",
             ));
         }
-        // The automatic radius is at least AUTO_COARSE_RINGS.
-        let smallest_radius = if self.coarse_rings > 0 {
-            self.coarse_rings
-        } else {
-            AUTO_COARSE_RINGS
-        };
+        // The smallest radius any template gets (the automatic one grows with the size).
+        let smallest_radius = self.coarse_radius(0);
         if self.coarse_sample > 1 && (smallest_radius >> (self.coarse_levels.max(1) - 1)) < 3 {
             return Err(FoldMatchError::parameter(
                 "coarse_sample",

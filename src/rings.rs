@@ -523,9 +523,9 @@ mod tests {
             })
             .collect();
         let check = |faces: &[[u32; 3]], rings: usize| {
-            let nb = n_rings(faces, n, rings);
-            let deltas = RingDeltas::new(&nb, &adjacency(faces, n));
-            assert_eq!(deltas, reference_deltas(&nb, &adjacency(faces, n)));
+            let (nb, adj) = (n_rings(faces, n, rings), adjacency(faces, n));
+            let deltas = RingDeltas::new(&nb, &adj);
+            assert_eq!(deltas, reference_deltas(&nb, &adj));
             let mut sums = vec![[0.0; 3]; n];
             deltas.sums(&nb, &values, &mut sums);
             for (v, s) in sums.iter().enumerate() {
