@@ -320,10 +320,17 @@ def load_best(names: list[str] | None) -> tuple[Best, str]:
     return best, " + ".join(names)
 
 
-def fit_rows(groups: list[str], variants: list[tuple[str, dict[str, Any]]]) -> list[dict[str, Any]]:
+#: The variant name of the rows :func:`fit_rows` adds for the ground truth itself.
+EXACT = "exact answer"
+
+
+def fit_rows(groups: list[str], variants: list[tuple[str, dict[str, Any]]],
+             truth: bool = False) -> list[dict[str, Any]]:
     """Every variant (name, keyword arguments of ``fm.fit``) fitted on every case of
     `groups`: one row per case and variant (group, case, variant, seconds and :data:`METRICS`),
-    each case's f_R / f_λ printed as a markdown row as it comes."""
+    each case's f_R / f_λ printed as a markdown row as it comes. With `truth`, also a row
+    named :data:`EXACT` per case that has a ground truth: the truth itself scored as a fit
+    (SPEC §3's "oracle", seconds 0)."""
     import foldmatch_rs as fm
 
     rows = []
@@ -342,6 +349,10 @@ def fit_rows(groups: list[str], variants: list[tuple[str, dict[str, Any]]]) -> l
                 rows.append({"group": group, "case": case.name, "variant": name,
                              "seconds": seconds, **{m: e[m] for m in METRICS}})
                 cells.append(f"{e['f_R']:.4f} / {e['f_lambda']:.3f}")
+            if truth and case.ground_truth is not None:
+                e = harness.evaluate(arrays, case.ground_truth)
+                rows.append({"group": group, "case": case.name, "variant": EXACT,
+                             "seconds": 0.0, **{m: e[m] for m in METRICS}})
             print(f"| {case.name} | " + " | ".join(cells) + " |", flush=True)
     return rows
 

@@ -40,15 +40,29 @@ def test_verdict_counts_ties_as_won_and_skips_flips_without_truth():
 def test_reason_by_name_then_by_what_was_lost():
     won_f_r = {"f_R": True, "f_lambda": False}
     lost_f_r = {"f_R": False, "f_lambda": False}
-    assert "articulated motion still under way" in standing.reason("wind-250-mesh", lost_f_r)
-    assert standing.reason("sheet-paper-holes", lost_f_r).startswith("holes")
-    assert standing.reason("sheet-sample-21", won_f_r) == standing.F_LAMBDA_ONLY
-    assert standing.reason("sheet-sample-21", lost_f_r) == "not investigated"
+    assert "articulated motion still under way" in standing.accuracy_reason("wind-250-mesh", lost_f_r)
+    assert standing.accuracy_reason("sheet-paper-holes", lost_f_r).startswith("holes")
+    assert standing.accuracy_reason("sheet-sample-21", won_f_r) == standing.F_LAMBDA_ONLY
+    assert standing.accuracy_reason("sheet-sample-21", lost_f_r) == "not investigated"
     # A reason about f_R (articulated motion) does not explain a loss of f_λ alone; one about
     # f_H (a curled frame's stranded flap) does.
-    assert standing.reason("wind-iter0-120-pts", won_f_r) == standing.F_LAMBDA_ONLY
-    assert "articulated motion" in standing.reason("wind-iter0-120-pts", lost_f_r)
-    assert standing.reason("wind-iter0-190-pts", won_f_r).startswith("curled frames")
+    assert standing.accuracy_reason("wind-iter0-120-pts", won_f_r) == standing.F_LAMBDA_ONLY
+    assert "articulated motion" in standing.accuracy_reason("wind-iter0-120-pts", lost_f_r)
+    assert standing.accuracy_reason("wind-iter0-190-pts", won_f_r).startswith("curled frames")
+    # Each criterion has its own reasons: the same name gives another text for flips, and a
+    # reason about f_R alone explains no flips.
+    assert "folded over" in standing.reason("sheet-sample-07", "flips")
+    assert "schedule selection" in standing.reason("sheet-sample-07", "f_R")
+    assert standing.reason("skirt-penetrate-mesh", "flips") is None
+
+
+def test_closeness_reason_says_when_the_peer_is_closer_than_the_truth():
+    # The exact answer farther from the scan than the best peer: the ratios, both to the truth.
+    text = standing.closeness_reason("sheet-sample-08", 0.0084, 0.0072, 0.0080)
+    assert text == standing.S2F_BELOW_TRUTH.format(peer="0.90", ours="1.05")
+    # The truth closer (a mesh target: its own vertices, distance 0): the named reason.
+    assert "tangential sliding" in standing.closeness_reason("tshirt-flattened-mesh", 0.0059, 0.0055, 0.0)
+    assert standing.closeness_reason("sheet-sample-08", 0.0084, 0.0072, None) == "not investigated"
 
 
 def test_render_scores_both_configurations_and_lists_the_default_s_losses():
@@ -82,3 +96,32 @@ def test_render_scores_both_configurations_and_lists_the_default_s_losses():
     assert lost[1].startswith("| odd-case |") and standing.F_LAMBDA_ONLY in lost[1]
     assert "not-scored" not in md
     assert md.count("| sheet-a |") == 1  # won: only in the folded table
+
+
+def test_render_scores_the_exact_answer_and_lists_flips_and_scan_distance_losses():
+    rows = [
+        row("sheet-a", "sheets", "default", 0.01, 0.04, s2f=0.012),        # scan→fit lost
+        row("wind-250-mesh", "real", "default", 0.0303, 0.071, s2f=0.006),  # both tables
+        row("sheet-a", "sheets", variants.EXACT, 0.0, 0.055, s2f=0.011),    # truth farther
+        row("wind-250-mesh", "real", variants.EXACT, 0.0, 0.02, s2f=0.0),   # mesh target
+    ]
+    md = standing.render(rows, BEST, "peers.json", "stamp")
+    lines = md.splitlines()
+    exact = [ln for ln in lines if ln.startswith(f"| {variants.EXACT} |")]
+    # Its criteria, no ratios (its f_R is 0); it is not a configuration whose losses are listed.
+    assert len(exact) == 4 and not any("÷" in ln for ln in exact)
+    assert exact[1].rstrip(" |").endswith("1 of 2")  # lowest f_λ: not sheet-a's 0.055
+    assert "exact answer: f_λ" in md and "loses on f_R or f_λ: 1 of 2" in md
+    assert "loses on flips or scan→fit: 2 of 2**" in md
+    assert "on 1 of them the best peer's scan→fit distance is below the exact answer's own" in md
+    second = md[md.index("loses on flips or scan→fit"):md.index("<details>")].splitlines()
+    sheet = next(ln for ln in second if ln.startswith("| sheet-a |"))
+    wind = next(ln for ln in second if ln.startswith("| wind-250-mesh |"))
+    assert standing.S2F_BELOW_TRUTH.format(peer="0.91", ours="1.09") in sheet
+    assert "scan→fit: large articulated motion" in wind
+    # Largest scan→fit loss first (sheet-a 1.3× before wind-250-mesh 1.2×).
+    rows[0] = row("sheet-a", "sheets", "default", 0.01, 0.04, s2f=0.013)
+    md = standing.render(rows, BEST, "p", "s")
+    order = [ln.split("|")[1].strip() for ln in md[md.index("loses on flips"):].splitlines()
+             if ln.startswith("| sheet-a |") or ln.startswith("| wind-250-mesh |")]
+    assert order[:2] == ["sheet-a", "wind-250-mesh"]
