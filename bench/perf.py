@@ -209,6 +209,15 @@ def plan(quick: bool) -> dict[str, Any]:
     }
 
 
+#: The FoldMatch presets measured beside the peers on the paper-sized and small cases: the
+#: default, the fast preset (one schedule: what closes the time targets at an accuracy cost,
+#: FAST_PRICE) and the paper's method.
+PEER_PRESETS = ("default", "fast", "paper")
+#: The fast preset's accuracy on the harness against the default's (docs/method.md
+#: "Eighteenth round", bench/variants.py on the 91 cases; not measured by this script).
+FAST_PRICE = ("on the harness f_R ÷ best peer 0.985 and f_λ ÷ best 0.999 against the default's "
+              "0.761 and 0.964 (docs/method.md, Eighteenth round)")
+
 #: Peers measured on the paper-sized and small cases (bench/peers.py adapters and tuned
 #: parameters), and how many iterations their uncapped run does at most.
 PEERS = ["cpd_rustcpd", "cpd_probreg", "cpd_pycpd", "nricp_amberg"]
@@ -597,7 +606,7 @@ def jobs_for(p: dict[str, Any]) -> list[dict[str, Any]]:
     for cname in ("paper", "small"):
         spec = cases[cname]["spec"]
         m, n = spec["nx"] * spec["ny"], spec["scan_points"]
-        for preset in ("default", "paper"):
+        for preset in PEER_PRESETS:
             jobs.append(fm_job("peers", cname, preset))
         jobs.append(
             {
@@ -780,7 +789,7 @@ def analyse(recs: list[dict[str, Any]], p: dict[str, Any]) -> dict[str, Any]:
     ratios: dict[str, list[dict[str, Any]]] = {}
     for cname in ("paper", "small"):
         rows = []
-        for preset in ("default", "paper"):
+        for preset in PEER_PRESETS:
             ours = find(recs, section="peers", case_name=cname, kind="foldmatch", preset=preset)
             if not ok(ours):
                 continue
@@ -1565,10 +1574,44 @@ def md_missed(recs: list[dict[str, Any]], a: dict[str, Any], quick: bool) -> str
             for s in sorted(STAGES + ["setup"], key=lambda s: -st.get(s, 0))[:3]:
                 if s not in heavy:
                     heavy.append(s)
+    fast = md_fast_closing(recs, a)
+    if fast:
+        out += [fast, ""]
     if heavy:
         out.append("What would close it, stage by stage (largest first):\n")
         out += [f"* {LEVERS[s]}." for s in heavy]
     return "\n".join(out)
+
+
+def md_fast_closing(recs: list[dict[str, Any]], a: dict[str, Any]) -> str:
+    """What the fast preset (one schedule) measures against the time targets in this run, and
+    its price in accuracy: the option that closes them without new code."""
+    parts = []
+    for cname in ("paper", "small"):
+        fast = find(recs, section="peers", case_name=cname, kind="foldmatch", preset="fast")
+        default = find(recs, section="peers", case_name=cname, kind="foldmatch", preset="default")
+        if not (ok(fast) and ok(default)):
+            continue
+        peers_ = [x for x in a["ratios"].get(cname, []) if x["preset"] == "fast"
+                  and x["other"] != "reference" and not x["capped"]]
+        text = (f"{CASE_NAMES[cname]} {fast['wall_s']:.2f} s ({fast['wall_s'] / default['wall_s']:.2f}× "
+                f"the default's {default['wall_s']:.2f} s), f_R {fast['quality']['f_R']:.4f} / f_λ "
+                f"{fast['quality']['f_lambda']:.3f} (default {default['quality']['f_R']:.4f} / "
+                f"{default['quality']['f_lambda']:.3f})")
+        if peers_:
+            x = min(peers_, key=lambda x: x["other_wall"])
+            text += (f", {x['ratio']:.1f}× faster than {x['other']} (f_λ {x['ours_f_lambda']:.3f} vs "
+                     f"{x['other_f_lambda']:.3f})")
+        parts.append(text)
+    if not parts:
+        return ""
+    return ("**The fast preset** (`preset=\"fast\"`: the default with one schedule, no second "
+            "candidate to compare), the trade of accuracy for time a user can make today, "
+            "measured in this run: " + "; ".join(parts) + "; " + FAST_PRICE + ".")
+
+
+#: How md_fast_closing names the cases.
+CASE_NAMES = {"paper": "paper-sized case", "small": "SPEC §7 case"}
 
 
 def write_docs(

@@ -541,3 +541,15 @@ def test_rest_rigidity_keeps_edge_lengths_over_a_scan_hole(case):
     assert rmse(with_rigidity.vertices, truth) < 1.05 * rmse(without.vertices, truth)
     with pytest.raises(fm.InvalidParameterError, match="rest_rigidity"):
         fm.fit(v, f, holed, rest_rigidity=1.5)
+
+
+def test_fast_preset_is_the_default_with_one_schedule(case):
+    """preset="fast" is the default with selection "single": the same parameters otherwise, and
+    its fit is the default's first candidate (the given schedule) run alone."""
+    v, f, x = case["template_vertices"], case["faces"], case["scan"]
+    r = fm.fit(v, f, x, preset="fast", iterations=30)
+    assert r.params == {**fm.DEFAULT_PARAMS, "selection": "single", "iterations": 30}
+    np.testing.assert_array_equal(r.vertices, fm.fit(v, f, x, selection="single", iterations=30).vertices)
+    both = fm.fit(v, f, x, iterations=30)
+    d = float(np.mean([np.sqrt(((r.vertices - p) ** 2).sum(1).min()) for p in x]))
+    assert both.diagnostics["candidate_scan_distances"][0] == pytest.approx(d, rel=1e-9)
