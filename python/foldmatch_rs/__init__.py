@@ -224,10 +224,11 @@ def fit(
         Where unset parameters come from: ``"default"`` (:data:`DEFAULT_PARAMS`, the most
         accurate configuration for its cost), ``"accurate"`` (the default with 150 iterations
         instead of 100, every phase lengthened in proportion: closer to the truth and to the
-        scan on the harness, about 1.3× the time), ``"fast"`` (the default with one schedule,
-        ``selection="single"``: about 0.6× the time, with f_R about 30 % higher on the
-        harness), ``"paper"`` (:data:`PAPER_PARAMS`, the
-        method as the paper describes it) or ``"tracking"`` (the default without softening
+        scan on the harness, about 1.3× the time), ``"fast"`` (one schedule instead of the
+        default's two: ``selection="single"``, ``two_way=3``, ``coarse_fraction=0.3``,
+        constant softening; about 0.6× the time, with f_R about 15 % higher on the harness
+        and 4 % held out), ``"paper"`` (:data:`PAPER_PARAMS`, the method as the paper
+        describes it) or ``"tracking"`` (the default without softening
         annealing, for a fit warm-started close to its scan, e.g. the previous frame of a
         sequence).
     method : {"foldmatch", "nrga"}

@@ -330,7 +330,7 @@ pub enum PrealignArg {
 pub struct ParamArgs {
     /// Starting values of every parameter: `default` (the most accurate configuration for its
     /// cost), `accurate` (the default with 150 iterations: closer to the truth and to the
-    /// scan, 1.3× the time), `fast` (the default with one schedule instead of two: about 0.6×
+    /// scan, 1.3× the time), `fast` (one schedule instead of the default's two: about 0.6×
     /// the time, less accurate), `paper` (the paper's method with only the converging readings) or
     /// `tracking` (the default without softening annealing, for warm-started fits)
     /// [default: default; for `sequence`: tracking].
