@@ -871,7 +871,7 @@ def targets(recs: list[dict[str, Any]], a: dict[str, Any], p: dict[str, Any]) ->
     def add(name, target, value, met, note=""):
         out.append({"name": name, "target": target, "value": value, "met": met, "note": note})
 
-    for preset in ("default", "paper"):
+    for preset in PEER_PRESETS:
         r = find(recs, section="peers", case_name="paper", kind="foldmatch", preset=preset)
         if ok(r):
             add(
@@ -938,9 +938,9 @@ def targets(recs: list[dict[str, Any]], a: dict[str, Any], p: dict[str, Any]) ->
             t["speedup"] >= 1.8,
             thread_caveat(t),
         )
-    for cname in ("paper", "small"):
+    for cname, preset in [(c, pr) for pr in ("default", "fast") for c in ("paper", "small")]:
         rows = [
-            x for x in a["ratios"].get(cname, []) if x["other"] != "reference" and x["preset"] == "default"
+            x for x in a["ratios"].get(cname, []) if x["other"] != "reference" and x["preset"] == preset
         ]
         full = [x for x in rows if not x["capped"]]
         pool = full or rows
@@ -961,7 +961,7 @@ def targets(recs: list[dict[str, Any]], a: dict[str, Any], p: dict[str, Any]) ->
         if not full:
             note += " (peers capped: not a valid comparison)"
         add(
-            f"vs the fastest peer, {cname} case",
+            f"vs the fastest peer, {cname} case, preset {preset}",
             "≥ 10× at equal or better f_λ",
             f"{fastest['ratio']:.1f}×",
             fastest["ratio"] >= 10 and better and bool(full),
