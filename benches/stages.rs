@@ -475,6 +475,8 @@ fn bench_stages(c: &mut Criterion) {
     });
     g.finish();
 
+    bench_layouts(c, &s);
+
     // The 3×3 kernels every stage is built on, per call, over the regularized stretches and
     // raw gradients of the state (sequential, one core).
     let mut g = c.benchmark_group("kernels");
@@ -520,6 +522,130 @@ fn bench_stages(c: &mut Criterion) {
             })
         });
     }
+    g.finish();
+}
+
+/// Positions in a layout: the fit's array of structs `[f64; 3]`, a padded `[f64; 4]`, or a
+/// struct of arrays (x, y, z apart), for [`bench_layouts`].
+trait Layout: Sized {
+    fn from_points(points: &[[f64; 3]]) -> Self;
+    fn at(&self, j: usize) -> [f64; 3];
+    /// `self += a · other`, point by point (a streaming update, as the velocity and
+    /// displacement loops).
+    fn axpy(&mut self, a: f64, other: &Self);
+}
+
+struct Aos(Vec<[f64; 3]>);
+struct Padded(Vec<[f64; 4]>);
+struct Soa([Vec<f64>; 3]);
+
+impl Layout for Aos {
+    fn from_points(points: &[[f64; 3]]) -> Self {
+        Self(points.to_vec())
+    }
+    #[inline]
+    fn at(&self, j: usize) -> [f64; 3] {
+        self.0[j]
+    }
+    fn axpy(&mut self, a: f64, other: &Self) {
+        for (p, q) in self.0.iter_mut().zip(&other.0) {
+            (0..3).for_each(|i| p[i] += a * q[i]);
+        }
+    }
+}
+
+impl Layout for Padded {
+    fn from_points(points: &[[f64; 3]]) -> Self {
+        Self(points.iter().map(|p| [p[0], p[1], p[2], 0.0]).collect())
+    }
+    #[inline]
+    fn at(&self, j: usize) -> [f64; 3] {
+        let p = &self.0[j];
+        [p[0], p[1], p[2]]
+    }
+    fn axpy(&mut self, a: f64, other: &Self) {
+        for (p, q) in self.0.iter_mut().zip(&other.0) {
+            (0..4).for_each(|i| p[i] += a * q[i]);
+        }
+    }
+}
+
+impl Layout for Soa {
+    fn from_points(points: &[[f64; 3]]) -> Self {
+        Self([0, 1, 2].map(|i| points.iter().map(|p| p[i]).collect()))
+    }
+    #[inline]
+    fn at(&self, j: usize) -> [f64; 3] {
+        [self.0[0][j], self.0[1][j], self.0[2][j]]
+    }
+    fn axpy(&mut self, a: f64, other: &Self) {
+        for (xs, ys) in self.0.iter_mut().zip(&other.0) {
+            xs.iter_mut().zip(ys).for_each(|(x, y)| *x += a * y);
+        }
+    }
+}
+
+/// Σ over the rows of `rows` (CSR-like: row v is `members[offsets[v]..offsets[v + 1]]`) of the
+/// members' positions: the gather every stage does (Eq. 2 over the K nearest scan points,
+/// Eq. 4 and 8 over the 2-ring).
+fn gather_sums<L: Layout>(
+    points: &L,
+    rows: impl Fn(usize) -> std::ops::Range<usize>,
+    members: &[u32],
+    m: usize,
+) -> f64 {
+    (0..m)
+        .map(|v| {
+            let mut s = [0.0; 3];
+            for &j in &members[rows(v)] {
+                let p = points.at(j as usize);
+                (0..3).for_each(|i| s[i] += p[i]);
+            }
+            s[0] + s[1] + s[2]
+        })
+        .sum()
+}
+
+/// The position layout, measured (issue "Performance": "SoA/AoS layout chosen by measurement")
+/// on the paper-sized state, one core: the gathers through the K-NN lists (scan points, random
+/// order within a neighbourhood) and through the 2-rings (template vertices), which every stage
+/// does, and a streaming update over all vertices, the one access SoA favours.
+fn bench_layouts(c: &mut Criterion, s: &State) {
+    fn run<L: Layout>(
+        g: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
+        name: &str,
+        s: &State,
+    ) {
+        let (m, k) = (s.pos.len(), s.k);
+        let scan = L::from_points(&s.scan);
+        let pos = L::from_points(&s.pos);
+        g.bench_function(format!("gather_knn/{name}"), |b| {
+            b.iter(|| gather_sums(black_box(&scan), |v| v * k..(v + 1) * k, &s.nn_idx, m))
+        });
+        let offsets = &s.rings.offsets;
+        g.bench_function(format!("gather_rings/{name}"), |b| {
+            b.iter(|| {
+                gather_sums(
+                    black_box(&pos),
+                    |v| offsets[v]..offsets[v + 1],
+                    &s.rings.members,
+                    m,
+                )
+            })
+        });
+        let mut moving = L::from_points(&s.pos);
+        let vel = L::from_points(&s.vel);
+        g.bench_function(format!("stream_axpy/{name}"), |b| {
+            b.iter(|| moving.axpy(black_box(1e-3), &vel))
+        });
+    }
+    let mut g = c.benchmark_group("layout");
+    g.sample_size(20)
+        .warm_up_time(Duration::from_millis(300))
+        .measurement_time(Duration::from_secs(1));
+    run::<Aos>(&mut g, "aos", s);
+    run::<Padded>(&mut g, "padded", s);
+    run::<Soa>(&mut g, "soa", s);
     g.finish();
 }
 
