@@ -216,7 +216,7 @@ PEER_PRESETS = ("default", "fast", "paper")
 #: The fast preset's accuracy on the harness against the default's (docs/method.md
 #: "Eighteenth round", bench/variants.py on the 91 cases; not measured by this script).
 FAST_PRICE = ("on the harness f_R ÷ best peer 0.879 and f_λ ÷ best 0.969 against the default's "
-              "0.761 and 0.964, held out f_R 4 % above the default's (docs/method.md, Eighteenth "
+              "0.761 and 0.964, held out f_R 4–22 % above the default's (docs/method.md, Eighteenth "
               "round)")
 
 #: Peers measured on the paper-sized and small cases (bench/peers.py adapters and tuned

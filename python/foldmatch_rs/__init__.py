@@ -227,7 +227,7 @@ def fit(
         scan on the harness, about 1.3× the time), ``"fast"`` (one schedule instead of the
         default's two: ``selection="single"``, ``two_way=3``, ``coarse_fraction=0.3``,
         constant softening; about 0.6× the time, with f_R about 15 % higher on the harness
-        and 4 % held out), ``"paper"`` (:data:`PAPER_PARAMS`, the method as the paper
+        and 4–22 % held out), ``"paper"`` (:data:`PAPER_PARAMS`, the method as the paper
         describes it) or ``"tracking"`` (the default without softening
         annealing, for a fit warm-started close to its scan, e.g. the previous frame of a
         sequence).
