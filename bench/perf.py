@@ -864,6 +864,16 @@ def analyse(recs: list[dict[str, Any]], p: dict[str, Any]) -> dict[str, Any]:
     return a
 
 
+def fastest_peer(a: dict[str, Any], cname: str, preset: str) -> tuple[dict[str, Any] | None, bool]:
+    """The ratio row (:func:`analyse`) of the fastest peer of FoldMatch `preset` on case `cname`,
+    among the peers run in full if any, else among the capped ones; and whether it ran in full.
+    (None, False) when no peer ran."""
+    rows = [x for x in a["ratios"].get(cname, []) if x["other"] != "reference" and x["preset"] == preset]
+    full = [x for x in rows if not x["capped"]]
+    pool = full or rows
+    return (min(pool, key=lambda x: x["other_wall"]) if pool else None), bool(full)
+
+
 def targets(recs: list[dict[str, Any]], a: dict[str, Any], p: dict[str, Any]) -> list[dict]:
     quick = p["quick"]
     out = []
@@ -939,14 +949,9 @@ def targets(recs: list[dict[str, Any]], a: dict[str, Any], p: dict[str, Any]) ->
             thread_caveat(t),
         )
     for cname, preset in [(c, pr) for pr in ("default", "fast") for c in ("paper", "small")]:
-        rows = [
-            x for x in a["ratios"].get(cname, []) if x["other"] != "reference" and x["preset"] == preset
-        ]
-        full = [x for x in rows if not x["capped"]]
-        pool = full or rows
-        if not pool:
+        fastest, full = fastest_peer(a, cname, preset)
+        if fastest is None:
             continue
-        fastest = min(pool, key=lambda x: x["other_wall"])
         better = fastest["ours_f_lambda"] <= fastest["other_f_lambda"] + 1e-3
         note = (
             f"fastest peer {fastest['other']}: {fastest['other_wall']:.2f} s, f_λ "
@@ -964,7 +969,7 @@ def targets(recs: list[dict[str, Any]], a: dict[str, Any], p: dict[str, Any]) ->
             f"vs the fastest peer, {cname} case, preset {preset}",
             "≥ 10× at equal or better f_λ",
             f"{fastest['ratio']:.1f}×",
-            fastest["ratio"] >= 10 and better and bool(full),
+            fastest["ratio"] >= 10 and better and full,
             note,
         )
     if quick:
@@ -1584,6 +1589,10 @@ def md_missed(recs: list[dict[str, Any]], a: dict[str, Any], quick: bool) -> str
     return "\n".join(out)
 
 
+#: How md_fast_closing names the cases.
+CASE_NAMES = {"paper": "paper-sized case", "small": "SPEC §7 case"}
+
+
 def md_fast_closing(recs: list[dict[str, Any]], a: dict[str, Any]) -> str:
     """What the fast preset (one schedule) measures against the time targets in this run, and
     its price in accuracy: the option that closes them without new code."""
@@ -1593,14 +1602,12 @@ def md_fast_closing(recs: list[dict[str, Any]], a: dict[str, Any]) -> str:
         default = find(recs, section="peers", case_name=cname, kind="foldmatch", preset="default")
         if not (ok(fast) and ok(default)):
             continue
-        peers_ = [x for x in a["ratios"].get(cname, []) if x["preset"] == "fast"
-                  and x["other"] != "reference" and not x["capped"]]
+        x, full = fastest_peer(a, cname, "fast")
         text = (f"{CASE_NAMES[cname]} {fast['wall_s']:.2f} s ({fast['wall_s'] / default['wall_s']:.2f}× "
                 f"the default's {default['wall_s']:.2f} s), f_R {fast['quality']['f_R']:.4f} / f_λ "
                 f"{fast['quality']['f_lambda']:.3f} (default {default['quality']['f_R']:.4f} / "
                 f"{default['quality']['f_lambda']:.3f})")
-        if peers_:
-            x = min(peers_, key=lambda x: x["other_wall"])
+        if full:
             text += (f", {x['ratio']:.1f}× faster than {x['other']} (f_λ {x['ours_f_lambda']:.3f} vs "
                      f"{x['other_f_lambda']:.3f})")
         parts.append(text)
@@ -1609,10 +1616,6 @@ def md_fast_closing(recs: list[dict[str, Any]], a: dict[str, Any]) -> str:
     return ("**The fast preset** (`preset=\"fast\"`: one schedule instead of the default's two, "
             "no second run to compare), the trade of accuracy for time a user can make today, "
             "measured in this run: " + "; ".join(parts) + "; " + FAST_PRICE + ".")
-
-
-#: How md_fast_closing names the cases.
-CASE_NAMES = {"paper": "paper-sized case", "small": "SPEC §7 case"}
 
 
 def write_docs(

@@ -488,21 +488,18 @@ impl FitParams {
     }
 
     /// One schedule instead of schedule selection's two (the `"fast"` preset), between the
-    /// given and the sharp one: two-way weight [`FAST_TWO_WAY`], a 30 % coarse phase, constant
-    /// softening. About 0.6× the default's instructions (0.58× at the paper's size: the
-    /// second run and the comparison are spared), at a higher error: on the harness f_R ÷ best
-    /// peer 0.879 against the default's 0.761, f_λ ÷ best 0.969 against 0.964; held out f_R
-    /// 4 % (15,000-point scans) to 22 % (5,000) above the default's. Either of the default's candidates alone is worse (the given
-    /// one 0.985 / 0.999, the sharp one 0.892 / 1.054; docs/method.md "Eighteenth round").
-    /// For previews and large batches where time comes first.
+    /// given and the sharp one: the default's [`FitParams::sharp_schedule`] (a 30 % coarse
+    /// phase, constant softening) with two-way weight [`FAST_TWO_WAY`]. About 0.6× the
+    /// default's instructions (0.58× at the paper's size: the second run and the comparison
+    /// are spared), at a higher error: on the harness f_R ÷ best peer 0.879 against the
+    /// default's 0.761, f_λ ÷ best 0.969 against 0.964; held out f_R 4 % (15,000-point scans)
+    /// to 22 % (5,000) above the default's. Either of the default's candidates alone is worse
+    /// (the given one 0.985 / 0.999, the sharp one 0.892 / 1.054; docs/method.md "Eighteenth
+    /// round"). For previews and large batches where time comes first.
     pub fn fast() -> Self {
         Self {
-            selection: Selection::Single,
             two_way: FAST_TWO_WAY,
-            coarse_fraction: 0.3,
-            anneal: 1.0,
-            anneal_fraction: 0.0,
-            ..Self::default()
+            ..Self::default().sharp_schedule()
         }
     }
 
