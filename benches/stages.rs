@@ -119,6 +119,8 @@ fn setup() -> State {
         k,
         &scan,
         &kappa,
+        None,
+        None,
         &params.nbody,
         None,
         &mut proposed,
@@ -131,6 +133,8 @@ fn setup() -> State {
         k,
         &scan,
         &kappa,
+        None,
+        None,
         &params.nbody,
         None,
         &mut proposed,
@@ -243,6 +247,8 @@ fn one_iteration(s: &State, b: &mut IterationBuffers) {
         s.k,
         &s.scan,
         &s.kappa,
+        None,
+        None,
         &s.params.nbody,
         None,
         &mut b.proposed,
@@ -318,16 +324,14 @@ fn bench_stages(c: &mut Criterion) {
             let mut force = vec![[0.0; 3]; m];
             b.iter(|| {
                 let (x, kappa, p) = (&s.scan, &s.kappa, &s.params.nbody);
-                reverse.compute(
-                    &s.pos,
-                    x,
-                    kappa,
-                    forward,
-                    1.0,
-                    TwoWayPull::Coverage,
-                    p,
-                    &mut force,
-                )
+                let two_way = nbody::TwoWay {
+                    weight: 1.0,
+                    pull: TwoWayPull::Coverage,
+                    trust_radius: f64::INFINITY,
+                    rim: None,
+                    weights: None,
+                };
+                reverse.compute(&s.pos, x, kappa, forward, &two_way, p, &mut force)
             });
         });
     }
@@ -345,6 +349,8 @@ fn bench_stages(c: &mut Criterion) {
                     s.k,
                     &s.scan,
                     &s.kappa,
+                    None,
+                    None,
                     &s.params.nbody,
                     None,
                     &mut proposed,

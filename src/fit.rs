@@ -125,6 +125,12 @@ pub const AUTO_COARSE_RINGS_MAX: usize = 12;
 /// phase and constant softening: 3 had the lowest f_λ and the best worst group).
 pub const FAST_TWO_WAY: f64 = 3.0;
 
+/// The default [`FitParams::two_way_trust`].
+pub const DEFAULT_TWO_WAY_TRUST: f64 = 0.0;
+
+/// The default [`FitParams::two_way_rim`].
+pub const DEFAULT_TWO_WAY_RIM: f64 = 0.0;
+
 /// Iterations of the `"accurate"` preset ([`FitParams::accurate`]).
 pub const ACCURATE_ITERATIONS: usize = 150;
 
@@ -204,6 +210,23 @@ pub struct FitParams {
     /// Two-way attraction: weight of the pull of every scan point on its nearest template
     /// vertex, added to Eq. 2 (0: the paper's one-way attraction).
     pub two_way: f64,
+    /// Trust radius of the two-way attraction, as a multiple c of the fit's own current misfit:
+    /// a scan point pulls its nearest template vertex only while it lies within
+    /// `c · max(median over the template of the distance to the nearest scan point, mean
+    /// template edge length)` of it. What the garment cannot explain — the skin beyond a hem, a
+    /// cuff or a collar, the hair, another garment — lies farther and pulls nothing, while the
+    /// median, taken from the template's side, is not moved by how much of the scan is body
+    /// (Turk & Levoy's rejection of distant pairs; docs/method.md "Scans of dressed people").
+    /// 0: every scan point pulls.
+    pub two_way_trust: f64,
+    /// Rim rejection of the two-way attraction, in mean template edge lengths: a scan point
+    /// whose nearest template vertex lies on the template's boundary and that lies beyond that
+    /// boundary (along its outward direction in the surface) by more than this margin pulls
+    /// nothing — the skin below a hem or out of a sleeve continues the scan's surface past the
+    /// garment's edge, and would drag it there (Turk & Levoy's rejection of boundary pairs;
+    /// docs/method.md "Scans of dressed people"). 0: off. Applies where the attraction sees
+    /// every template vertex (not on the rigid phase's vertex sample).
+    pub two_way_rim: f64,
     /// How the two-way pulls on one vertex combine: their mean, or (the default) their sum in
     /// proportion to the template's share of the scan, so that a vertex standing for an
     /// uncovered scan region is pulled in proportion to it ([`TwoWayPull`]).
@@ -334,6 +357,8 @@ impl Default for FitParams {
             prealign: Prealign::None,
             snapshot_every: 0,
             two_way: 4.5,
+            two_way_trust: DEFAULT_TWO_WAY_TRUST,
+            two_way_rim: DEFAULT_TWO_WAY_RIM,
             two_way_pull: TwoWayPull::Coverage,
             rigid_fraction: 0.3,
             coarse_fraction: 0.5,
@@ -636,6 +661,8 @@ impl FitParams {
             ("tolerance", self.tolerance, NON_NEGATIVE),
             ("selection_margin", self.selection_margin, NON_NEGATIVE),
             ("two_way", self.two_way, NON_NEGATIVE),
+            ("two_way_trust", self.two_way_trust, NON_NEGATIVE),
+            ("two_way_rim", self.two_way_rim, NON_NEGATIVE),
             ("damping", p.damping, UNIT),
             ("knn_slack", self.knn_slack, UNIT),
             ("rigid_fraction", self.rigid_fraction, UNIT),
@@ -1044,7 +1071,43 @@ pub fn fit(
     params: &FitParams,
     observer: &mut (dyn FnMut(&Progress) -> bool + Send),
 ) -> Result<FitResult> {
+    fit_weighted(
+        template_vertices,
+        template_faces,
+        target,
+        target_faces,
+        None,
+        params,
+        observer,
+    )
+}
+
+/// [`fit`] with a non-negative weight per scan point (`target_weights`, `None`: every weight
+/// 1). A point's weight scales its pull in Eq. 2's neighbourhood mean (a weighted mean), in
+/// the two-way attraction and in schedule selection's scan distance; a point of weight 0 is
+/// removed before anything else (the normalized frame, K and the curvature are those of the
+/// points that remain), so a 0/1 segmentation mask fits exactly as the masked scan would, and
+/// equal weights fit exactly as no weights. Weights of the wrong length, negative, not
+/// finite or all zero are refused ([`FoldMatchError::Parameter`] naming the first bad index).
+#[allow(clippy::too_many_arguments)]
+pub fn fit_weighted(
+    template_vertices: &[[f64; 3]],
+    template_faces: &[[u32; 3]],
+    target: &[[f64; 3]],
+    target_faces: Option<&[[u32; 3]]>,
+    target_weights: Option<&[f64]>,
+    params: &FitParams,
+    observer: &mut (dyn FnMut(&Progress) -> bool + Send),
+) -> Result<FitResult> {
     params.validate()?;
+    if let Some(w) = target_weights {
+        validate_weights(w, target.len())?;
+    }
+    // Equal weights are no weights; zero weights remove their points.
+    let target_weights = target_weights.filter(|w| w.iter().any(|&x| x != w[0]));
+    let kept: Option<Vec<usize>> = target_weights
+        .filter(|w| w.contains(&0.0))
+        .map(|w| (0..w.len()).filter(|&j| w[j] > 0.0).collect());
     let schedules = params.candidate_schedules();
     let clock = std::time::Instant::now();
     let prepared = Prepared::new(
@@ -1052,6 +1115,8 @@ pub fn fit(
         template_faces,
         target,
         target_faces,
+        target_weights,
+        kept.as_deref(),
         &schedules,
     )?;
     let mut runs: Vec<ScheduleRun> = schedules
@@ -1073,10 +1138,7 @@ pub fn fit(
             runs.iter().map(|r| r.user_vertices(&prepared)).collect();
         let distances: Vec<f64> = vertices
             .iter()
-            .map(|v| {
-                let d = crate::metrics::nearest_distances(target, v);
-                d.iter().sum::<f64>() / d.len() as f64
-            })
+            .map(|v| selection_distance(target, target_weights, prepared.garment.as_deref(), v))
             .collect();
         let rest_edges = crate::metrics::EdgeLengths::new(template_vertices, &prepared.faces);
         let spreads: Vec<f64> = vertices.iter().map(|v| rest_edges.spread(v)).collect();
@@ -1117,6 +1179,57 @@ pub fn fit(
     let finish = clock.elapsed().as_secs_f64() - setup - iterations;
     chosen.diagnostics.wall_seconds = [setup, iterations, finish];
     Ok(chosen)
+}
+
+/// Schedule selection's scan distance of the fit `fitted`: the mean distance from the scan
+/// points to their nearest fitted vertex, weighted by the scan weights, over the points the
+/// template explains (`garment`, user indices) where the scan holds more than the garment.
+fn selection_distance(
+    target: &[[f64; 3]],
+    weights: Option<&[f64]>,
+    garment: Option<&[usize]>,
+    fitted: &[[f64; 3]],
+) -> f64 {
+    let chosen: Vec<[f64; 3]>;
+    let (points, w): (&[[f64; 3]], Option<Vec<f64>>) = match garment {
+        Some(g) => {
+            chosen = g.iter().map(|&j| target[j]).collect();
+            (&chosen, weights.map(|w| g.iter().map(|&j| w[j]).collect()))
+        }
+        None => (target, weights.map(<[f64]>::to_vec)),
+    };
+    let d = crate::metrics::nearest_distances(points, fitted);
+    match w {
+        Some(w) => d.iter().zip(&w).map(|(d, w)| d * w).sum::<f64>() / w.iter().sum::<f64>(),
+        None => d.iter().sum::<f64>() / d.len() as f64,
+    }
+}
+
+/// Checks scan weights: one per scan point, finite, non-negative, not all zero.
+pub fn validate_weights(weights: &[f64], points: usize) -> Result<()> {
+    let name = "target_weights";
+    if weights.len() != points {
+        return Err(FoldMatchError::parameter(
+            name,
+            format!("{} weights", weights.len()),
+            &format!("need one weight per scan point ({points})"),
+        ));
+    }
+    if let Some(j) = weights.iter().position(|w| !w.is_finite() || *w < 0.0) {
+        return Err(FoldMatchError::parameter(
+            &format!("{name}[{j}]"),
+            weights[j],
+            "weights must be finite and >= 0",
+        ));
+    }
+    if !weights.iter().any(|&w| w > 0.0) {
+        return Err(FoldMatchError::parameter(
+            name,
+            "all zero",
+            "at least one scan point needs a positive weight",
+        ));
+    }
+    Ok(())
 }
 
 /// Schedule selection's rule (docs/method.md "Eighth round"): of the candidates whose mean
@@ -1216,6 +1329,16 @@ struct Prepared {
     scan_samples: Vec<ScanPoints>,
     /// The strides of the rigid and the coarse phase's scan samples (1: the whole scan).
     scan_strides: [usize; 2],
+    /// The template's mean edge length in the normalized frame (the floor of the two-way
+    /// trust radius, [`FitParams::two_way_trust`]).
+    edge_length: f64,
+    /// The template's boundary vertices and their one-rings (for [`FitParams::two_way_rim`];
+    /// empty when no schedule uses it).
+    rim: Rim,
+    /// The scan points (user indices) that schedule selection's scan distance averages over:
+    /// those the template explains where the scan holds more than the garment
+    /// ([`explained_points`]); `None`: every point of positive weight.
+    garment: Option<Vec<usize>>,
     /// The diagnostics every run starts from.
     diagnostics: Diagnostics,
 }
@@ -1228,6 +1351,8 @@ impl Prepared {
         template_faces: &[[u32; 3]],
         target: &[[f64; 3]],
         target_faces: Option<&[[u32; 3]]>,
+        weights: Option<&[f64]>,
+        kept: Option<&[usize]>,
         schedules: &[FitParams],
     ) -> Result<Self> {
         let params = &schedules[0];
@@ -1241,21 +1366,35 @@ impl Prepared {
         let cleaned = clean_faces(template_faces);
         let faces = cleaned.faces;
 
-        // Normalized frame (SPEC §1).
+        // The scan points that remain (weight > 0), with their weights.
+        let remaining: Option<Vec<[f64; 3]>> = kept.map(|k| k.iter().map(|&j| target[j]).collect());
+        let fitted = remaining.as_deref().unwrap_or(target);
+        let weights: Option<Vec<f64>> =
+            weights.map(|w| kept.map_or_else(|| w.to_vec(), |k| k.iter().map(|&j| w[j]).collect()));
+
+        // Normalized frame (SPEC §1), of the points that remain, or of those the template
+        // explains where the scan holds far more than the garment (a dressed body).
+        let garment = explained_points(fitted, template_vertices, template_faces, params);
+        let garment_points: Option<Vec<[f64; 3]>> = garment
+            .as_ref()
+            .map(|g| g.iter().map(|&j| fitted[j as usize]).collect());
+        let frame_points = garment_points.as_deref().unwrap_or(fitted);
         let frame = if params.normalize {
-            Frame::of_target(target)
+            Frame::of_target(frame_points)
         } else {
             Frame::identity()
         };
-        let scan = frame.forward(target);
+        let all_scan = frame.forward(target);
         let mut start = frame.forward(template_vertices);
         let centroid = start.iter().fold(Vec3::zeros(), |acc, p| acc + vec3(p)) / m as f64;
-        let scan_centroid =
-            scan.iter().fold(Vec3::zeros(), |acc, p| acc + vec3(p)) / scan.len() as f64;
+        let scan_centroid = (fitted.iter().fold(Vec3::zeros(), |acc, p| acc + vec3(p))
+            / fitted.len() as f64
+            - vec3(&frame.center))
+            / frame.scale;
         let scan_diag = if params.normalize {
             1.0
         } else {
-            Frame::of_target(target).scale
+            Frame::of_target(fitted).scale
         };
         let offset = centroid - scan_centroid;
         match params.prealign {
@@ -1274,13 +1413,24 @@ impl Prepared {
 
         // Target side, in space-filling-curve order ([`morton_order`]; only round-off depends
         // on the scan's order): k-d tree, K, curvature (a mesh's, of the given order).
-        let order = morton_order(&scan);
+        // A mesh's curvature is of the whole mesh; only the remaining points are fitted.
         let mesh_kappa = target_faces
             .filter(|f| params.use_curvature && !f.is_empty())
-            .map(|tf| gaussian_curvature_mesh(&scan, tf));
+            .map(|tf| gaussian_curvature_mesh(&all_scan, tf))
+            .map(|kappa| match kept {
+                Some(k) => k.iter().map(|&j| kappa[j]).collect(),
+                None => kappa,
+            });
+        let scan = match kept {
+            Some(k) => k.iter().map(|&j| all_scan[j]).collect(),
+            None => all_scan,
+        };
+        let order = morton_order(&scan);
         let scan: Vec<[f64; 3]> = order.iter().map(|&j| scan[j as usize]).collect();
+        let weights: Option<Vec<f64>> =
+            weights.map(|w| order.iter().map(|&j| w[j as usize]).collect());
         let index = PointIndex::new(&scan);
-        let k = neighborhood_size(params.rho, scan.len(), params.k_min, params.k_max);
+        let k = neighborhood_size(params.rho, frame_points.len(), params.k_min, params.k_max);
         let (kappa, curvature_source) = match mesh_kappa {
             _ if !params.use_curvature => (vec![0.0; scan.len()], "off"),
             Some(kappa) => (order.iter().map(|&j| kappa[j as usize]).collect(), "mesh"),
@@ -1305,6 +1455,7 @@ impl Prepared {
             stride: 1,
             points: scan,
             kappa,
+            weights,
             index,
             k,
         };
@@ -1384,6 +1535,22 @@ impl Prepared {
             Vec::new()
         };
 
+        let edge_length = mean_edge_length(&start, &faces);
+        let rim = if schedules
+            .iter()
+            .any(|p| p.two_way_rim > 0.0 && p.two_way > 0.0)
+        {
+            let vertices = crate::mesh::boundary_vertices(&faces, m);
+            let rings = Neighborhoods::from_rows(
+                vertices
+                    .iter()
+                    .map(|&v| one_rings.of(v as usize).to_vec())
+                    .collect(),
+            );
+            Rim { vertices, rings }
+        } else {
+            Rim::default()
+        };
         let diagnostics = Diagnostics {
             target_neighbours: k,
             coarse_rings: coarse_radius,
@@ -1411,6 +1578,13 @@ impl Prepared {
             all_vertices,
             scan_samples,
             scan_strides,
+            edge_length,
+            rim,
+            garment: garment.map(|g| {
+                g.iter()
+                    .map(|&j| kept.map_or(j as usize, |k| k[j as usize]))
+                    .collect()
+            }),
             diagnostics,
         })
     }
@@ -1433,12 +1607,38 @@ impl Prepared {
     }
 }
 
+/// The template's boundary vertices and their one-rings.
+#[derive(Default)]
+struct Rim {
+    vertices: Vec<u32>,
+    rings: Neighborhoods,
+}
+
+impl Rim {
+    /// Every vertex's outward direction in the surface at `pos` into `out`: on the boundary,
+    /// the unit vector from the centroid of its one-ring to the vertex; zero elsewhere.
+    fn outward(&self, pos: &[[f64; 3]], out: &mut [[f64; 3]]) {
+        for (r, &v) in self.vertices.iter().enumerate() {
+            let ring = self.rings.of(r);
+            let c = ring
+                .iter()
+                .fold(Vec3::zeros(), |a, &u| a + vec3(&pos[u as usize]))
+                / ring.len().max(1) as f64;
+            let d = vec3(&pos[v as usize]) - c;
+            let n = d.norm();
+            out[v as usize] = if n > 0.0 { (d / n).into() } else { [0.0; 3] };
+        }
+    }
+}
+
 /// The scan points an [`Attraction`] sees — the whole scan, or every `stride`-th point of it
 /// ([`ScanPoints::sample`]) — with their curvatures, their k-d tree and K.
 struct ScanPoints {
     stride: usize,
     points: Vec<[f64; 3]>,
     kappa: Vec<f64>,
+    /// The scan weights of these points (`None`: all equal).
+    weights: Option<Vec<f64>>,
     index: PointIndex,
     k: usize,
 }
@@ -1450,12 +1650,17 @@ impl ScanPoints {
     fn sample(&self, stride: usize) -> Self {
         let points: Vec<[f64; 3]> = self.points.iter().step_by(stride).copied().collect();
         let kappa = self.kappa.iter().step_by(stride).copied().collect();
+        let weights = self
+            .weights
+            .as_ref()
+            .map(|w| w.iter().step_by(stride).copied().collect());
         let index = PointIndex::new(&points);
         let k = self.k.div_ceil(stride).clamp(1, points.len());
         Self {
             stride: stride * self.stride,
             points,
             kappa,
+            weights,
             index,
             k,
         }
@@ -1473,11 +1678,19 @@ struct Attraction {
     reverse: Option<(nbody::ReverseAttraction, Vec<[f64; 3]>)>,
     /// The N-body proposal for every point.
     proposed: Vec<[f64; 3]>,
+    /// Scratch: every point's distance to its nearest scan point (the trust radius's median).
+    nearest: Vec<f64>,
+    /// The floor of the two-way trust radius (the template's mean edge length).
+    edge_length: f64,
+    /// Every point's outward direction on the rim ([`FitParams::two_way_rim`]; empty when
+    /// off, or on a vertex sample).
+    outward: Vec<[f64; 3]>,
 }
 
 impl Attraction {
-    /// Buffers for `m` template points over the scan points `scan`.
-    fn new(m: usize, scan: &ScanPoints, params: &FitParams) -> Self {
+    /// Buffers for `m` template points over the scan points `scan`; `edge_length` is the
+    /// template's mean edge length.
+    fn new(m: usize, scan: &ScanPoints, params: &FitParams, edge_length: f64, rim: bool) -> Self {
         let (n, k) = (scan.points.len(), scan.k);
         let reverse = (params.two_way > 0.0 && params.method == Method::FoldMatch).then(|| {
             (
@@ -1491,7 +1704,38 @@ impl Attraction {
             nn_cache: params.knn_cache.then(|| NeighborCache::new(m, k, n)),
             reverse,
             proposed: vec![[0.0; 3]; m],
+            nearest: if params.two_way_trust > 0.0 {
+                vec![0.0; m]
+            } else {
+                Vec::new()
+            },
+            edge_length,
+            outward: if rim && params.two_way_rim > 0.0 && params.two_way > 0.0 {
+                vec![[0.0; 3]; m]
+            } else {
+                Vec::new()
+            },
         }
+    }
+
+    /// The two-way trust radius ([`FitParams::two_way_trust`]) of the template whose
+    /// neighbour lists are `nn_d2` (nearest first), with `nearest` as scratch.
+    fn trust_radius(
+        nearest: &mut [f64],
+        edge_length: f64,
+        params: &FitParams,
+        nn_d2: &[f64],
+        k: usize,
+    ) -> f64 {
+        if params.two_way_trust <= 0.0 || nearest.is_empty() {
+            return f64::INFINITY;
+        }
+        for (d, row) in nearest.iter_mut().zip(nn_d2.chunks_exact(k)) {
+            *d = row[0];
+        }
+        let mid = nearest.len() / 2;
+        let (_, median2, _) = nearest.select_nth_unstable_by(mid, f64::total_cmp);
+        params.two_way_trust * median2.sqrt().max(edge_length)
     }
 
     /// Γᵏ_X of the points `pos` among the scan points `scan`, the two-way pulls on them, and
@@ -1500,6 +1744,7 @@ impl Attraction {
     fn propose(
         &mut self,
         scan: &ScanPoints,
+        rim: &Rim,
         params: &FitParams,
         it: usize,
         pos: &[[f64; 3]],
@@ -1508,6 +1753,7 @@ impl Attraction {
         diagnostics: &mut Diagnostics,
     ) {
         let (points, kappa, index, k) = (&scan.points, &scan.kappa, &scan.index, scan.k);
+        let weights = scan.weights.as_deref();
         let (nn_idx, nn_d2) = (&mut self.nn_idx, &mut self.nn_d2);
         let slack = if self.nn_cache.is_some() {
             params.knn_slack_at(it)
@@ -1525,6 +1771,15 @@ impl Attraction {
             }
         });
         let nbody_params = annealed(params, it);
+        if !self.outward.is_empty() {
+            rim.outward(pos, &mut self.outward);
+        }
+        let rim_margin = params.two_way_rim * self.edge_length;
+        let forward_rim = (!self.outward.is_empty()).then(|| (&self.outward[..], rim_margin));
+        let trust_radius = match self.reverse {
+            Some(_) => Self::trust_radius(&mut self.nearest, self.edge_length, params, nn_d2, k),
+            None => f64::INFINITY,
+        };
         let extra = match self.reverse.as_mut() {
             Some((reverse, force)) => {
                 let forward = TargetNeighbours {
@@ -1533,17 +1788,15 @@ impl Attraction {
                     k,
                     exact: slack == 0.0,
                 };
+                let two_way = nbody::TwoWay {
+                    weight: params.two_way,
+                    pull: params.two_way_pull,
+                    trust_radius,
+                    rim: forward_rim,
+                    weights,
+                };
                 diagnostics.two_way_queries += timed(&mut t.two_way, || {
-                    reverse.compute(
-                        pos,
-                        points,
-                        kappa,
-                        forward,
-                        params.two_way,
-                        params.two_way_pull,
-                        &nbody_params,
-                        force,
-                    )
+                    reverse.compute(pos, points, kappa, forward, &two_way, &nbody_params, force)
                 });
                 Some(force.as_slice())
             }
@@ -1557,6 +1810,8 @@ impl Attraction {
                 k,
                 points,
                 kappa,
+                weights,
+                forward_rim,
                 &nbody_params,
                 extra,
                 &mut self.proposed,
@@ -1591,7 +1846,13 @@ impl PhaseSample {
             indices: (0..s as u32).collect(),
             pos: vec![[0.0; 3]; s],
             vel: vec![[0.0; 3]; s],
-            attraction: Attraction::new(s, prepared.scan_points(scan_stride), params),
+            attraction: Attraction::new(
+                s,
+                prepared.scan_points(scan_stride),
+                params,
+                prepared.edge_length,
+                stride == 1,
+            ),
         }
     }
 }
@@ -1646,7 +1907,13 @@ impl ScheduleRun {
             vel: vec![[0.0; 3]; m],
             next: vec![[0.0; 3]; m],
             disp: vec![0.0; m],
-            attraction: Attraction::new(m, prepared.scan_points(1), &params),
+            attraction: Attraction::new(
+                m,
+                prepared.scan_points(1),
+                &params,
+                prepared.edge_length,
+                true,
+            ),
             ws: Workspace::new(m),
             samples,
             phase_sample,
@@ -1686,9 +1953,16 @@ impl ScheduleRun {
                 }
                 let (pos, vel) = (&sample.pos, &mut sample.vel);
                 let scan = prepared.scan_points(sample.scan_stride);
-                sample
-                    .attraction
-                    .propose(scan, params, it, pos, vel, t, &mut self.diagnostics);
+                sample.attraction.propose(
+                    scan,
+                    &prepared.rim,
+                    params,
+                    it,
+                    pos,
+                    vel,
+                    t,
+                    &mut self.diagnostics,
+                );
                 for (i, &v) in sample.vertices.iter().enumerate() {
                     self.vel[v as usize] = sample.vel[i];
                 }
@@ -1696,8 +1970,16 @@ impl ScheduleRun {
             None => {
                 let (pos, vel) = (&self.pos, &mut self.vel);
                 let scan = prepared.scan_points(1);
-                self.attraction
-                    .propose(scan, params, it, pos, vel, t, &mut self.diagnostics);
+                self.attraction.propose(
+                    scan,
+                    &prepared.rim,
+                    params,
+                    it,
+                    pos,
+                    vel,
+                    t,
+                    &mut self.diagnostics,
+                );
             }
         }
         let update_start = std::time::Instant::now();
@@ -1984,6 +2266,58 @@ fn annealed(params: &FitParams, it: usize) -> NBodyParams {
         p.softening *= 1.0 + (params.anneal - 1.0) * remaining;
     }
     p
+}
+
+/// A scan whose bounding-box diagonal exceeds the template's by more than this factor holds
+/// more than the garment (a dressed body, a scene): its normalized frame and K are then those
+/// of the points the template explains ([`explained_points`]).
+pub const GARMENT_FRAME_RATIO: f64 = 1.5;
+
+/// The scan points that the template as given explains, where the scan is much larger than
+/// the template ([`GARMENT_FRAME_RATIO`]; `None` otherwise, or when the two-way trust radius is
+/// off): those within the two-way trust radius ([`FitParams::two_way_trust`]) of the
+/// template's nearest vertex. The paper's constants (ε, G, Δt, ρ) are set for a frame in
+/// which the garment's scan has unit diagonal; a dressed body's skin and hair would stretch
+/// that frame two- to threefold and soften every force (docs/method.md "Scans of dressed
+/// people").
+fn explained_points(
+    scan: &[[f64; 3]],
+    template: &[[f64; 3]],
+    faces: &[[u32; 3]],
+    params: &FitParams,
+) -> Option<Vec<u32>> {
+    let diag = |p: &[[f64; 3]]| Frame::of_target(p).scale;
+    if params.two_way_trust <= 0.0 || diag(scan) <= GARMENT_FRAME_RATIO * diag(template) {
+        return None;
+    }
+    let scan_index = PointIndex::new(scan);
+    let mut nearest: Vec<f64> = template
+        .par_iter()
+        .map(|v| scan_index.nearest_one(v).1)
+        .collect();
+    let mid = nearest.len() / 2;
+    let median = nearest.select_nth_unstable_by(mid, f64::total_cmp).1.sqrt();
+    let radius = params.two_way_trust * median.max(mean_edge_length(template, faces));
+    let template_index = PointIndex::new(template);
+    let explained: Vec<u32> = (0..scan.len() as u32)
+        .into_par_iter()
+        .filter(|&j| template_index.nearest_one(&scan[j as usize]).1 <= radius * radius)
+        .collect();
+    (!explained.is_empty() && explained.len() < scan.len()).then_some(explained)
+}
+
+/// The mean length of the template's edges (each face's three, shared edges counted twice).
+fn mean_edge_length(vertices: &[[f64; 3]], faces: &[[u32; 3]]) -> f64 {
+    let sum: f64 = faces
+        .iter()
+        .map(|f| {
+            let p = f.map(|v| &vertices[v as usize]);
+            (0..3)
+                .map(|i| crate::math::dist2(p[i], p[(i + 1) % 3]).sqrt())
+                .sum::<f64>()
+        })
+        .sum();
+    sum / (3 * faces.len()).max(1) as f64
 }
 
 /// NRGa neighborhoods: the K_Y nearest template points of every template vertex (itself

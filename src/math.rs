@@ -20,6 +20,12 @@ pub fn vec3(p: &[Real; 3]) -> Vec3 {
     Vec3::new(p[0], p[1], p[2])
 }
 
+/// The squared distance between two points.
+#[inline]
+pub fn dist2(a: &[Real; 3], b: &[Real; 3]) -> Real {
+    (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)
+}
+
 /// Result of a symmetric 3×3 eigen-decomposition, eigenvalues sorted in descending order.
 #[derive(Clone, Copy, Debug)]
 pub struct SymEigen3 {

@@ -81,6 +81,32 @@ pub fn clean_faces(faces: &[[u32; 3]]) -> CleanFaces {
     out
 }
 
+/// The vertices on the mesh's boundary: those of an edge that only one face uses, in
+/// increasing order.
+pub fn boundary_vertices(faces: &[[u32; 3]], n_vertices: usize) -> Vec<u32> {
+    let mut edges: Vec<(u32, u32)> = faces
+        .iter()
+        .flat_map(|f| [(f[0], f[1]), (f[1], f[2]), (f[2], f[0])])
+        .filter(|(a, b)| a != b)
+        .map(|(a, b)| (a.min(b), a.max(b)))
+        .collect();
+    edges.sort_unstable();
+    let mut on = vec![false; n_vertices];
+    let mut i = 0;
+    while i < edges.len() {
+        let mut j = i + 1;
+        while j < edges.len() && edges[j] == edges[i] {
+            j += 1;
+        }
+        if j - i == 1 {
+            on[edges[i].0 as usize] = true;
+            on[edges[i].1 as usize] = true;
+        }
+        i = j;
+    }
+    (0..n_vertices as u32).filter(|&v| on[v as usize]).collect()
+}
+
 /// Face normal scaled by twice the face area: `(b − a) × (c − a)`.
 #[inline]
 pub fn face_area_normal(p: &[[f64; 3]], f: &[u32; 3]) -> Vec3 {

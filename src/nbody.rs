@@ -144,19 +144,62 @@ pub fn gravitational_force(
     kappa: &[f64],
     p: &NBodyParams,
 ) -> Vec3 {
-    let mut f = Vec3::zeros();
-    for &j in neighbours {
-        f += pair_force(y, &vec3(&target[j as usize]), kappa[j as usize], p);
+    weighted_gravitational_force(y, neighbours, target, kappa, None, None, p)
+}
+
+/// [`gravitational_force`] with a non-negative weight per scan point (`weights[j]`, the
+/// user's scan weights): each neighbour's term is scaled by its weight and, under
+/// [`ForceSum::Mean`], the mean becomes the weighted mean `Σ w_j F_j / Σ w_j` (zero when every
+/// neighbour weighs 0). `None` is every weight 1. With `rim = (o, margin)` (a template point
+/// on the boundary, `o` its outward direction in the surface), neighbours beyond the boundary
+/// by more than `margin` weigh 0 ([`TwoWay::rim`]).
+pub fn weighted_gravitational_force(
+    y: &Vec3,
+    neighbours: &[u32],
+    target: &[[f64; 3]],
+    kappa: &[f64],
+    weights: Option<&[f64]>,
+    rim: Option<(Vec3, f64)>,
+    p: &NBodyParams,
+) -> Vec3 {
+    let weight = |j: usize| {
+        let w = weights.map_or(1.0, |w| w[j]);
+        match rim {
+            Some((o, margin)) if (vec3(&target[j]) - y).dot(&o) > margin => 0.0,
+            _ => w,
+        }
+    };
+    if weights.is_some() || rim.is_some() {
+        let (mut f, mut total) = (Vec3::zeros(), 0.0);
+        for &j in neighbours {
+            let wj = weight(j as usize);
+            if wj > 0.0 {
+                f += wj * pair_force(y, &vec3(&target[j as usize]), kappa[j as usize], p);
+                total += wj;
+            }
+        }
+        return match p.summation {
+            ForceSum::Mean if total > 0.0 => f / total,
+            ForceSum::Mean => Vec3::zeros(),
+            ForceSum::Sum => f,
+        };
     }
-    match p.summation {
-        ForceSum::Mean if !neighbours.is_empty() => f / neighbours.len() as f64,
-        _ => f,
+    {
+        let mut f = Vec3::zeros();
+        for &j in neighbours {
+            f += pair_force(y, &vec3(&target[j as usize]), kappa[j as usize], p);
+        }
+        match p.summation {
+            ForceSum::Mean if !neighbours.is_empty() => f / neighbours.len() as f64,
+            _ => f,
+        }
     }
 }
 
 /// One integration step (Eq. 2–3) for every template point, in parallel.
 ///
-/// `neighbours` holds K scan indices per template point (row-major, M × K). `extra` is an
+/// `neighbours` holds K scan indices per template point (row-major, M × K); `weights`, when
+/// given, one weight per scan point ([`weighted_gravitational_force`]). `extra` is an
 /// optional additional force per template point (the two-way attraction). Updates
 /// `velocities` to `v^{t+Δt}` and writes the proposed positions `Y^t + v^{t+Δt} Δt` to
 /// `proposed`.
@@ -168,6 +211,8 @@ pub fn step(
     k: usize,
     target: &[[f64; 3]],
     kappa: &[f64],
+    weights: Option<&[f64]>,
+    rim: Option<(&[[f64; 3]], f64)>,
     p: &NBodyParams,
     extra: Option<&[[f64; 3]]>,
     proposed: &mut [[f64; 3]],
@@ -180,7 +225,11 @@ pub fn step(
         .for_each(|(i, (vel, out))| {
             let y = vec3(&positions[i]);
             let v = vec3(vel);
-            let mut f = gravitational_force(&y, &neighbours[i * k..(i + 1) * k], target, kappa, p);
+            let row = &neighbours[i * k..(i + 1) * k];
+            let rim = rim
+                .map(|(out, margin)| (vec3(&out[i]), margin))
+                .filter(|(o, _)| *o != Vec3::zeros());
+            let mut f = weighted_gravitational_force(&y, row, target, kappa, weights, rim, p);
             if let Some(extra) = extra {
                 f += vec3(&extra[i]);
             }
@@ -228,15 +277,14 @@ impl ReverseAttraction {
     /// The reverse forces on the template at `positions`, written to `out`; `forward` are the
     /// target neighborhoods of these positions. Returns the number of scan points whose nearest
     /// template point was queried against a k-d tree.
-    #[allow(clippy::too_many_arguments)]
+    #[allow(clippy::too_many_arguments)] // the stage inputs, the settings and the output
     pub fn compute(
         &mut self,
         positions: &[[f64; 3]],
         target: &[[f64; 3]],
         kappa: &[f64],
         forward: TargetNeighbours<'_>,
-        weight: f64,
-        pull: TwoWayPull,
+        two_way: &TwoWay<'_>,
         p: &NBodyParams,
         out: &mut [[f64; 3]],
     ) -> usize {
@@ -244,39 +292,84 @@ impl ReverseAttraction {
         let fresh = self
             .queries
             .query(positions, target, forward, &mut self.nearest);
+        // Scan points beyond the trust radius, or weighing 0, pull nothing: they are left out
+        // of the buckets (index `m`, past the last template point).
+        let m = self.heads.len();
+        let trust2 = two_way.trust_radius * two_way.trust_radius;
+        let mut total = 0.0;
+        for (j, k) in self.nearest.iter_mut().enumerate() {
+            let w = two_way.weights.map_or(1.0, |w| w[j]);
+            let (x, y) = (&target[j], &positions[*k as usize]);
+            let beyond_rim = two_way.rim.is_some_and(|(out, margin)| {
+                (vec3(x) - vec3(y)).dot(&vec3(&out[*k as usize])) > margin
+            });
+            if w > 0.0 && crate::math::dist2(x, y) <= trust2 && !beyond_rim {
+                total += w;
+            } else {
+                *k = m as u32;
+            }
+        }
         // Counting sort of the scan points by nearest template point (stable: scan order).
         self.offsets.iter_mut().for_each(|o| *o = 0);
-        for &k in &self.nearest {
+        for &k in self.nearest.iter().filter(|&&k| (k as usize) < m) {
             self.offsets[k as usize + 1] += 1;
         }
         for i in 1..self.offsets.len() {
             self.offsets[i] += self.offsets[i - 1];
         }
-        let m = self.heads.len();
         self.heads.copy_from_slice(&self.offsets[..m]);
         for (j, &k) in self.nearest.iter().enumerate() {
-            self.order[self.heads[k as usize]] = j as u32;
-            self.heads[k as usize] += 1;
+            if (k as usize) < m {
+                self.order[self.heads[k as usize]] = j as u32;
+                self.heads[k as usize] += 1;
+            }
         }
         let (offsets, order) = (&self.offsets, &self.order);
-        // Per scan point, under `Coverage`: M / N (the template's share of the scan).
-        let share = m as f64 / self.nearest.len().max(1) as f64;
+        // Per unit of scan weight, under `Coverage`: M / Σ w (the template's share of the
+        // scan points that pull).
+        let share = if total > 0.0 { m as f64 / total } else { 0.0 };
+        let (weight, weights) = (two_way.weight, two_way.weights);
         out.par_iter_mut().enumerate().for_each(|(k, f)| {
             let mine = &order[offsets[k]..offsets[k + 1]];
-            let mut sum = Vec3::zeros();
+            let (mut sum, mut mass) = (Vec3::zeros(), 0.0);
             for &j in mine {
                 let j = j as usize;
-                sum += pair_force(&vec3(&positions[k]), &vec3(&target[j]), kappa[j], p);
+                let w = weights.map_or(1.0, |w| w[j]);
+                sum += w * pair_force(&vec3(&positions[k]), &vec3(&target[j]), kappa[j], p);
+                mass += w;
             }
-            let scale = match pull {
+            let scale = match two_way.pull {
                 _ if mine.is_empty() => 0.0,
-                TwoWayPull::Mean => weight / mine.len() as f64,
+                TwoWayPull::Mean => weight / mass,
                 TwoWayPull::Coverage => weight * share,
             };
             *f = (sum * scale).into();
         });
         fresh
     }
+}
+
+/// The two-way attraction's settings for one iteration ([`ReverseAttraction::compute`]).
+#[derive(Clone, Copy, Debug)]
+pub struct TwoWay<'a> {
+    /// The weight of the pulls (`FitParams::two_way`).
+    pub weight: f64,
+    /// How the pulls on one template point combine.
+    pub pull: TwoWayPull,
+    /// Scan points farther than this from their nearest template point pull nothing
+    /// (`f64::INFINITY`: every point pulls): what the garment cannot explain — the skin
+    /// beyond a hem or a cuff, another garment — must not drag the template (Turk & Levoy's
+    /// rejection of distant pairs, docs/method.md "Scans of dressed people").
+    pub trust_radius: f64,
+    /// The template's rim: per template point its outward direction in the surface (unit on
+    /// the boundary, zero inside), and a margin. A scan point whose nearest template point is
+    /// on the boundary and that lies beyond it by more than the margin pulls nothing: the
+    /// surface it belongs to continues past the garment's edge (skin below a hem, an arm out
+    /// of a sleeve), which the template does not explain (Turk & Levoy 1994).
+    pub rim: Option<(&'a [[f64; 3]], f64)>,
+    /// One non-negative weight per scan point (`None`: every weight 1): each pull is scaled by
+    /// its point's weight, and a mean is a weighted mean.
+    pub weights: Option<&'a [f64]>,
 }
 
 #[cfg(test)]
@@ -387,7 +480,14 @@ mod tests {
                 exact: true,
             };
             let mut out = [[0.0; 3]; 2];
-            reverse.compute(&template, target, &kappa, forward, 2.0, rule, &p, &mut out);
+            let two_way = TwoWay {
+                weight: 2.0,
+                pull: rule,
+                trust_radius: f64::INFINITY,
+                rim: None,
+                weights: None,
+            };
+            reverse.compute(&template, target, &kappa, forward, &two_way, &p, &mut out);
             out.map(|f| vec3(&f))
         };
         let pair = |k: usize, j: usize, target: &[[f64; 3]]| {
@@ -425,7 +525,19 @@ mod tests {
             let mut vel = [[1.0, 0.0, 0.0]];
             let mut out = [[0.0; 3]];
             // Target at the point itself: zero force, only damping acts.
-            step(&pos, &mut vel, &[0], 1, &target, &[0.0], &p, None, &mut out);
+            step(
+                &pos,
+                &mut vel,
+                &[0],
+                1,
+                &target,
+                &[0.0],
+                None,
+                None,
+                &p,
+                None,
+                &mut out,
+            );
             assert!((vel[0][0] - want).abs() < 1e-15, "{mode:?}");
             assert!((out[0][0] - want * 0.006).abs() < 1e-15);
         }

@@ -217,7 +217,7 @@ fn default_params_json(preset: &str) -> PyResult<String> {
 
 /// Fits a template to a target; see `foldmatch_rs.fit`.
 #[pyfunction]
-#[pyo3(signature = (template_vertices, template_faces, target, target_faces, params_json, callback=None, threads=None, preset="default"))]
+#[pyo3(signature = (template_vertices, template_faces, target, target_faces, params_json, callback=None, threads=None, preset="default", target_weights=None))]
 #[allow(clippy::too_many_arguments)]
 fn fit_raw<'py>(
     py: Python<'py>,
@@ -229,6 +229,7 @@ fn fit_raw<'py>(
     callback: Option<Py<PyAny>>,
     threads: Option<usize>,
     preset: &str,
+    target_weights: Option<PyReadonlyArray1<'py, f64>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let base = FitParams::preset(preset).map_err(to_pyerr)?;
     let params = FitParams::from_json_over(params_json, base).map_err(to_pyerr)?;
@@ -237,6 +238,15 @@ fn fit_raw<'py>(
     let tf = faces("template_faces", &template_faces, tv.len())?;
     let xf = match &target_faces {
         Some(f) => Some(faces("target_faces", f, x.len())?),
+        None => None,
+    };
+    let weights = match &target_weights {
+        Some(w) => Some(w.as_slice().map_err(|_| {
+            to_pyerr(FoldMatchError::Shape {
+                name: "target_weights".into(),
+                reason: "must be a contiguous (N,) float64 array".into(),
+            })
+        })?),
         None => None,
     };
     let mut callback_error: Option<PyErr> = None;
@@ -265,7 +275,7 @@ fn fit_raw<'py>(
             })
         };
         compute(py, threads, || {
-            fit::fit(tv, &tf, x, xf.as_deref(), &params, &mut observer)
+            fit::fit_weighted(tv, &tf, x, xf.as_deref(), weights, &params, &mut observer)
         })?
     };
     if let Some(e) = callback_error {
@@ -405,6 +415,8 @@ fn nbody_step<'py>(
             k,
             x,
             kappa,
+            None,
+            None,
             &params.nbody,
             None,
             &mut prop,

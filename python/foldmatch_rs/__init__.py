@@ -90,6 +90,20 @@ def _split_mesh(mesh: Any, faces: Any, name: str) -> tuple[np.ndarray, Optional[
     return v, (None if faces is None else _faces(faces, f"{name}_faces"))
 
 
+def _weights(w: Any, n: int) -> Optional[np.ndarray]:
+    """``target_weights`` as a contiguous ``(n,)`` float64 array (the checks of values are the
+    core's: finite, non-negative, not all zero)."""
+    if w is None:
+        return None
+    try:
+        a = np.ascontiguousarray(w, dtype=np.float64)
+    except (TypeError, ValueError) as e:
+        raise InvalidInputError(f"target_weights: not convertible to float64 ({e})") from None
+    if a.ndim != 1:
+        raise InvalidInputError(f"target_weights: expected shape ({n},), got {a.shape}")
+    return a
+
+
 def _params_json(params: dict[str, Any]) -> str:
     given = {k: v for k, v in params.items() if v is not None}
     return json.dumps(given)
@@ -159,6 +173,7 @@ def fit(
     target: Any = None,
     *,
     target_faces: Any = None,
+    target_weights: Any = None,
     preset: str = "default",
     method: Optional[str] = None,
     iterations: Optional[int] = None,
@@ -187,6 +202,8 @@ def fit(
     prealign: Optional[str] = None,
     snapshot_every: Optional[int] = None,
     two_way: Optional[float] = None,
+    two_way_trust: Optional[float] = None,
+    two_way_rim: Optional[float] = None,
     two_way_pull: Optional[str] = None,
     rigid_fraction: Optional[float] = None,
     coarse_fraction: Optional[float] = None,
@@ -396,7 +413,8 @@ def fit(
         normal_completion=normal_completion, regularization=regularization,
         rotation_source=rotation_source, velocity_sync=velocity_sync, normalize=normalize,
         tolerance=tolerance, use_curvature=use_curvature, prealign=prealign,
-        snapshot_every=snapshot_every, two_way=two_way, two_way_pull=two_way_pull,
+        snapshot_every=snapshot_every, two_way=two_way, two_way_trust=two_way_trust, two_way_rim=two_way_rim,
+        two_way_pull=two_way_pull,
         rigid_fraction=rigid_fraction,
         coarse_fraction=coarse_fraction, coarse_rings=coarse_rings,
         coarse_levels=coarse_levels, rigid_sample=rigid_sample,
@@ -406,7 +424,8 @@ def fit(
         selection=selection, selection_margin=selection_margin, selection_at=selection_at,
         knn_cache=knn_cache, knn_slack=knn_slack, matrix_series=matrix_series,
     )
-    raw = _core.fit_raw(tv, tf, x, xf, _params_json(params), callback, threads, preset)
+    weights = _weights(target_weights, len(x))
+    raw = _core.fit_raw(tv, tf, x, xf, _params_json(params), callback, threads, preset, weights)
     return FitResult(
         vertices=raw["vertices"],
         faces=tf,
