@@ -39,6 +39,7 @@ from .errors import (
     MeshFileError,
     MeshFormatError,
     NumericalError,
+    RunSetupError,
 )
 
 __version__: str = _core.__version__
@@ -615,6 +616,7 @@ __all__ = [
     "InvalidInputError",
     "InvalidParameterError",
     "MeshFileError",
+    "RunSetupError",
     "MeshFormatError",
     "NumericalError",
     "FitCancelled",

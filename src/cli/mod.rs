@@ -21,6 +21,8 @@
 
 mod args;
 mod batch;
+#[cfg(feature = "python")]
+pub(crate) mod cluster;
 mod demo;
 mod eval;
 mod files;
