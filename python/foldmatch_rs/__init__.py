@@ -58,7 +58,8 @@ PAPER_PARAMS: dict[str, Any] = json.loads(_core.default_params_json("paper"))
 
 
 def _points(x: Any, name: str) -> np.ndarray:
-    """An ``(n, 3)`` C-contiguous float64 view of ``x`` (no copy when it already is one)."""
+    """An ``(n, 3)`` C-contiguous, aligned float64 view of ``x`` (no copy when it already is
+    one; arrays unpickled from a buffer, as Dask delivers them, may be unaligned)."""
     if hasattr(x, "vertices"):  # trimesh.Trimesh / PointCloud
         x = x.vertices
     a = np.asarray(x)
@@ -68,7 +69,7 @@ def _points(x: Any, name: str) -> np.ndarray:
         raise InvalidInputError(f"{name}: expected at least one point, got 0 rows")
     if not np.issubdtype(a.dtype, np.number) or np.issubdtype(a.dtype, np.complexfloating):
         raise InvalidInputError(f"{name}: expected a real numeric array, got dtype {a.dtype}")
-    return np.ascontiguousarray(a, dtype=np.float64)
+    return np.require(a, dtype=np.float64, requirements=["C", "A"])
 
 
 def _faces(f: Any, name: str) -> np.ndarray:
@@ -81,7 +82,7 @@ def _faces(f: Any, name: str) -> np.ndarray:
     if not np.issubdtype(a.dtype, np.integer):
         if not np.all(np.isfinite(a)) or not np.all(np.equal(np.mod(a, 1), 0)):
             raise InvalidInputError(f"{name}: face indices must be integers")
-    return np.ascontiguousarray(a, dtype=np.int64)
+    return np.require(a, dtype=np.int64, requirements=["C", "A"])
 
 
 def _split_mesh(mesh: Any, faces: Any, name: str) -> tuple[np.ndarray, Optional[np.ndarray]]:

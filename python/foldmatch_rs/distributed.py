@@ -39,8 +39,7 @@ try:
     from distributed import Client, Future, KilledWorker, LocalCluster, as_completed
 except ImportError as _missing:  # pragma: no cover - depends on the installed extras
     raise ImportError(
-        "foldmatch_rs.distributed needs Dask's distributed scheduler: "
-        "pip install 'foldmatch-rs[dask]'"
+        "foldmatch_rs.distributed needs Dask's distributed scheduler: pip install 'foldmatch-rs[dask]'"
     ) from _missing
 
 from . import _foldmatch_rs as _core
@@ -251,9 +250,8 @@ def run_books(
     owner: dict[Future, tuple[Any, int]] = {}
     for b, book in enumerate(books):
         files = json.loads(book.files_json())
-        book.info(
-            f"{kind}: {book.total} files, {len(files)} to fit, on {_describe(client, slots)}"
-        )
+        what = "scans" if kind == "batch" else "frames"
+        book.info(f"{kind}: {book.total} {what}, {len(files)} to fit, on {_describe(client, slots)}")
         previous: Optional[Future] = None
         for file in files:
             key = f"foldmatch-{kind}-{tag}-{b}-{file['index']}"
@@ -261,9 +259,7 @@ def run_books(
             if kind == "batch":
                 future = client.submit(fit_file, *common, key=key, retries=retries, pure=False)
             else:
-                future = client.submit(
-                    track_frame, *common, previous, key=key, retries=retries, pure=False
-                )
+                future = client.submit(track_frame, *common, previous, key=key, retries=retries, pure=False)
                 previous = future
             owner[future] = (book, file["index"])
     interrupted = False
@@ -313,11 +309,9 @@ def _cores() -> int:
 
 def _describe(client: Client, slots: Threads) -> str:
     workers = client.scheduler_info(n_workers=-1)["workers"]
-    if isinstance(slots, int):
-        each = f"{slots} fit thread{'s' if slots > 1 else ''} per task"
-    else:
-        values = sorted(set(slots.values())) or [1]
-        each = "/".join(map(str, values)) + " fit thread(s) per task"
+    counts = [slots] if isinstance(slots, int) else sorted(set(slots.values())) or [1]
+    plural = "s" if counts[-1] > 1 else ""
+    each = f"{'/'.join(map(str, counts))} fit thread{plural} per task"
     address = client.scheduler_info(n_workers=0).get("address", "?")
     return f"{len(workers)} Dask workers at {address} ({each})"
 
