@@ -30,7 +30,11 @@ import sys
 import tempfile
 import time
 
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent.parent / "tests"))
+# This file's name is Dask's package name: keep bench/ off the path so `import distributed`
+# finds Dask's (tests/ gives the PLY writer of the tests).
+HERE = pathlib.Path(__file__).resolve().parent
+sys.path[:] = [p for p in sys.path if pathlib.Path(p or ".").resolve() != HERE]
+sys.path.insert(0, str(HERE.parent / "tests"))
 
 import foldmatch_rs as fm
 from foldmatch_rs import _foldmatch_rs as core

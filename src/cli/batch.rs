@@ -68,7 +68,10 @@ pub(super) fn setup(
             dir,
             recursive,
             glob,
-        } => (dir.to_path_buf(), folder_scans(dir, out_dir, recursive, glob)?),
+        } => (
+            dir.to_path_buf(),
+            folder_scans(dir, out_dir, recursive, glob)?,
+        ),
         Source::Files(paths) => named_files(paths)?,
     };
     std::fs::create_dir_all(out_dir).map_err(|e| format!("{}: {e}", out_dir.display()))?;

@@ -233,7 +233,9 @@ impl RunBook {
             },
             (None, Some(files)) => {
                 if request.recursive || request.glob.is_some() {
-                    return Err("recursive and glob apply to a folder, not to a list of files".into());
+                    return Err(
+                        "recursive and glob apply to a folder, not to a list of files".into(),
+                    );
                 }
                 Source::Files(files)
             }
@@ -503,7 +505,10 @@ mod tests {
         ))
         .unwrap();
         assert_eq!(run.scheduler, "tcp://h:8786");
-        assert_eq!((run.workers, run.threads, run.verbosity), (Some(3), Some(1), "quiet"));
+        assert_eq!(
+            (run.workers, run.threads, run.verbosity),
+            (Some(3), Some(1), "quiet")
+        );
         let r = &run.request;
         assert_eq!(r.command, RunKind::Batch);
         assert!(r.resume && r.format == "obj");
@@ -513,8 +518,8 @@ mod tests {
         let back: Request = serde_json::from_str(&text).unwrap();
         let params = back.param_args().to_params_over("default").unwrap();
         assert_eq!((params.iterations, params.psi), (7, 0.2));
-        let run = Request::from_cli(argv("foldmatch sequence t.ply f -o o --scheduler local"))
-            .unwrap();
+        let run =
+            Request::from_cli(argv("foldmatch sequence t.ply f -o o --scheduler local")).unwrap();
         assert_eq!(run.request.command, RunKind::Sequence);
         assert_eq!(run.request.command.default_preset(), "tracking");
     }

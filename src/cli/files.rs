@@ -289,8 +289,7 @@ mod tests {
             std::fs::create_dir_all(p.parent().unwrap()).unwrap();
             std::fs::write(p, b"").unwrap();
         }
-        let (common, found) =
-            named_files(&[root.join("a/b/y.obj"), root.join("a/x.ply")]).unwrap();
+        let (common, found) = named_files(&[root.join("a/b/y.obj"), root.join("a/x.ply")]).unwrap();
         assert_eq!(common, std::path::absolute(root.join("a")).unwrap());
         let names: Vec<_> = found.iter().map(|f| f.name.as_str()).collect();
         assert_eq!(names, ["b/y.obj", "x.ply"]);

@@ -21,8 +21,7 @@ fn verbosity(name: &str) -> PyResult<Verbosity> {
 }
 
 fn from_json<T: serde::de::DeserializeOwned>(what: &str, text: &str) -> PyResult<T> {
-    serde_json::from_str(text)
-        .map_err(|e| raise("InvalidParameterError", format!("{what}: {e}")))
+    serde_json::from_str(text).map_err(|e| raise("InvalidParameterError", format!("{what}: {e}")))
 }
 
 fn to_json<T: serde::Serialize>(value: &T) -> String {
