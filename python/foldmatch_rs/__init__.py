@@ -11,6 +11,9 @@ C-contiguous float64 arrays are used without a copy; other dtypes or layouts are
 Outputs are NumPy arrays that own memory allocated by Rust. The GIL is released while the core
 computes.
 
+Many scans or 4D sequences on a Dask cluster: :mod:`foldmatch_rs.distributed` (the ``dask``
+extra; ``import foldmatch_rs`` does not import Dask).
+
 Examples
 --------
 >>> import foldmatch_rs as fm
