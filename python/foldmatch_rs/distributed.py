@@ -213,7 +213,7 @@ def connect(
                 n_workers=workers or _cores(),
                 threads_per_worker=1,
                 processes=True,
-                dashboard_address=None,
+                dashboard_address=":0",  # any free port: never a warning about 8787
                 silence_logs=logging.ERROR,
             )
         try:
