@@ -187,12 +187,14 @@ def test_resume_redoes_nothing(client, data):
 def test_two_sequences_tracked_in_parallel_equal_their_local_runs(client, data):
     walk = scan_folder(data, "walk", 4)
     jump = scan_folder(data, "jump", 4, points=350)
-    for name in ("walk", "jump"):
+    # A corrupt frame: recorded, and the next frame starts from the last good fit (frame1).
+    (jump / "frame1b.ply").write_bytes(b"ply\nformat ascii 1.0\n")
+    for name, status in (("walk", 0), ("jump", 2)):
         out = local(
             "sequence", "template.ply", name, "-o", f"local/{name}", "--iterations", ITERATIONS,
             cwd=data,
         )  # fmt: skip
-        assert out.returncode == 0, out.stderr
+        assert out.returncode == status, out.stderr
     with distributed.get_task_stream(client) as stream:
         reports = fmd.track_sequences(
             data / "template.ply",
@@ -203,18 +205,19 @@ def test_two_sequences_tracked_in_parallel_equal_their_local_runs(client, data):
         )
     assert outputs(data / "dask") == outputs(data / "local")
     assert len(outputs(data / "local")) == 8
+    warm = {
+        "walk": [None, "frame0.ply", "frame1.ply", "frame2.ply"],
+        "jump": [None, "frame0.ply", "frame1.ply", "frame1.ply", "frame2.ply"],
+    }
     for name in ("walk", "jump"):
         mine = reports[name]
         theirs = json.loads((data / "local" / name / "report.json").read_text())
         assert mine["command"] == "sequence" and mine["summary"]["ok"] == 4
-        assert [f["warm_start"] if "warm_start" in f else None for f in mine["files"]] == [
-            None,
-            "frame0.ply",
-            "frame1.ply",
-            "frame2.ply",
-        ]
-        assert [f.get("warm_start") for f in mine["files"]] == [f.get("warm_start") for f in theirs["files"]]
+        assert [f.get("warm_start") for f in mine["files"]] == warm[name]
+        assert [f.get("warm_start") for f in theirs["files"]] == warm[name]
+        assert statuses(mine) == statuses(theirs)
         assert mine["params"] == theirs["params"]
+    assert statuses(reports["jump"])["frame1b.ply"] == "error"
     # The two chains ran on both workers.
     workers = {t["worker"] for t in stream.data if t["key"].startswith("foldmatch-sequence")}
     assert len(workers) == 2
@@ -318,6 +321,44 @@ def test_a_worker_killed_mid_run_loses_nothing(client, data):
     assert outputs(data / "dask") == outputs(data / "local")
     client.wait_for_workers(2, timeout=60)
     assert killed[1] not in client.run(os.getpid).values()
+
+
+def test_ctrl_c_cancels_and_writes_an_interrupted_report(client, data):
+    scan_folder(data, "scans", 12, points=3000)
+    address = client.scheduler_info(n_workers=0)["address"]
+    argv = [sys.executable, "-m", "foldmatch_rs", "-q", "batch", "template.ply", "scans", "-o", "out"]
+    run = subprocess.Popen(
+        [*argv, "--scheduler", address],
+        cwd=data,
+        env=ENV,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    report_path = data / "out" / "report.json"
+    deadline = time.monotonic() + 60
+    while run.poll() is None and time.monotonic() < deadline:
+        if report_path.exists() and '"status": "ok"' in report_path.read_text():
+            run.send_signal(signal.SIGINT)
+            break
+        time.sleep(0.02)
+    _, stderr = run.communicate(timeout=60)
+    assert run.returncode == 130, stderr
+    report = json.loads(report_path.read_text())
+    assert report["state"] == "interrupted"
+    summary = report["summary"]
+    assert summary["error"] == 0 and summary["ok"] >= 1
+    assert summary["pending"] + summary["interrupted"] >= 1
+    for entry in report["files"]:
+        if entry["status"] == "ok":
+            assert pathlib.Path(entry["output"]).exists(), entry
+    # Tasks already running finish on their workers; --resume then fits only what is left.
+    again = local(
+        "-q", "batch", "template.ply", "scans", "-o", "out", "--resume", "--scheduler", address, cwd=data
+    )
+    assert again.returncode == 0, again.stderr
+    resumed = json.loads(report_path.read_text())
+    assert resumed["summary"]["skipped"] == summary["ok"]
+    assert resumed["summary"]["ok"] == 12 - summary["ok"]
 
 
 def test_importing_the_package_does_not_import_dask():

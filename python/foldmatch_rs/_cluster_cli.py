@@ -53,6 +53,7 @@ def run_on_cluster(spec_json: str) -> int:
                 retries=retries,
             )
     except KeyboardInterrupt:
+        book.finish(True)  # the report of an interrupted run (no-op once it is written)
         return INTERRUPTED
     except (OSError, TimeoutError) as error:
         _error(f"--scheduler {scheduler}: cannot reach the Dask scheduler: {error}")
