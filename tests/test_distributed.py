@@ -370,6 +370,20 @@ def test_importing_the_package_does_not_import_dask():
     assert out.returncode == 0, out.stderr
 
 
+def test_without_dask_scheduler_says_what_to_install(data):
+    scan_folder(data, "scans", 1)
+    code = (
+        "import sys; sys.modules['dask'] = sys.modules['distributed'] = None; "
+        "from foldmatch_rs.__main__ import main; "
+        "sys.argv = ['foldmatch', 'batch', 'template.ply', 'scans', '-o', 'out', '--scheduler', 'local']; "
+        "main()"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, cwd=data)
+    assert out.returncode == 1
+    assert "pip install 'foldmatch-rs[dask]'" in out.stderr
+    assert not (data / "out").exists()
+
+
 FORKED_WORKERS = """
 import dask, sys, numpy as np
 import foldmatch_rs as fm
