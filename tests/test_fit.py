@@ -97,6 +97,23 @@ def test_layouts_and_dtypes_give_the_same_result(case):
     assert a.vertices.dtype == np.float64
 
 
+def unaligned(a: np.ndarray) -> np.ndarray:
+    """A C-contiguous copy of ``a`` one byte off its alignment (as an array unpickled from a
+    buffer, e.g. by Dask, may be)."""
+    raw = np.zeros(a.nbytes + 1, dtype=np.uint8)
+    out = raw[1:].view(a.dtype).reshape(a.shape)
+    out[...] = a
+    assert out.flags.c_contiguous and not out.flags.aligned
+    return out
+
+
+def test_unaligned_arrays_are_accepted(case):
+    v, f, x = case["template_vertices"], case["faces"], case["scan"]
+    base = fm.fit(v, f, x, iterations=5)
+    moved = fm.fit(unaligned(v), unaligned(f.astype(np.int64)), unaligned(x), iterations=5)
+    assert np.array_equal(base.vertices, moved.vertices)
+
+
 def test_outputs_own_their_memory(fitted):
     for a in (fitted.vertices, fitted.wvf, fitted.wvf_accumulated, fitted.wvf_magnitude):
         assert a.flags.owndata or a.base is not None  # a NumPy array wrapping Rust's Vec

@@ -11,6 +11,9 @@ C-contiguous float64 arrays are used without a copy; other dtypes or layouts are
 Outputs are NumPy arrays that own memory allocated by Rust. The GIL is released while the core
 computes.
 
+Many scans or 4D sequences on a Dask cluster: :mod:`foldmatch_rs.distributed` (the ``dask``
+extra; ``import foldmatch_rs`` does not import Dask).
+
 Examples
 --------
 >>> import foldmatch_rs as fm
@@ -39,6 +42,7 @@ from .errors import (
     MeshFileError,
     MeshFormatError,
     NumericalError,
+    RunSetupError,
 )
 
 __version__: str = _core.__version__
@@ -57,7 +61,8 @@ PAPER_PARAMS: dict[str, Any] = json.loads(_core.default_params_json("paper"))
 
 
 def _points(x: Any, name: str) -> np.ndarray:
-    """An ``(n, 3)`` C-contiguous float64 view of ``x`` (no copy when it already is one)."""
+    """An ``(n, 3)`` C-contiguous, aligned float64 view of ``x`` (no copy when it already is
+    one; arrays unpickled from a buffer, as Dask delivers them, may be unaligned)."""
     if hasattr(x, "vertices"):  # trimesh.Trimesh / PointCloud
         x = x.vertices
     a = np.asarray(x)
@@ -67,7 +72,7 @@ def _points(x: Any, name: str) -> np.ndarray:
         raise InvalidInputError(f"{name}: expected at least one point, got 0 rows")
     if not np.issubdtype(a.dtype, np.number) or np.issubdtype(a.dtype, np.complexfloating):
         raise InvalidInputError(f"{name}: expected a real numeric array, got dtype {a.dtype}")
-    return np.ascontiguousarray(a, dtype=np.float64)
+    return np.require(a, dtype=np.float64, requirements=["C", "A"])
 
 
 def _faces(f: Any, name: str) -> np.ndarray:
@@ -80,7 +85,7 @@ def _faces(f: Any, name: str) -> np.ndarray:
     if not np.issubdtype(a.dtype, np.integer):
         if not np.all(np.isfinite(a)) or not np.all(np.equal(np.mod(a, 1), 0)):
             raise InvalidInputError(f"{name}: face indices must be integers")
-    return np.ascontiguousarray(a, dtype=np.int64)
+    return np.require(a, dtype=np.int64, requirements=["C", "A"])
 
 
 def _split_mesh(mesh: Any, faces: Any, name: str) -> tuple[np.ndarray, Optional[np.ndarray]]:
@@ -634,6 +639,7 @@ __all__ = [
     "InvalidInputError",
     "InvalidParameterError",
     "MeshFileError",
+    "RunSetupError",
     "MeshFormatError",
     "NumericalError",
     "FitCancelled",

@@ -37,6 +37,11 @@ class FitCancelled(FoldMatchError, RuntimeError):
     """The fit was cancelled."""
 
 
+class RunSetupError(FoldMatchError, ValueError):
+    """A batch or sequence could not start: the template is unreadable, no scan was found, a
+    parameter is invalid or the output folder cannot be written (the message says which)."""
+
+
 class InternalError(FoldMatchError, RuntimeError):
     """A bug inside foldmatch_rs (a caught Rust panic). Please report it."""
 
@@ -49,5 +54,6 @@ __all__ = [
     "MeshFormatError",
     "NumericalError",
     "FitCancelled",
+    "RunSetupError",
     "InternalError",
 ]

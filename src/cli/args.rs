@@ -158,6 +158,12 @@ pub struct BatchCmd {
     /// Folder of ground-truth meshes named like the scans (same relative path), for f_R.
     #[arg(long, value_name = "DIR")]
     pub gt_dir: Option<PathBuf>,
+    /// Run the fits on a Dask cluster: `local` (worker processes on this machine) or the
+    /// address of a running scheduler (tcp://host:8786). Only from the Python package with its
+    /// `dask` extra (`python -m foldmatch_rs`, `pip install 'foldmatch-rs[dask]'`); see
+    /// docs/cluster.md.
+    #[arg(long, value_name = "ADDRESS")]
+    pub scheduler: Option<String>,
     #[command(flatten)]
     #[allow(missing_docs)]
     pub params: ParamArgs,
@@ -189,6 +195,12 @@ pub struct SequenceCmd {
     /// Folder of ground-truth meshes named like the frames, for f_R.
     #[arg(long, value_name = "DIR")]
     pub gt_dir: Option<PathBuf>,
+    /// Run the fits on a Dask cluster: `local` (worker processes on this machine) or the
+    /// address of a running scheduler (tcp://host:8786). Only from the Python package with its
+    /// `dask` extra (`python -m foldmatch_rs`, `pip install 'foldmatch-rs[dask]'`); see
+    /// docs/cluster.md.
+    #[arg(long, value_name = "ADDRESS")]
+    pub scheduler: Option<String>,
     #[command(flatten)]
     #[allow(missing_docs)]
     pub params: ParamArgs,

@@ -6,7 +6,7 @@
 //! end, so an interrupted or killed run still leaves a report of what was done.
 
 use super::args::{BatchCmd, ParamArgs, SequenceCmd};
-use super::files::{find_scans, output_paths, Found};
+use super::files::{find_scans, named_files, output_paths, Found};
 use super::interrupt;
 use super::job::{read_named, Job, Runner, Template};
 use super::report::{write_json, FileReport, RunReport, RunState, Status, Summary};
@@ -22,57 +22,69 @@ use std::time::{Duration, Instant};
 /// Minimum time between two rewrites of the report while the run goes on.
 const REPORT_INTERVAL: Duration = Duration::from_secs(1);
 
+/// Where the scans of a run come from.
+pub(super) enum Source<'a> {
+    /// Every `.ply` / `.obj` file of a folder (natural order).
+    Folder {
+        /// The folder.
+        dir: &'a Path,
+        /// Also look into subfolders.
+        recursive: bool,
+        /// Only the files matching this pattern.
+        glob: Option<&'a str>,
+    },
+    /// These files, in this order (named from the folder that holds them all).
+    Files(&'a [PathBuf]),
+}
+
 /// What `batch` and `sequence` share before the first fit.
-struct Setup {
-    params: FitParams,
-    template: Template,
-    found: Vec<Found>,
-    outputs: Vec<PathBuf>,
-    out_dir: PathBuf,
-    report_path: PathBuf,
+pub(super) struct Setup {
+    pub(super) params: FitParams,
+    pub(super) template: Template,
+    pub(super) found: Vec<Found>,
+    pub(super) outputs: Vec<PathBuf>,
+    pub(super) input_dir: PathBuf,
+    pub(super) out_dir: PathBuf,
+    pub(super) report_path: PathBuf,
     previous: HashMap<String, FileReport>,
 }
 
 #[allow(clippy::too_many_arguments)]
-fn setup(
+pub(super) fn setup(
     ui: &Ui,
     params: &ParamArgs,
     default_preset: &str,
     template: &Path,
-    input_dir: &Path,
+    source: Source<'_>,
     out_dir: &Path,
-    recursive: bool,
-    glob: Option<&str>,
     extension: &str,
     resume: bool,
 ) -> Result<Setup, String> {
     let params = params.to_params_over(default_preset)?;
     ui.detail(format_args!("parameters: {}", params.to_json()));
     let template = Template::load(template, &params)?;
-    if !input_dir.is_dir() {
-        return Err(match std::fs::metadata(input_dir) {
-            Err(e) => format!("{}: {e}", input_dir.display()),
-            Ok(_) => format!("{}: not a folder", input_dir.display()),
-        });
-    }
-    if let (Ok(a), Ok(b)) = (input_dir.canonicalize(), out_dir.canonicalize()) {
-        if a == b {
+    let (input_dir, found) = match source {
+        Source::Folder {
+            dir,
+            recursive,
+            glob,
+        } => (
+            dir.to_path_buf(),
+            folder_scans(dir, out_dir, recursive, glob)?,
+        ),
+        Source::Files(paths) => named_files(paths)?,
+    };
+    std::fs::create_dir_all(out_dir).map_err(|e| format!("{}: {e}", out_dir.display()))?;
+    let outputs = output_paths(&found, out_dir, extension);
+    for (scan, output) in found.iter().zip(&outputs) {
+        if scan.path.canonicalize().ok() == output.canonicalize().ok() && output.exists() {
             return Err(format!(
-                "the output folder {} is the input folder: choose another -o",
-                out_dir.display()
+                "the output {} is the scan {}: choose another -o",
+                output.display(),
+                scan.path.display()
             ));
         }
     }
-    let found = find_scans(input_dir, recursive, glob, Some(out_dir))?;
-    if found.is_empty() {
-        let filter = glob.map(|g| format!(" matching {g:?}")).unwrap_or_default();
-        return Err(format!(
-            "{}: no .ply or .obj files{filter}",
-            input_dir.display()
-        ));
-    }
-    std::fs::create_dir_all(out_dir).map_err(|e| format!("{}: {e}", out_dir.display()))?;
-    let outputs = output_paths(&found, out_dir, extension);
     let report_path = out_dir.join("report.json");
     let mut previous = HashMap::new();
     if resume {
@@ -98,15 +110,48 @@ fn setup(
         template,
         found,
         outputs,
+        input_dir,
         out_dir: out_dir.to_path_buf(),
         report_path,
         previous,
     })
 }
 
+/// The scans of a folder, which must not be the output folder.
+fn folder_scans(
+    input_dir: &Path,
+    out_dir: &Path,
+    recursive: bool,
+    glob: Option<&str>,
+) -> Result<Vec<Found>, String> {
+    if !input_dir.is_dir() {
+        return Err(match std::fs::metadata(input_dir) {
+            Err(e) => format!("{}: {e}", input_dir.display()),
+            Ok(_) => format!("{}: not a folder", input_dir.display()),
+        });
+    }
+    if let (Ok(a), Ok(b)) = (input_dir.canonicalize(), out_dir.canonicalize()) {
+        if a == b {
+            return Err(format!(
+                "the output folder {} is the input folder: choose another -o",
+                out_dir.display()
+            ));
+        }
+    }
+    let found = find_scans(input_dir, recursive, glob, Some(out_dir))?;
+    if found.is_empty() {
+        let filter = glob.map(|g| format!(" matching {g:?}")).unwrap_or_default();
+        return Err(format!(
+            "{}: no .ply or .obj files{filter}",
+            input_dir.display()
+        ));
+    }
+    Ok(found)
+}
+
 impl Setup {
     /// The entry carried over from the earlier run when `--resume` may skip the file.
-    fn resumable(&self, i: usize) -> Option<FileReport> {
+    pub(super) fn resumable(&self, i: usize) -> Option<FileReport> {
         let old = self.previous.get(&self.found[i].name)?;
         if !old.status.is_done() || !self.outputs[i].is_file() {
             return None;
@@ -118,17 +163,17 @@ impl Setup {
         Some(entry)
     }
 
-    fn gt_for(&self, gt_dir: Option<&Path>, i: usize) -> Option<PathBuf> {
+    pub(super) fn gt_for(&self, gt_dir: Option<&Path>, i: usize) -> Option<PathBuf> {
         let p = gt_dir?.join(&self.found[i].name);
         p.is_file().then_some(p)
     }
 
-    fn report(&self, command: &str, input_dir: &Path, files: Vec<FileReport>) -> RunReport {
+    pub(super) fn report(&self, command: &str, files: Vec<FileReport>) -> RunReport {
         RunReport {
             foldmatch_version: env!("CARGO_PKG_VERSION").into(),
             command: command.into(),
             template: self.template.path.display().to_string(),
-            input_dir: input_dir.display().to_string(),
+            input_dir: self.input_dir.display().to_string(),
             output_dir: self.out_dir.display().to_string(),
             state: RunState::Running,
             seconds: 0.0,
@@ -140,8 +185,8 @@ impl Setup {
 }
 
 /// The report shared by the workers.
-struct Shared {
-    report: RunReport,
+pub(super) struct Shared {
+    pub(super) report: RunReport,
     path: PathBuf,
     started: Instant,
     last_write: Instant,
@@ -150,8 +195,8 @@ struct Shared {
 
 impl Shared {
     /// Starts a run's report and writes it once (state `running`), so an interrupted run
-    /// still leaves a valid report; `None` (after logging why) when it cannot be written.
-    fn start(report: RunReport, path: &Path, ui: &Ui) -> Option<Self> {
+    /// still leaves a valid report; an error when it cannot be written.
+    pub(super) fn start(report: RunReport, path: &Path) -> Result<Self, String> {
         let now = Instant::now();
         let mut shared = Self {
             report,
@@ -162,10 +207,9 @@ impl Shared {
         };
         shared.write(RunState::Running);
         if let Some(e) = shared.write_error.take() {
-            ui.error(format_args!("cannot write the report: {e}"));
-            return None;
+            return Err(format!("cannot write the report: {e}"));
         }
-        Some(shared)
+        Ok(shared)
     }
 
     fn write(&mut self, state: RunState) {
@@ -178,7 +222,7 @@ impl Shared {
         }
     }
 
-    fn record(&mut self, i: usize, entry: FileReport) {
+    pub(super) fn record(&mut self, i: usize, entry: FileReport) {
         self.report.files[i] = entry;
         if self.last_write.elapsed() >= REPORT_INTERVAL {
             self.write(RunState::Running);
@@ -187,7 +231,7 @@ impl Shared {
 }
 
 /// One log line per finished file.
-fn log_file(ui: &Ui, done: usize, total: usize, entry: &FileReport) {
+pub(super) fn log_file(ui: &Ui, done: usize, total: usize, entry: &FileReport) {
     let width = total.to_string().len();
     let head = format!("[{done:>width$}/{total}]");
     match entry.status {
@@ -216,8 +260,8 @@ fn log_file(ui: &Ui, done: usize, total: usize, entry: &FileReport) {
 }
 
 /// Exit code and summary line of a finished run.
-fn finish(ui: &Ui, mut shared: Shared, what: &str) -> i32 {
-    let interrupted = interrupt::requested();
+/// `interrupted`: the run was stopped (Ctrl-C) before every file was attempted.
+pub(super) fn finish(ui: &Ui, shared: &mut Shared, what: &str, interrupted: bool) -> i32 {
     shared.write(if interrupted {
         RunState::Interrupted
     } else {
@@ -270,15 +314,20 @@ fn finish(ui: &Ui, mut shared: Shared, what: &str) -> i32 {
 /// `foldmatch batch`.
 pub fn batch(cmd: &BatchCmd, ctx: &Context) -> i32 {
     let ui = &ctx.ui;
+    if let Some(address) = &cmd.scheduler {
+        return needs_python(ui, "batch", address);
+    }
     let setup = match setup(
         ui,
         &cmd.params,
         "default",
         &cmd.template,
-        &cmd.scan_dir,
+        Source::Folder {
+            dir: &cmd.scan_dir,
+            recursive: cmd.recursive,
+            glob: cmd.glob.as_deref(),
+        },
         &cmd.output,
-        cmd.recursive,
-        cmd.glob.as_deref(),
         cmd.format.extension(),
         cmd.resume,
     ) {
@@ -316,12 +365,12 @@ pub fn batch(cmd: &BatchCmd, ctx: &Context) -> i32 {
         todo.len(),
         setup.out_dir.display()
     ));
-    let Some(shared) = Shared::start(
-        setup.report("batch", &cmd.scan_dir, files),
-        &setup.report_path,
-        ui,
-    ) else {
-        return exit_code::FATAL;
+    let shared = match Shared::start(setup.report("batch", files), &setup.report_path) {
+        Ok(s) => s,
+        Err(e) => {
+            ui.error(e);
+            return exit_code::FATAL;
+        }
     };
     let done = AtomicUsize::new(0);
     for entry in shared
@@ -373,9 +422,20 @@ pub fn batch(cmd: &BatchCmd, ctx: &Context) -> i32 {
     files_bar.finish();
     finish(
         ui,
-        shared.into_inner().unwrap_or_else(|p| p.into_inner()),
+        &mut shared.into_inner().unwrap_or_else(|p| p.into_inner()),
         "batch",
+        interrupt::requested(),
     )
+}
+
+/// `--scheduler` given to the standalone program: the Dask path lives in the Python package.
+fn needs_python(ui: &Ui, command: &str, address: &str) -> i32 {
+    ui.error(format_args!(
+        "--scheduler {address}: running on a Dask cluster needs the Python package \
+         (pip install 'foldmatch-rs[dask]', then `python -m foldmatch_rs {command} ... \
+         --scheduler {address}`); see docs/cluster.md"
+    ));
+    exit_code::FATAL
 }
 
 /// Default `--jobs`: one file per core, at most 4 (each fit is itself parallel).
@@ -389,16 +449,21 @@ fn default_jobs() -> usize {
 /// `foldmatch sequence`.
 pub fn sequence(cmd: &SequenceCmd, ctx: &Context) -> i32 {
     let ui = &ctx.ui;
+    if let Some(address) = &cmd.scheduler {
+        return needs_python(ui, "sequence", address);
+    }
     let setup = match setup(
         ui,
         &cmd.params,
         // Warm-started frames start close to their scans: no softening annealing.
         "tracking",
         &cmd.template,
-        &cmd.frame_dir,
+        Source::Folder {
+            dir: &cmd.frame_dir,
+            recursive: false,
+            glob: cmd.glob.as_deref(),
+        },
         &cmd.output,
-        false,
-        cmd.glob.as_deref(),
         cmd.format.extension(),
         cmd.resume,
     ) {
@@ -425,12 +490,12 @@ pub fn sequence(cmd: &SequenceCmd, ctx: &Context) -> i32 {
             )
         })
         .collect();
-    let Some(mut shared) = Shared::start(
-        setup.report("sequence", &cmd.frame_dir, files),
-        &setup.report_path,
-        ui,
-    ) else {
-        return exit_code::FATAL;
+    let mut shared = match Shared::start(setup.report("sequence", files), &setup.report_path) {
+        Ok(s) => s,
+        Err(e) => {
+            ui.error(e);
+            return exit_code::FATAL;
+        }
     };
     let runner = Runner {
         template: &setup.template,
@@ -481,5 +546,5 @@ pub fn sequence(cmd: &SequenceCmd, ctx: &Context) -> i32 {
         files_bar.inc();
     }
     files_bar.finish();
-    finish(ui, shared, "sequence")
+    finish(ui, &mut shared, "sequence", interrupt::requested())
 }

@@ -85,6 +85,59 @@ pub fn find_scans(
     Ok(found)
 }
 
+/// The scans of a list of paths: each must be a `.ply` / `.obj` file; their names (the
+/// report's `name`, and the outputs' relative paths) are their paths relative to the deepest
+/// folder that holds them all, which is returned first. The order is kept; a path given twice
+/// is an error.
+pub fn named_files(paths: &[PathBuf]) -> Result<(PathBuf, Vec<Found>), String> {
+    if paths.is_empty() {
+        return Err("no scans given".into());
+    }
+    let mut absolute = Vec::with_capacity(paths.len());
+    for path in paths {
+        if !is_mesh(path) {
+            return Err(format!("{}: not a .ply or .obj file", path.display()));
+        }
+        if !path.is_file() {
+            return Err(match std::fs::metadata(path) {
+                Err(e) => format!("{}: {e}", path.display()),
+                Ok(_) => format!("{}: not a file", path.display()),
+            });
+        }
+        let abs = std::path::absolute(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        if absolute.contains(&abs) {
+            return Err(format!("{}: given twice", path.display()));
+        }
+        absolute.push(abs);
+    }
+    let mut root = absolute[0]
+        .parent()
+        .map(Path::to_path_buf)
+        .unwrap_or_default();
+    while !absolute.iter().all(|p| p.starts_with(&root)) {
+        if !root.pop() {
+            break;
+        }
+    }
+    let found = paths
+        .iter()
+        .zip(&absolute)
+        .map(|(path, abs)| {
+            let relative = abs.strip_prefix(&root).unwrap_or(abs);
+            let name = relative
+                .components()
+                .map(|c| c.as_os_str().to_string_lossy())
+                .collect::<Vec<_>>()
+                .join("/");
+            Found {
+                name,
+                path: path.clone(),
+            }
+        })
+        .collect();
+    Ok((root, found))
+}
+
 /// The output path of every scan: `out_dir/<relative path with the format's extension>`; when
 /// two scans would share an output (`a.ply` and `a.obj`), each of them keeps its own extension
 /// before the new one (`a.ply.ply`, `a.obj.ply`).
@@ -225,6 +278,31 @@ mod tests {
         assert!(find_scans(&root.join("missing"), false, None, None)
             .unwrap_err()
             .contains("missing"));
+    }
+
+    #[test]
+    fn listed_files_are_named_from_their_common_folder() {
+        let dir = tempfile::tempdir().unwrap();
+        let root = dir.path();
+        for name in ["a/x.ply", "a/b/y.obj", "a/notes.txt"] {
+            let p = root.join(name);
+            std::fs::create_dir_all(p.parent().unwrap()).unwrap();
+            std::fs::write(p, b"").unwrap();
+        }
+        let (common, found) = named_files(&[root.join("a/b/y.obj"), root.join("a/x.ply")]).unwrap();
+        assert_eq!(common, std::path::absolute(root.join("a")).unwrap());
+        let names: Vec<_> = found.iter().map(|f| f.name.as_str()).collect();
+        assert_eq!(names, ["b/y.obj", "x.ply"]);
+        assert_eq!(found[0].path, root.join("a/b/y.obj"));
+        let twice = named_files(&[root.join("a/x.ply"), root.join("a/x.ply")]);
+        assert!(twice.unwrap_err().contains("given twice"));
+        assert!(named_files(&[root.join("a/notes.txt")])
+            .unwrap_err()
+            .contains("not a .ply or .obj"));
+        assert!(named_files(&[root.join("a/gone.ply")])
+            .unwrap_err()
+            .contains("gone.ply"));
+        assert!(named_files(&[]).is_err());
     }
 
     #[test]

@@ -10,6 +10,10 @@
 //! | `eval TEMPLATE FITTED SCAN` | the paper's metrics as JSON |
 //! | `demo [-o DIR]` | the built-in generated example, fitted, with before/after figures |
 //!
+//! `batch` and `sequence` with `--scheduler ADDRESS|local` run on a Dask cluster from the
+//! Python package only (`foldmatch_rs.distributed`, driven through [`cluster`]); the standalone
+//! program says so and exits with 1.
+//!
 //! Exit status ([`exit_code`]): 0 success, 1 usage or fatal error, 2 partial failure (some
 //! files of a batch or sequence failed), 130 interrupted by Ctrl-C.
 //!
@@ -21,6 +25,7 @@
 
 mod args;
 mod batch;
+pub mod cluster;
 mod demo;
 mod eval;
 mod files;
