@@ -12,7 +12,8 @@ and, per group, the medians of f_R, f_λ, f_H, f_E, f_F and scan→fit mean::
     .venv/bin/python bench/variants.py --preset pull --groups real,small,sheets,wind,paper
 
 Groups: ``real`` (22 pre-placed real-garment cases), ``small`` / ``paper`` (generated, rotated
-and offset), ``sheets`` (24 random sheets), ``wind`` (30 wind frames). Results go to
+and offset), ``sheets`` (24 random sheets), ``wind`` (30 wind frames), ``dressed`` (6 scans of
+dressed people, bench/dressed.py: whole scan, placed template; not in the default groups). Results go to
 ``--out`` (JSON, one row per case and variant). Each variant is also scored against the
 best peer of every case (``--peers``: by default a ``bench/compare.py`` run's
 ``bench/out/results.json`` if there is one, else ``bench/peer_figures.json``, which holds all
@@ -109,7 +110,12 @@ GROUPS = {"real": ("real", "real"), "small": ("small", "small"), "paper": ("pape
 
 
 def group_cases(group: str) -> list[cases_mod.Case]:
-    """The cases of a group, exactly as bench/compare.py builds them."""
+    """The cases of a group, exactly as bench/compare.py builds them (``dressed``: the
+    dressed-body scans of bench/dressed_scans.py, whole scan, placed template)."""
+    if group == "dressed":
+        import dressed_scans
+
+        return list(dressed_scans.dressed_cases())
     if group not in GROUPS:
         raise SystemExit(f"unknown group {group!r} ({', '.join(GROUPS)})")
     source, tag = GROUPS[group]
@@ -131,6 +137,8 @@ def parse_variant(text: str) -> tuple[str, dict[str, Any]]:
 #: docs/results.md does not print case by case): the peers' code and the cases are
 #: deterministic, so the figures stand until either changes.
 PEER_FIGURES = HERE / "peer_figures.json"
+#: The same for the dressed-body cases (group ``dressed``), written by bench/dressed.py --peers.
+PEER_FIGURES_DRESSED = HERE / "peer_figures_dressed.json"
 
 #: Every compared method but FoldMatch's own two configurations (NRGa counts as a peer).
 PEERS = [m for m in peers.METHODS if m not in ("foldmatch", "foldmatch_paper")]
@@ -226,6 +234,9 @@ def against_peers(rows: list[dict[str, Any]], best: Best, source: str) -> None:
     print("| :--- |" + " ---: |" * (len(groups) + 3))
     for v in dict.fromkeys(r["variant"] for r in rows):
         sel = [r for r in rows if r["variant"] == v and r["case"] in best]
+        if not sel:  # no case of the run has peer figures (e.g. group dressed before --peers)
+            print(f"| {v} | " + " | ".join("— (no peer figures)" for _ in groups) + " | — | — | — |")
+            continue
         cells = []
         for g in groups:
             gs = [(r, best[r["case"]]) for r in sel if r["group"] == g]
@@ -301,11 +312,14 @@ def summary(rows: list[dict[str, Any]]) -> None:
 def load_best(names: list[str] | None) -> tuple[Best, str]:
     """The best-peer figures of the files `names` (merged, a later file's cases replacing an
     earlier's; see ``--peers``), and a label naming them. None: ``bench/out/results.json`` if a
-    bench/compare.py run left one, else :data:`PEER_FIGURES`, else docs/results.md."""
+    bench/compare.py run left one, else :data:`PEER_FIGURES`, else docs/results.md; and
+    :data:`PEER_FIGURES_DRESSED` when present."""
     if names is None:
         json_run = HERE / "out" / "results.json"
         fallback = PEER_FIGURES if PEER_FIGURES.is_file() else HERE.parent / "docs" / "results.md"
         names = [str(json_run if json_run.is_file() else fallback)]
+        if PEER_FIGURES_DRESSED.is_file():  # bench/dressed.py --peers (group ``dressed``)
+            names.append(str(PEER_FIGURES_DRESSED))
     best: Best = {}
     for name in names:
         peers_file = pathlib.Path(name)

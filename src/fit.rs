@@ -126,10 +126,10 @@ pub const AUTO_COARSE_RINGS_MAX: usize = 12;
 pub const FAST_TWO_WAY: f64 = 3.0;
 
 /// The default [`FitParams::two_way_trust`].
-pub const DEFAULT_TWO_WAY_TRUST: f64 = 0.0;
+pub const DEFAULT_TWO_WAY_TRUST: f64 = 4.0;
 
 /// The default [`FitParams::two_way_rim`].
-pub const DEFAULT_TWO_WAY_RIM: f64 = 0.0;
+pub const DEFAULT_TWO_WAY_RIM: f64 = 1.0;
 
 /// Iterations of the `"accurate"` preset ([`FitParams::accurate`]).
 pub const ACCURATE_ITERATIONS: usize = 150;
@@ -1536,9 +1536,12 @@ impl Prepared {
         };
 
         let edge_length = mean_edge_length(&start, &faces);
-        let rim = if schedules
-            .iter()
-            .any(|p| p.two_way_rim > 0.0 && p.two_way > 0.0)
+        // The rim rule is for scans that hold more than the garment: on a garment alone, the
+        // scan beyond a boundary is garment the template has yet to cover.
+        let rim = if garment.is_some()
+            && schedules
+                .iter()
+                .any(|p| p.two_way_rim > 0.0 && p.two_way > 0.0)
         {
             let vertices = crate::mesh::boundary_vertices(&faces, m);
             let rings = Neighborhoods::from_rows(
@@ -1587,6 +1590,15 @@ impl Prepared {
             }),
             diagnostics,
         })
+    }
+
+    /// The two-way trust radius's multiple c of a schedule: [`FitParams::two_way_trust`], or
+    /// [`DRESSED_TRUST_FACTOR`] of it on a scan that holds more than the garment.
+    fn trust(&self, params: &FitParams) -> f64 {
+        match self.garment {
+            Some(_) => DRESSED_TRUST_FACTOR * params.two_way_trust,
+            None => params.two_way_trust,
+        }
     }
 
     /// The scan points a phase sees: the whole scan (`stride` 1), or the scan sample of that
@@ -1682,6 +1694,8 @@ struct Attraction {
     nearest: Vec<f64>,
     /// The floor of the two-way trust radius (the template's mean edge length).
     edge_length: f64,
+    /// The trust radius's multiple c ([`Prepared::trust`]).
+    trust: f64,
     /// Every point's outward direction on the rim ([`FitParams::two_way_rim`]; empty when
     /// off, or on a vertex sample).
     outward: Vec<[f64; 3]>,
@@ -1690,7 +1704,13 @@ struct Attraction {
 impl Attraction {
     /// Buffers for `m` template points over the scan points `scan`; `edge_length` is the
     /// template's mean edge length.
-    fn new(m: usize, scan: &ScanPoints, params: &FitParams, edge_length: f64, rim: bool) -> Self {
+    fn new(
+        m: usize,
+        scan: &ScanPoints,
+        params: &FitParams,
+        prepared: &Prepared,
+        rim: bool,
+    ) -> Self {
         let (n, k) = (scan.points.len(), scan.k);
         let reverse = (params.two_way > 0.0 && params.method == Method::FoldMatch).then(|| {
             (
@@ -1704,12 +1724,13 @@ impl Attraction {
             nn_cache: params.knn_cache.then(|| NeighborCache::new(m, k, n)),
             reverse,
             proposed: vec![[0.0; 3]; m],
-            nearest: if params.two_way_trust > 0.0 {
+            nearest: if prepared.trust(params) > 0.0 {
                 vec![0.0; m]
             } else {
                 Vec::new()
             },
-            edge_length,
+            edge_length: prepared.edge_length,
+            trust: prepared.trust(params),
             outward: if rim && params.two_way_rim > 0.0 && params.two_way > 0.0 {
                 vec![[0.0; 3]; m]
             } else {
@@ -1723,11 +1744,11 @@ impl Attraction {
     fn trust_radius(
         nearest: &mut [f64],
         edge_length: f64,
-        params: &FitParams,
+        trust: f64,
         nn_d2: &[f64],
         k: usize,
     ) -> f64 {
-        if params.two_way_trust <= 0.0 || nearest.is_empty() {
+        if trust <= 0.0 || nearest.is_empty() {
             return f64::INFINITY;
         }
         for (d, row) in nearest.iter_mut().zip(nn_d2.chunks_exact(k)) {
@@ -1735,7 +1756,7 @@ impl Attraction {
         }
         let mid = nearest.len() / 2;
         let (_, median2, _) = nearest.select_nth_unstable_by(mid, f64::total_cmp);
-        params.two_way_trust * median2.sqrt().max(edge_length)
+        trust * median2.sqrt().max(edge_length)
     }
 
     /// Γᵏ_X of the points `pos` among the scan points `scan`, the two-way pulls on them, and
@@ -1777,7 +1798,9 @@ impl Attraction {
         let rim_margin = params.two_way_rim * self.edge_length;
         let forward_rim = (!self.outward.is_empty()).then(|| (&self.outward[..], rim_margin));
         let trust_radius = match self.reverse {
-            Some(_) => Self::trust_radius(&mut self.nearest, self.edge_length, params, nn_d2, k),
+            Some(_) => {
+                Self::trust_radius(&mut self.nearest, self.edge_length, self.trust, nn_d2, k)
+            }
             None => f64::INFINITY,
         };
         let extra = match self.reverse.as_mut() {
@@ -1850,8 +1873,8 @@ impl PhaseSample {
                 s,
                 prepared.scan_points(scan_stride),
                 params,
-                prepared.edge_length,
-                stride == 1,
+                prepared,
+                stride == 1 && !prepared.rim.vertices.is_empty(),
             ),
         }
     }
@@ -1911,8 +1934,8 @@ impl ScheduleRun {
                 m,
                 prepared.scan_points(1),
                 &params,
-                prepared.edge_length,
-                true,
+                prepared,
+                !prepared.rim.vertices.is_empty(),
             ),
             ws: Workspace::new(m),
             samples,
@@ -2273,6 +2296,13 @@ fn annealed(params: &FitParams, it: usize) -> NBodyParams {
 /// of the points the template explains ([`explained_points`]).
 pub const GARMENT_FRAME_RATIO: f64 = 1.5;
 
+/// The trust radius on a scan that holds more than the garment, as a fraction of
+/// [`FitParams::two_way_trust`]'s: skin and hair adjoin the garment (below a hem, out of a
+/// sleeve), where a garment alone has nothing, so the radius that is neutral on garment scans
+/// (c = 4) lets them in; ¾ of it (c = 3) keeps them out (docs/method.md "Scans of dressed
+/// people").
+pub const DRESSED_TRUST_FACTOR: f64 = 0.75;
+
 /// The scan points that the template as given explains, where the scan is much larger than
 /// the template ([`GARMENT_FRAME_RATIO`]; `None` otherwise, or when the two-way trust radius is
 /// off): those within the two-way trust radius ([`FitParams::two_way_trust`]) of the
@@ -2297,7 +2327,8 @@ fn explained_points(
         .collect();
     let mid = nearest.len() / 2;
     let median = nearest.select_nth_unstable_by(mid, f64::total_cmp).1.sqrt();
-    let radius = params.two_way_trust * median.max(mean_edge_length(template, faces));
+    let radius =
+        DRESSED_TRUST_FACTOR * params.two_way_trust * median.max(mean_edge_length(template, faces));
     let template_index = PointIndex::new(template);
     let explained: Vec<u32> = (0..scan.len() as u32)
         .into_par_iter()

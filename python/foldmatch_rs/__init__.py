@@ -242,6 +242,11 @@ def fit(
         The scan.
     target_faces : (F, 3) int, optional
         Scan triangles, when the scan is a mesh (only used for its Gaussian curvature).
+    target_weights : (N,) float, optional
+        A non-negative weight per scan point (a segmenter's mask or confidence, a scanner's
+        quality): each point's pull is scaled by its weight; 0 removes the point (a 0/1 mask
+        fits exactly as the masked scan). Wrong length, negative, NaN or all-zero weights raise
+        :class:`InvalidParameterError`.
     preset : {"default", "accurate", "fast", "paper", "tracking"}
         Where unset parameters come from: ``"default"`` (:data:`DEFAULT_PARAMS`, the most
         accurate configuration for its cost), ``"accurate"`` (the default with 150 iterations
@@ -298,6 +303,16 @@ def fit(
         Weight of the two-way attraction: every scan point also pulls its nearest template
         vertex (4.5; the tracking preset 2.0; 0 is the paper's one-way attraction; FoldMatch
         only).
+    two_way_trust : float
+        Trust radius of the two-way attraction, a multiple c of the fit's current misfit: a scan
+        point pulls its nearest vertex only within ``c * max(median vertex-to-scan distance,
+        mean edge length)`` of it, so what the garment cannot explain (skin, hair, another
+        garment) does not drag it (3; 0: every point pulls; docs/method.md "Scans of dressed
+        people").
+    two_way_rim : float
+        Rim rule, in mean edge lengths: on a scan much larger than the template (a dressed
+        body), scan points beyond the template's boundary by more than this pull nothing — the
+        skin below a hem or out of a sleeve (1; 0: off).
     two_way_pull : {"coverage", "mean"}
         How the two-way pulls on one vertex combine: ``"coverage"`` (default) sums them and
         scales by M / N, so every scan point pulls with the same weight and a vertex at the

@@ -1,0 +1,117 @@
+"""bench/dressed_scans.py's dressed-body scans (issue 26): one case built from ../shared/data (the
+ARCSim T-shirt frame 0000 on its body), checked for what a scanner would give: enough points,
+labels that say which surface a point lies on, the skin under the shirt hidden, the stated
+noise, and the same scan for the same seed."""
+
+from __future__ import annotations
+
+import pathlib
+import sys
+import zlib
+
+import numpy as np
+import pytest
+
+REPO = pathlib.Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPO / "bench"))
+
+import cases  # noqa: E402
+import dressed_scans  # noqa: E402
+
+SIGMA = dressed_scans.SCANNER["noise"]  # metres; the ARCSim source is in metres
+
+
+@pytest.fixture(scope="module")
+def tshirt(request):
+    why = cases.real_data_missing()
+    if why:
+        pytest.skip(why)
+    src = dressed_scans.load_source("tshirt-0000")
+    built = dressed_scans.build_source("tshirt-0000", seed=0, cache=False)
+    return src, built
+
+
+def boundary_vertices(f: np.ndarray) -> np.ndarray:
+    e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    uniq, count = np.unique(e, axis=0, return_counts=True)
+    return np.unique(uniq[count == 1])
+
+
+def test_scan_is_dense_and_labelled(tshirt):
+    src, built = tshirt
+    pts, lab = built["scan"], built["labels"]
+    assert len(pts) >= 40_000
+    assert len(lab) == len(pts) and set(np.unique(lab)) == {0, 1}
+    assert built["meta"]["scan"]["cameras"] == 24
+    # Each point lies on the surface its label names: closer to it than to the other one.
+    bv, bf = src["body"]
+    pick = np.random.default_rng(0).choice(len(pts), 15_000, replace=False)
+    pts, lab = pts[pick], lab[pick]
+    on_body = np.linalg.norm(pts - dressed_scans.closest_on_mesh(pts, bv, bf)[2], axis=1)
+    on_shirt = np.linalg.norm(
+        pts - dressed_scans.closest_on_mesh(pts, src["truth"], src["faces"])[2], axis=1)
+    garment = lab > 0
+    # ≤ 5σ from its own surface (isotropic noise: the normal component is N(0, σ²))
+    assert np.mean(np.where(garment, on_shirt, on_body) < 5 * SIGMA) > 0.995
+    assert np.mean(np.where(garment, on_shirt <= on_body, on_body <= on_shirt)) > 0.98
+    # The noise is the stated one: RMS distance to the own surface ≈ σ.
+    d = np.where(garment, on_shirt, on_body)
+    assert 0.8 * SIGMA < np.sqrt(np.mean(d[d < 5 * SIGMA] ** 2)) < 1.3 * SIGMA
+    # The template / starts are the source's, placed onto the truth.
+    assert built["placed"].shape == built["truth"].shape == src["template"].shape
+    assert dressed_scans.rms(built["placed"], built["truth"]) < dressed_scans.rms(
+        built["unplaced"], built["truth"])
+
+
+def test_skin_under_the_shirt_is_not_scanned(tshirt):
+    src, built = tshirt
+    from scipy.spatial import cKDTree
+
+    bv, bf = src["body"]
+    gv, gf = src["truth"], src["faces"]
+    # Body vertices the shirt covers: within 4 cm of it, more than 15 cm from its hem, collar
+    # and cuffs (no camera looks through a 2 cm gap that far in).
+    near = np.linalg.norm(bv - dressed_scans.closest_on_mesh(bv, gv, gf)[2], axis=1) < 0.04
+    rim = gv[boundary_vertices(gf)]
+    far_from_rim = cKDTree(rim).query(bv)[0] > 0.15
+    hidden = near & far_from_rim
+    assert hidden.sum() > 300  # the chest, the back, the belly
+    body_pts = built["scan"][built["labels"] == 0]
+    d_hidden = cKDTree(body_pts).query(bv[hidden])[0]
+    assert (d_hidden > 0.015).all(), "a camera saw skin under the shirt"
+    # ... while the uncovered skin (far from the shirt) is scanned nearly everywhere.
+    exposed = ~near & (cKDTree(gv).query(bv)[0] > 0.10)
+    assert exposed.sum() > 1000
+    assert np.mean(cKDTree(body_pts).query(bv[exposed])[0] < 0.015) > 0.8
+    # The garment mask is the scan's garment points, and the body-free scan drops the others.
+    whole = dressed_scans.make_case("tshirt-0000", built, "whole")
+    free = dressed_scans.make_case("tshirt-0000", built, "body-free")
+    assert whole.mask.sum() == len(free.target) == built["meta"]["scan"]["garment_points"]
+    assert (free.labels > 0).all()
+
+
+def test_same_seed_same_scan_other_seed_other_scan(tshirt):
+    src, built = tshirt
+    # The case's scan seed is a fixed function of its name and --seed (not Python's hash()).
+    assert built["meta"]["scan"]["seed"] == zlib.crc32(b"tshirt-0000/0")
+    # The scanner (a smaller rig, for speed): the same seed gives the same points and labels,
+    # another seed other cameras, noise and holes.
+    small = {**dressed_scans.SCANNER, "rings": 1, "azimuths": 4}
+    meshes = [(*src["body"], 0), (src["truth"], src["faces"], 1)]
+    a, b, c = (dressed_scans.scan(meshes, 1.0, seed, settings=small) for seed in (5, 5, 6))
+    assert np.array_equal(a.points, b.points) and np.array_equal(a.labels, b.labels)
+    assert a.info["hole_centres"] != c.info["hole_centres"]
+    assert len(a.points) != len(c.points) or not np.array_equal(a.points, c.points)
+
+
+def test_transfer_between_identical_bodies_is_the_identity(tshirt):
+    src, _ = tshirt
+    bv, bf = src["body"]
+    rng = np.random.default_rng(3)
+    pts = bv[rng.choice(len(bv), 200)] + rng.normal(scale=0.02, size=(200, 3))
+    assert np.allclose(dressed_scans.transfer_to_body(pts, (bv, bf), (bv, bf), 1.0), pts, atol=1e-9)
+    # A rigidly moved and scaled body carries the points along (offsets scaled by `scale`).
+    r = cases.rotation_matrix([0.2, 1.0, 0.1], 30.0)
+    moved = bv @ r.T + [0.1, 0.2, 0.3]
+    out = dressed_scans.transfer_to_body(pts, (bv, bf), (moved, bf), 1.0)
+    assert np.allclose(out, pts @ r.T + [0.1, 0.2, 0.3], atol=1e-9)
