@@ -3,6 +3,8 @@ bad-input errors (issue: FoldMatch core)."""
 
 from __future__ import annotations
 
+import re
+
 import foldmatch_rs as fm
 import numpy as np
 import pytest
@@ -573,3 +575,21 @@ def test_fast_preset_is_one_schedule_between_the_default_s_two(case):
     both = fm.fit(v, f, x, iterations=30)
     d = float(np.mean([np.sqrt(((r.vertices - p) ** 2).sum(1).min()) for p in x]))
     assert all(abs(c - d) > 1e-9 * d for c in both.diagnostics["candidate_scan_distances"])
+
+
+def test_target_weights_mask_equals_the_masked_scan_and_bad_weights_are_refused():
+    case = fm.folded_sheet(nx=15, ny=15, scan_points=600, noise=0.002)
+    v, f, x = case["template_vertices"], case["faces"], case["scan"]
+    mask = (np.arange(len(x)) % 4 != 0)
+    masked = fm.fit(v, f, x, target_weights=mask, iterations=20)
+    subset = fm.fit(v, f, x[mask], iterations=20)
+    np.testing.assert_array_equal(masked.vertices, subset.vertices)
+    plain = fm.fit(v, f, x, iterations=20)
+    equal = fm.fit(v, f, x, target_weights=np.full(len(x), 2.5), iterations=20)
+    np.testing.assert_array_equal(equal.vertices, plain.vertices)
+    for bad, where in [(np.ones(3), "one weight per scan point"), (-np.ones(len(x)), "target_weights[0]"),
+                       (np.zeros(len(x)), "all zero"), (np.full(len(x), np.nan), "target_weights[0]")]:
+        with pytest.raises(fm.errors.InvalidParameterError, match=re.escape(where)):
+            fm.fit(v, f, x, target_weights=bad)
+    with pytest.raises(fm.errors.InvalidInputError, match="target_weights"):
+        fm.fit(v, f, x, target_weights=np.ones((len(x), 1)))
