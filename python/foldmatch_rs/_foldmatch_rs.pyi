@@ -28,6 +28,7 @@ def fit_raw(
     callback: Optional[Callable[[dict[str, Any]], Any]] = None,
     threads: Optional[int] = None,
     preset: str = "default",
+    target_weights: Optional[_F64] = None,
 ) -> dict[str, Any]: ...
 def knn_query(
     points: _F64, queries: _F64, k: int, threads: Optional[int] = None
