@@ -142,18 +142,14 @@ impl ScanWeights {
     }
 }
 
-/// The points of `scan` whose weight is positive (all of them without weights): what the fit
-/// explains, so what the metrics and the wrinkle field are computed on.
-fn weighted_points(scan: &[[f64; 3]], weights: Option<&[f64]>) -> Vec<[f64; 3]> {
-    match weights {
-        Some(w) => scan
-            .iter()
-            .zip(w)
-            .filter(|(_, &w)| w > 0.0)
-            .map(|(p, _)| *p)
-            .collect(),
-        None => scan.to_vec(),
-    }
+/// The points of `scan` whose weight is positive: what the fit explains, so what the metrics
+/// and the wrinkle field are computed on.
+fn positive_points(scan: &[[f64; 3]], weights: &[f64]) -> Vec<[f64; 3]> {
+    scan.iter()
+        .zip(weights)
+        .filter(|(_, &w)| w > 0.0)
+        .map(|(p, _)| *p)
+        .collect()
 }
 
 /// One file to fit.
@@ -257,7 +253,7 @@ impl Runner<'_> {
         let explained = weights
             .as_deref()
             .filter(|w| w.contains(&0.0))
-            .map(|w| weighted_points(&scan.vertices, Some(w)));
+            .map(|w| positive_points(&scan.vertices, w));
         let explained = explained.as_deref().unwrap_or(&scan.vertices);
         let gt = match &job.gt {
             None => None,
