@@ -44,6 +44,34 @@ def write_ply(path: pathlib.Path, vertices: np.ndarray, faces: np.ndarray | None
     path.write_text("\n".join(lines) + "\n")
 
 
+def write_labelled_ply(path: pathlib.Path, vertices: np.ndarray, labels: np.ndarray, name: str) -> None:
+    """An ASCII PLY point cloud with a ``uchar`` per-vertex property (as segmenters write)."""
+    lines = [
+        "ply",
+        "format ascii 1.0",
+        f"element vertex {len(vertices)}",
+        "property double x",
+        "property double y",
+        "property double z",
+        f"property uchar {name}",
+        "end_header",
+    ]
+    lines += [
+        " ".join(repr(float(c)) for c in v) + f" {int(label)}" for v, label in zip(vertices, labels)
+    ]
+    path.write_text("\n".join(lines) + "\n")
+
+
+def dressed_scan(scan: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The garment scan with one other point (0.3 above) after every third garment point, and
+    the 0/1 garment mask."""
+    others = scan[::3] + np.array([0.0, 0.0, 0.3])
+    points = np.concatenate([scan, others])
+    order = np.argsort(np.concatenate([np.arange(len(scan)), np.arange(len(others)) * 3 + 2.5]))
+    mask = np.concatenate([np.ones(len(scan), bool), np.zeros(len(others), bool)])
+    return points[order], mask[order]
+
+
 @pytest.fixture
 def case(tmp_path):
     c = fm.folded_sheet(nx=12, ny=12, scan_points=300)
@@ -118,3 +146,56 @@ def test_console_script_runs_the_same_cli(tmp_path):
     out = run("--version", cwd=tmp_path, exe=(script,))
     assert out.returncode == 0
     assert out.stdout == f"foldmatch {fm.__version__}\n"
+
+
+def test_console_script_takes_scan_weights_saved_by_numpy(tmp_path, case):
+    """``foldmatch fit --scan-weights`` with arrays written by ``numpy.save``: a 0/1 mask (bool,
+    or uint8 of shape (N, 1)) gives the masked scan's output byte for byte; float32 weights are
+    accepted; weights of the wrong length are refused with one clean line and exit status 1."""
+    script = shutil.which("foldmatch", path=str(pathlib.Path(sys.executable).parent))
+    exe = (script,) if script is not None else (sys.executable, "-m", "foldmatch_rs")
+    points, mask = dressed_scan(case["scan"])
+    assert mask.sum() == 300 and len(points) == 400 and not mask[-1] and mask[0]
+    write_ply(tmp_path / "dressed.ply", points)
+    write_ply(tmp_path / "garment.ply", points[mask])
+    np.save(tmp_path / "mask.npy", mask)
+    np.save(tmp_path / "mask_u8.npy", mask.astype(np.uint8).reshape(-1, 1))
+    np.save(tmp_path / "confidence.npy", np.linspace(0.5, 1.5, len(points), dtype=np.float32))
+    np.save(tmp_path / "short.npy", np.ones(len(points) - 1))
+
+    def fit(scan: str, out: str, *extra: str) -> subprocess.CompletedProcess:
+        return run(
+            "-q", "fit", "template.ply", scan, "-o", out, "--iterations", "5", *extra,
+            cwd=tmp_path, exe=exe,
+        )  # fmt: skip
+
+    assert fit("garment.ply", "plain.ply").returncode == 0
+    out = fit("dressed.ply", "masked.ply", "--scan-weights", "mask.npy", "--report", "r.json")
+    assert out.returncode == 0, out.stderr
+    assert fit("dressed.ply", "masked_u8.ply", "--scan-weights", "mask_u8.npy").returncode == 0
+    plain = (tmp_path / "plain.ply").read_bytes()
+    assert (tmp_path / "masked.ply").read_bytes() == plain
+    assert (tmp_path / "masked_u8.ply").read_bytes() == plain
+    report = json.loads((tmp_path / "r.json").read_text())
+    assert report["scan_weights"] == {
+        "source": "file",
+        "file": "mask.npy",
+        "points": 400,
+        "zero_weight": 100,
+    }
+    out = fit("dressed.ply", "weighted.ply", "--scan-weights", "confidence.npy")
+    assert out.returncode == 0, out.stderr
+
+    out = fit("dressed.ply", "o.ply", "--scan-weights", "short.npy")
+    assert out.returncode == 1
+    assert out.stderr == (
+        "error: short.npy (the weights of dressed.ply): parameter target_weights = 399 weights: "
+        "need one weight per scan point (400)\n"
+    )
+    assert not (tmp_path / "o.ply").exists()
+
+    # The same mask as a per-vertex PLY property.
+    write_labelled_ply(tmp_path / "labelled.ply", points, mask, "label")
+    out = fit("labelled.ply", "labelled_fit.ply", "--scan-weights-property", "label")
+    assert out.returncode == 0, out.stderr
+    assert (tmp_path / "labelled_fit.ply").read_bytes() == plain

@@ -18,7 +18,7 @@ import time
 
 import foldmatch_rs as fm
 import pytest
-from test_cli import ENV, write_ply
+from test_cli import ENV, dressed_scan, write_labelled_ply, write_ply
 
 distributed = pytest.importorskip("distributed")
 fmd = pytest.importorskip("foldmatch_rs.distributed")
@@ -263,6 +263,36 @@ def test_the_console_script_runs_on_a_scheduler(client, data):
         assert f"{command}: 3 ok, 0 failed, 0 skipped" in there.stderr
         assert "[3/3] ok" in there.stderr
         assert outputs(data / f"dask-{command}") == outputs(data / f"local-{command}")
+
+
+def test_the_scan_weights_property_reaches_the_workers(client, data):
+    """``--scan-weights-property`` on a scheduler: the same outputs as the local batch and the
+    same ``scan_weights`` entries."""
+    folder = data / "labelled"
+    folder.mkdir()
+    for k in range(2):
+        case = fm.folded_sheet(nx=12, ny=12, scan_points=300, seed=k + 1)
+        points, mask = dressed_scan(case["scan"])
+        write_labelled_ply(folder / f"scan{k}.ply", points, mask, "label")
+    args = ("batch", "template.ply", "labelled", "--iterations", ITERATIONS)
+    weights = ("--scan-weights-property", "label")
+    here = local(*args, "-o", "local", *weights, cwd=data)
+    assert here.returncode == 0, here.stderr
+    address = client.scheduler_info(n_workers=0)["address"]
+    there = local(*args, "-o", "dask", *weights, "--scheduler", address, cwd=data)
+    assert there.returncode == 0, there.stderr
+    assert outputs(data / "dask") == outputs(data / "local")
+    unweighted = local(*args, "-o", "plain", cwd=data)
+    assert unweighted.returncode == 0, unweighted.stderr
+    assert outputs(data / "plain") != outputs(data / "local")
+    report = json.loads((data / "dask" / "report.json").read_text())
+    for entry in report["files"]:
+        assert entry["scan_weights"] == {
+            "source": "property",
+            "property": "label",
+            "points": 400,
+            "zero_weight": 100,
+        }
 
 
 def test_task_threads_share_the_cores(client):

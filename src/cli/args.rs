@@ -29,6 +29,8 @@ Examples:
   foldmatch fit template.ply scan.ply -o fitted.ply
   foldmatch fit template.obj scan.ply -o fitted.obj --iterations 50 --psi 0.1
   foldmatch fit template.ply scan.ply -o fitted.ply --params params.json --report report.json
+  foldmatch fit shirt.ply dressed.ply -o fitted.ply --scan-weights shirt_mask.npy
+  foldmatch fit shirt.ply dressed.ply -o fitted.ply --scan-weights-property label
 
 The output holds the fitted vertices, the template's faces, the accumulated wrinkle-vector
 field as vertex properties (wvf_x, wvf_y, wvf_z, wvf_magnitude; PLY only) and its magnitude
@@ -118,6 +120,19 @@ pub struct FitCmd {
     /// order) for the f_R metric.
     #[arg(long, value_name = "GT")]
     pub gt: Option<PathBuf>,
+    /// A weight per scan point: a NumPy .npy array of shape (N,) or (N, 1) in the scan's point
+    /// order (float64, float32, (u)int8..64 or bool, little endian). Weights are finite and
+    /// >= 0; 0 removes the point (a segmentation mask is a 0/1 array).
+    #[arg(
+        long,
+        value_name = "FILE.npy",
+        conflicts_with = "scan_weights_property"
+    )]
+    pub scan_weights: Option<PathBuf>,
+    /// A weight per scan point from this per-vertex property of the scan's PLY (e.g. a
+    /// segmenter's `label` or a scanner's `confidence`; any scalar type), as --scan-weights.
+    #[arg(long, value_name = "NAME")]
+    pub scan_weights_property: Option<String>,
     /// Write ASCII PLY instead of binary.
     #[arg(long)]
     pub ascii: bool,
@@ -158,6 +173,10 @@ pub struct BatchCmd {
     /// Folder of ground-truth meshes named like the scans (same relative path), for f_R.
     #[arg(long, value_name = "DIR")]
     pub gt_dir: Option<PathBuf>,
+    /// A weight per scan point from this per-vertex property of every scan (PLY scans only;
+    /// e.g. `label` or `confidence`): finite, >= 0, 0 removes the point.
+    #[arg(long, value_name = "NAME")]
+    pub scan_weights_property: Option<String>,
     /// Run the fits on a Dask cluster: `local` (worker processes on this machine) or the
     /// address of a running scheduler (tcp://host:8786). Only from the Python package with its
     /// `dask` extra (`python -m foldmatch_rs`, `pip install 'foldmatch-rs[dask]'`); see
@@ -195,6 +214,10 @@ pub struct SequenceCmd {
     /// Folder of ground-truth meshes named like the frames, for f_R.
     #[arg(long, value_name = "DIR")]
     pub gt_dir: Option<PathBuf>,
+    /// A weight per scan point from this per-vertex property of every frame (PLY frames only;
+    /// e.g. `label` or `confidence`): finite, >= 0, 0 removes the point.
+    #[arg(long, value_name = "NAME")]
+    pub scan_weights_property: Option<String>,
     /// Run the fits on a Dask cluster: `local` (worker processes on this machine) or the
     /// address of a running scheduler (tcp://host:8786). Only from the Python package with its
     /// `dask` extra (`python -m foldmatch_rs`, `pip install 'foldmatch-rs[dask]'`); see
@@ -893,6 +916,68 @@ mod tests {
             panic!()
         };
         assert!(demo.params.to_params().unwrap_err().contains("preset"));
+    }
+
+    #[test]
+    fn scan_weights_come_from_a_file_or_a_property_not_both() {
+        let fit = |extra: &[&str]| {
+            let mut argv = vec!["foldmatch", "fit", "t.ply", "s.ply", "-o", "o.ply"];
+            argv.extend(extra);
+            parse(argv)
+        };
+        let Command::Fit(cmd) = fit(&["--scan-weights", "w.npy"]).unwrap().command else {
+            panic!()
+        };
+        assert_eq!(cmd.scan_weights, Some(PathBuf::from("w.npy")));
+        assert_eq!(cmd.scan_weights_property, None);
+        let Command::Fit(cmd) = fit(&["--scan-weights-property", "label"]).unwrap().command else {
+            panic!()
+        };
+        assert_eq!(cmd.scan_weights_property.as_deref(), Some("label"));
+        let both = fit(&[
+            "--scan-weights",
+            "w.npy",
+            "--scan-weights-property",
+            "label",
+        ]);
+        assert_eq!(
+            both.unwrap_err().kind(),
+            clap::error::ErrorKind::ArgumentConflict
+        );
+        // A folder of scans: only the property (one name for every file).
+        for command in ["batch", "sequence"] {
+            let cli = parse([
+                "foldmatch",
+                command,
+                "t.ply",
+                "d",
+                "-o",
+                "o",
+                "--scan-weights-property",
+                "confidence",
+            ])
+            .unwrap();
+            let property = match cli.command {
+                Command::Batch(c) => c.scan_weights_property,
+                Command::Sequence(c) => c.scan_weights_property,
+                _ => panic!(),
+            };
+            assert_eq!(property.as_deref(), Some("confidence"));
+            let file = parse([
+                "foldmatch",
+                command,
+                "t.ply",
+                "d",
+                "-o",
+                "o",
+                "--scan-weights",
+                "w.npy",
+            ]);
+            assert_eq!(
+                file.unwrap_err().kind(),
+                clap::error::ErrorKind::UnknownArgument
+            );
+        }
     }
 
     #[test]

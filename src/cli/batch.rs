@@ -8,7 +8,7 @@
 use super::args::{BatchCmd, ParamArgs, SequenceCmd};
 use super::files::{find_scans, named_files, output_paths, Found};
 use super::interrupt;
-use super::job::{read_named, Job, Runner, Template};
+use super::job::{read_named, Job, Runner, ScanWeights, Template};
 use super::report::{write_json, FileReport, RunReport, RunState, Status, Summary};
 use super::ui::Ui;
 use super::{exit_code, Context};
@@ -406,6 +406,7 @@ pub fn batch(cmd: &BatchCmd, ctx: &Context) -> i32 {
                     gt: setup.gt_for(cmd.gt_dir.as_deref(), i),
                     start: None,
                     ascii: cmd.ascii,
+                    weights: cmd.scan_weights_property.clone().map(ScanWeights::Property),
                 };
                 let outcome = runner.run(&job);
                 let finished = done.fetch_add(1, Ordering::SeqCst) + 1;
@@ -535,6 +536,7 @@ pub fn sequence(cmd: &SequenceCmd, ctx: &Context) -> i32 {
             gt: setup.gt_for(cmd.gt_dir.as_deref(), i),
             start: warm.as_ref().map(|w| w.0.as_slice()),
             ascii: cmd.ascii,
+            weights: cmd.scan_weights_property.clone().map(ScanWeights::Property),
         };
         let mut outcome = runner.run(&job);
         outcome.report.warm_start = warm.as_ref().map(|w| w.1.clone());

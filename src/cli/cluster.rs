@@ -6,7 +6,7 @@
 
 use super::args::{Command, ParamArgs};
 use super::batch::{finish, log_file, setup, Setup, Shared, Source};
-use super::job::{read_named, Job, Outcome, Runner, Template};
+use super::job::{read_named, Job, Outcome, Runner, ScanWeights, Template};
 use super::report::{RunReport, Status};
 use super::ui::{Bar, Ui};
 
@@ -89,6 +89,9 @@ pub struct Request {
     /// Parameters by their `FitParams` names (the flags, `--set`); they override the file.
     #[serde(default)]
     pub params: Map<String, Value>,
+    /// `--scan-weights-property`: the per-vertex PLY property that weighs every scan's points.
+    #[serde(default)]
+    pub scan_weights_property: Option<String>,
 }
 
 fn ply() -> String {
@@ -118,6 +121,7 @@ impl Request {
                     preset: cmd.params.preset.clone(),
                     params_file: cmd.params.params.clone(),
                     params: cmd.params.overrides(),
+                    scan_weights_property: cmd.scan_weights_property,
                 },
                 cmd.scheduler?,
                 cmd.jobs,
@@ -138,6 +142,7 @@ impl Request {
                     preset: cmd.params.preset.clone(),
                     params_file: cmd.params.params.clone(),
                     params: cmd.params.overrides(),
+                    scan_weights_property: cmd.scan_weights_property,
                 },
                 cmd.scheduler?,
                 None,
@@ -200,6 +205,9 @@ pub struct Planned {
     /// `sequence --resume`: the earlier run's entry, when its output may be reused (the worker
     /// reads it back to warm-start the next frame, or fits it again when it cannot).
     pub resumed: Option<FileReport>,
+    /// `--scan-weights-property`: the scan's per-vertex property that weighs its points.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scan_weights_property: Option<String>,
 }
 
 /// The driver's side of a run: its plan, its report (`OUT_DIR/report.json`, kept up to date as
@@ -209,6 +217,7 @@ pub struct RunBook {
     ui: Ui,
     setup: Setup,
     gt_dir: Option<PathBuf>,
+    scan_weights_property: Option<String>,
     live: Mutex<Live>,
 }
 
@@ -291,6 +300,7 @@ impl RunBook {
         Ok(Self {
             kind,
             gt_dir: request.gt_dir.clone(),
+            scan_weights_property: request.scan_weights_property.clone(),
             live: Mutex::new(Live {
                 shared,
                 done,
@@ -323,6 +333,7 @@ impl RunBook {
                     RunKind::Batch => None,
                     RunKind::Sequence => setup.resumable(i),
                 },
+                scan_weights_property: self.scan_weights_property.clone(),
             })
             .collect()
     }
@@ -442,6 +453,10 @@ impl FileFitter {
             gt: file.gt.clone(),
             start: warm.map(|w| w.0),
             ascii,
+            weights: file
+                .scan_weights_property
+                .clone()
+                .map(ScanWeights::Property),
         });
         outcome.report.warm_start = warm.map(|w| w.1.to_string());
         outcome
@@ -518,9 +533,16 @@ mod tests {
         let back: Request = serde_json::from_str(&text).unwrap();
         let params = back.param_args().to_params_over("default").unwrap();
         assert_eq!((params.iterations, params.psi), (7, 0.2));
-        let run =
-            Request::from_cli(argv("foldmatch sequence t.ply f -o o --scheduler local")).unwrap();
+        assert_eq!(back.scan_weights_property, None);
+        let run = Request::from_cli(argv(
+            "foldmatch sequence t.ply f -o o --scheduler local --scan-weights-property label",
+        ))
+        .unwrap();
         assert_eq!(run.request.command, RunKind::Sequence);
         assert_eq!(run.request.command.default_preset(), "tracking");
+        assert_eq!(run.request.scan_weights_property.as_deref(), Some("label"));
+        let text = serde_json::to_string(&run.request).unwrap();
+        let back: Request = serde_json::from_str(&text).unwrap();
+        assert_eq!(back.scan_weights_property.as_deref(), Some("label"));
     }
 }

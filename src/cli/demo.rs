@@ -82,6 +82,7 @@ fn run(cmd: &DemoCmd, ctx: &Context) -> Result<i32, String> {
         gt: Some(gt_path.clone()),
         start: None,
         ascii: false,
+        weights: None,
     });
     let report = FitReport {
         foldmatch_version: env!("CARGO_PKG_VERSION"),

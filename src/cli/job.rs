@@ -2,13 +2,16 @@
 //! `batch`, `sequence` and `demo`, so every command writes the same files and reports.
 
 use super::interrupt;
-use super::report::{FileReport, Status};
+use super::report::{FileReport, ScanWeightsReport, Status};
 use super::ui::{Ui, Verbosity};
 use crate::error::FoldMatchError;
 use crate::fit::{
-    deformation_model, fit, magnitudes, FitParams, Progress, TemplateTopology, Workspace,
+    deformation_model, fit_weighted, magnitudes, validate_weights, FitParams, Progress,
+    TemplateTopology, Workspace,
 };
-use crate::io::{colormap_viridis, read_mesh, write_mesh, MeshData, VertexProperty};
+use crate::io::{
+    colormap_viridis, read_mesh, read_npy, read_ply_property, write_mesh, MeshData, VertexProperty,
+};
 use crate::mesh::{clean_faces, VertexFaces};
 use crate::metrics::{evaluate, Metrics, MetricsInput, MetricsParams};
 use crate::normalize::Frame;
@@ -96,6 +99,59 @@ impl Template {
     }
 }
 
+/// Where a scan's per-point weights come from.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ScanWeights {
+    /// `--scan-weights FILE.npy`: an `(N,)` or `(N, 1)` NumPy array.
+    File(PathBuf),
+    /// `--scan-weights-property NAME`: a per-vertex scalar property of the scan's PLY.
+    Property(String),
+}
+
+impl ScanWeights {
+    /// The scan at `path` and its weights, with their report entry and the name of the
+    /// weights in messages (not validated yet). Errors name the file (and the property).
+    #[allow(clippy::type_complexity)]
+    fn read(&self, path: &Path) -> Result<(MeshData, Vec<f64>, ScanWeightsReport, String), String> {
+        let named = |e: FoldMatchError| name_file(path, e);
+        let (scan, weights, source, report) = match self {
+            Self::File(file) => {
+                let scan = read_mesh(path).map_err(named)?;
+                let weights = read_npy(file).map_err(|e| e.to_string())?;
+                let source = format!("{} (the weights of {})", file.display(), path.display());
+                (scan, weights, source, ScanWeightsReport::file(file))
+            }
+            Self::Property(name) => {
+                let is_ply = path
+                    .extension()
+                    .is_some_and(|e| e.eq_ignore_ascii_case("ply"));
+                if !is_ply {
+                    return Err(format!(
+                        "{}: --scan-weights-property {name} needs a PLY scan (other formats \
+                         have no per-vertex properties)",
+                        path.display()
+                    ));
+                }
+                let (scan, weights) = read_ply_property(path, name).map_err(named)?;
+                let source = format!("{}, property '{name}'", path.display());
+                (scan, weights, source, ScanWeightsReport::property(name))
+            }
+        };
+        let report = report.counted(&weights);
+        Ok((scan, weights, report, source))
+    }
+}
+
+/// The points of `scan` whose weight is positive: what the fit explains, so what the metrics
+/// and the wrinkle field are computed on.
+fn positive_points(scan: &[[f64; 3]], weights: &[f64]) -> Vec<[f64; 3]> {
+    scan.iter()
+        .zip(weights)
+        .filter(|(_, &w)| w > 0.0)
+        .map(|(p, _)| *p)
+        .collect()
+}
+
 /// One file to fit.
 pub struct Job<'a> {
     /// Short name for logs and the report (relative path).
@@ -110,6 +166,8 @@ pub struct Job<'a> {
     pub start: Option<&'a [[f64; 3]]>,
     /// Write ASCII PLY.
     pub ascii: bool,
+    /// Per-point weights of the scan, when given.
+    pub weights: Option<ScanWeights>,
 }
 
 /// What came of a [`Job`].
@@ -180,7 +238,23 @@ impl Runner<'_> {
     ) -> Result<(Option<Vec<[f64; 3]>>, Option<Metrics>), String> {
         let template = self.template;
         let named = |e: FoldMatchError| name_file(&job.scan, e);
-        let scan = read_mesh(&job.scan).map_err(named)?;
+        let (scan, weights) = match &job.weights {
+            None => (read_mesh(&job.scan).map_err(named)?, None),
+            Some(source) => {
+                let (scan, weights, entry, what) = source.read(&job.scan)?;
+                report.scan_weights = Some(entry);
+                // Refused here, before the fit, to name the weights' origin.
+                validate_weights(&weights, scan.vertices.len())
+                    .map_err(|e| format!("{what}: {e}"))?;
+                (scan, Some(weights))
+            }
+        };
+        // The points the fit explains (weight > 0): the metrics and the field are theirs.
+        let explained = weights
+            .as_deref()
+            .filter(|w| w.contains(&0.0))
+            .map(|w| positive_points(&scan.vertices, w));
+        let explained = explained.as_deref().unwrap_or(&scan.vertices);
         let gt = match &job.gt {
             None => None,
             Some(path) => {
@@ -223,11 +297,12 @@ impl Runner<'_> {
         let result = self
             .pool
             .install(|| {
-                fit(
+                fit_weighted(
                     start,
                     &template.faces,
                     &scan.vertices,
                     target_faces,
+                    weights.as_deref(),
                     self.params,
                     &mut observer,
                 )
@@ -242,7 +317,7 @@ impl Runner<'_> {
         }
         let field = if job.start.is_some() {
             self.pool
-                .install(|| template.wrinkle_field(&result.vertices, &scan.vertices, self.params))
+                .install(|| template.wrinkle_field(&result.vertices, explained, self.params))
         } else {
             result.wvf_accumulated
         };
@@ -258,7 +333,7 @@ impl Runner<'_> {
                     template_vertices: &template.vertices,
                     faces: &template.faces,
                     fitted_vertices: &fitted,
-                    target: &scan.vertices,
+                    target: explained,
                     ground_truth: gt.as_deref(),
                 },
                 &MetricsParams::default(),

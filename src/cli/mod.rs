@@ -38,7 +38,7 @@ pub use args::Cli;
 
 use args::{Command, FitCmd};
 use clap::error::ErrorKind;
-use job::{Job, Runner, Template};
+use job::{Job, Runner, ScanWeights, Template};
 use report::{write_json, FitReport, Status};
 use std::ffi::OsString;
 use std::panic::{catch_unwind, AssertUnwindSafe};
@@ -168,6 +168,11 @@ fn fit(cmd: &FitCmd, ctx: &Context) -> i32 {
         gt: cmd.gt.clone(),
         start: None,
         ascii: cmd.ascii,
+        weights: match (&cmd.scan_weights, &cmd.scan_weights_property) {
+            (Some(file), _) => Some(ScanWeights::File(file.clone())),
+            (None, Some(name)) => Some(ScanWeights::Property(name.clone())),
+            (None, None) => None,
+        },
     });
     let entry = &outcome.report;
     let mut code = match entry.status {

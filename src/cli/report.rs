@@ -61,6 +61,61 @@ pub struct FileReport {
     /// `sequence`: the frame whose fit this one started from (none: the template).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub warm_start: Option<String>,
+    /// Where the scan's per-point weights came from (`--scan-weights`,
+    /// `--scan-weights-property`); none: every point weighs 1. With weights, `metrics` are of
+    /// the scan points of positive weight.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scan_weights: Option<ScanWeightsReport>,
+}
+
+/// Where a file's scan weights came from, and how many points they removed.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ScanWeightsReport {
+    /// `file` (a NumPy `.npy` array) or `property` (a per-vertex property of the scan's PLY).
+    pub source: String,
+    /// The `.npy` file (`source` = `file`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub file: Option<String>,
+    /// The PLY property's name (`source` = `property`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub property: Option<String>,
+    /// The number of weights (= scan points).
+    pub points: usize,
+    /// Points of weight 0: removed before the fit.
+    pub zero_weight: usize,
+}
+
+impl ScanWeightsReport {
+    /// Weights from a `.npy` file (not counted yet).
+    pub fn file(path: &Path) -> Self {
+        Self {
+            source: "file".into(),
+            file: Some(path.display().to_string()),
+            property: None,
+            points: 0,
+            zero_weight: 0,
+        }
+    }
+
+    /// Weights from a PLY property (not counted yet).
+    pub fn property(name: &str) -> Self {
+        Self {
+            source: "property".into(),
+            file: None,
+            property: Some(name.to_string()),
+            points: 0,
+            zero_weight: 0,
+        }
+    }
+
+    /// With the counts of `weights`.
+    pub fn counted(self, weights: &[f64]) -> Self {
+        Self {
+            points: weights.len(),
+            zero_weight: weights.iter().filter(|&&w| w == 0.0).count(),
+            ..self
+        }
+    }
 }
 
 impl FileReport {
@@ -90,6 +145,7 @@ impl FileReport {
             diagnostics: None,
             ground_truth: None,
             warm_start: None,
+            scan_weights: None,
         }
     }
 }

@@ -5,8 +5,10 @@
 //! # Reading
 //! [`read_mesh`] dispatches on the extension (`.ply` / `.obj`, any case); [`read_ply`] and
 //! [`read_obj`] read one format; [`parse_ply`] and [`parse_obj`] parse bytes already in memory
-//! (tests, network buffers, Python `bytes`). Every error is a [`FoldMatchError::Format`] that
-//! names the file, the 1-based line (header and ASCII payload lines; 0 inside binary data) and
+//! (tests, network buffers, Python `bytes`); [`read_ply_property`] also reads one more
+//! per-vertex scalar property of a PLY (a segmenter's labels, a scanner's confidence), and
+//! [`read_npy`] reads a one-dimensional NumPy `.npy` array (per-point scan weights). Every
+//! error is a [`FoldMatchError::Format`] that names the file, the 1-based line (header and ASCII payload lines; 0 inside binary data) and
 //! the reason, or a [`FoldMatchError::Io`] when the file cannot be read at all. NaN and infinite
 //! coordinates are *not* I/O errors: they are read as they are, and the fit's input validation
 //! reports them.
@@ -44,12 +46,17 @@
 //! than a small multiple of the file's size.
 
 mod colormap;
+mod npy;
 mod obj;
 mod ply;
 
 pub use colormap::colormap_viridis;
+pub use npy::{parse_npy, read_npy};
 pub use obj::{parse_obj, read_obj, write_obj, write_obj_to};
-pub use ply::{parse_ply, read_ply, write_ply, write_ply_to, write_ply_with_encoding, PlyEncoding};
+pub use ply::{
+    parse_ply, parse_ply_property, read_ply, read_ply_property, write_ply, write_ply_to,
+    write_ply_with_encoding, PlyEncoding,
+};
 
 use crate::error::{FoldMatchError, Result};
 use std::fs::{self, File, OpenOptions};

@@ -5,7 +5,9 @@
 //! int32 uint32 float32 float64`, and (as written by NumPy-based tools) `int64 uint64`.
 //! From the `vertex` element it takes `x y z` (required), `nx ny nz` and `red green blue`
 //! (or `diffuse_red …`) when all three of a group are present; from the `face` element the
-//! `vertex_indices` (or `vertex_index`) list. Every other property and element is skipped.
+//! `vertex_indices` (or `vertex_index`) list. Every other property and element is skipped,
+//! but for one more scalar vertex property that [`read_ply_property`] is asked for (a
+//! segmenter's `label`, a scanner's `confidence`), read as `f64` values.
 //! Faces with fewer than three indices carry no area and are skipped; polygons are
 //! fan-triangulated. Colors stored as integers are clamped to 0..=255; colors stored as
 //! floats are taken as 0..=1 and scaled by 255.
@@ -55,10 +57,35 @@ pub fn read_ply(path: &Path) -> Result<MeshData> {
 /// # Errors
 /// [`FoldMatchError::Format`] as for [`read_ply`].
 pub fn parse_ply(data: &[u8], name: &str) -> Result<MeshData> {
+    parse(data, name, None).map(|(mesh, _)| mesh)
+}
+
+/// Reads a PLY file and one more per-vertex scalar property of it, `property` (e.g. a
+/// segmenter's `label` or a scanner's `confidence`), as `f64` values, one per vertex, in
+/// vertex order. Any scalar type is accepted; any property of the `vertex` element may be
+/// named, including those that [`MeshData`] already holds.
+///
+/// # Errors
+/// As [`read_ply`]; a [`FoldMatchError::Format`] naming the file and the property when the
+/// vertex element has no such property or when it is a list.
+pub fn read_ply_property(path: &Path, property: &str) -> Result<(MeshData, Vec<f64>)> {
+    let data = read_file(path)?;
+    parse_ply_property(&data, &path.display().to_string(), property)
+}
+
+/// Parses PLY bytes as [`read_ply_property`] does; `name` is used in error messages.
+///
+/// # Errors
+/// As [`read_ply_property`].
+pub fn parse_ply_property(data: &[u8], name: &str, property: &str) -> Result<(MeshData, Vec<f64>)> {
+    parse(data, name, Some(property)).map(|(mesh, values)| (mesh, values.unwrap_or_default()))
+}
+
+fn parse(data: &[u8], name: &str, property: Option<&str>) -> Result<(MeshData, Option<Vec<f64>>)> {
     let header = parse_header(data, name)?;
     let payload = &data[header.payload_start..];
     check_sizes(&header, payload.len(), name)?;
-    let layout = Layout::new(&header, name)?;
+    let layout = Layout::new(&header, name, property)?;
     match header.encoding {
         PlyEncoding::Ascii => read_ascii(&header, &layout, payload, name),
         PlyEncoding::BinaryLittleEndian => read_binary(&header, &layout, payload, false, name),
@@ -375,7 +402,12 @@ struct Layout {
     float_colors: bool,
     /// The face element and its index-list property.
     face: Option<(usize, usize)>,
+    /// The vertex property asked for besides the mesh (read into slot [`EXTRA_SLOT`]).
+    extra: Option<usize>,
 }
+
+/// Where a vertex record's values go: 0..3 xyz, 3..6 normal, 6..9 color, 9 the extra property.
+const EXTRA_SLOT: usize = 9;
 
 const NORMAL_NAMES: [&str; 3] = ["nx", "ny", "nz"];
 const COLOR_NAMES: [[&str; 3]; 2] = [
@@ -384,7 +416,7 @@ const COLOR_NAMES: [[&str; 3]; 2] = [
 ];
 
 impl Layout {
-    fn new(header: &Header, name: &str) -> Result<Self> {
+    fn new(header: &Header, name: &str, property: Option<&str>) -> Result<Self> {
         let Some(vertex) = header.elements.iter().position(|e| e.name == "vertex") else {
             return Err(format_error(
                 name,
@@ -445,6 +477,32 @@ impl Layout {
                 }
             }
         }
+        let extra = match property {
+            None => None,
+            Some(pname) => match ve.props.iter().position(|p| p.name == pname) {
+                Some(i) if matches!(ve.props[i].kind, Kind::Scalar(_)) => Some(i),
+                Some(_) => {
+                    return Err(format_error(
+                        name,
+                        ve.line,
+                        format!(
+                            "vertex property '{pname}' is a list, expected one number per vertex"
+                        ),
+                    ))
+                }
+                None => {
+                    let known: Vec<&str> = ve.props.iter().map(|p| p.name.as_str()).collect();
+                    return Err(format_error(
+                        name,
+                        ve.line,
+                        format!(
+                            "vertex element has no property '{pname}' (it has: {})",
+                            known.join(", ")
+                        ),
+                    ));
+                }
+            },
+        };
         let face = match header.elements.iter().position(|e| e.name == "face") {
             None => None,
             Some(fi) => {
@@ -491,6 +549,7 @@ impl Layout {
             has_colors: colors.is_some(),
             float_colors,
             face,
+            extra,
         })
     }
 }
@@ -502,6 +561,8 @@ struct Builder {
     normals: Vec<[f64; 3]>,
     colors: Vec<[u8; 3]>,
     faces: Vec<[u32; 3]>,
+    /// The extra property's values, when one was asked for.
+    extra: Vec<f64>,
     float_colors: bool,
     /// Scratch list of one face's indices.
     polygon: Vec<i64>,
@@ -525,13 +586,17 @@ impl Builder {
             normals: Vec::with_capacity(if layout.has_normals { n } else { 0 }),
             colors: Vec::with_capacity(if layout.has_colors { n } else { 0 }),
             faces: Vec::with_capacity(n_faces),
+            extra: Vec::with_capacity(if layout.extra.is_some() { n } else { 0 }),
             float_colors: layout.float_colors,
             polygon: Vec::new(),
         }
     }
 
-    fn push_vertex(&mut self, values: &[f64; 9], layout: &Layout) {
+    fn push_vertex(&mut self, values: &[f64; 10], layout: &Layout) {
         self.vertices.push([values[0], values[1], values[2]]);
+        if layout.extra.is_some() {
+            self.extra.push(values[EXTRA_SLOT]);
+        }
         if layout.has_normals {
             self.normals.push([values[3], values[4], values[5]]);
         }
@@ -571,13 +636,14 @@ impl Builder {
         Ok(())
     }
 
-    fn finish(self, layout: &Layout) -> MeshData {
-        MeshData {
+    fn finish(self, layout: &Layout) -> (MeshData, Option<Vec<f64>>) {
+        let mesh = MeshData {
             vertices: self.vertices,
             faces: self.faces,
             normals: layout.has_normals.then_some(self.normals),
             colors: layout.has_colors.then_some(self.colors),
-        }
+        };
+        (mesh, layout.extra.is_some().then_some(self.extra))
     }
 }
 
@@ -672,7 +738,7 @@ fn read_binary(
     payload: &[u8],
     big: bool,
     name: &str,
-) -> Result<MeshData> {
+) -> Result<(MeshData, Option<Vec<f64>>)> {
     let mut cur = Cursor {
         data: payload,
         pos: 0,
@@ -701,14 +767,17 @@ fn read_binary(
             continue;
         }
         if ei == layout.vertex {
-            let mut values = [0.0f64; 9];
+            let mut values = [0.0f64; 10];
             for i in 0..e.count {
-                for (p, slot) in e.props.iter().zip(&layout.slots) {
+                for (pi, (p, slot)) in e.props.iter().zip(&layout.slots).enumerate() {
                     match p.kind {
                         Kind::Scalar(s) => {
                             let v = cur.read(s).ok_or_else(|| truncated(e, i))?;
                             if let Some(k) = *slot {
                                 values[k] = v.as_f64();
+                            }
+                            if layout.extra == Some(pi) {
+                                values[EXTRA_SLOT] = v.as_f64();
                             }
                         }
                         Kind::List(c, item) => {
@@ -816,14 +885,19 @@ fn parse_ascii_num(token: &[u8], ty: Scalar) -> Option<Num> {
     s.parse::<f64>().ok().map(Num::Float)
 }
 
-fn read_ascii(header: &Header, layout: &Layout, payload: &[u8], name: &str) -> Result<MeshData> {
+fn read_ascii(
+    header: &Header,
+    layout: &Layout,
+    payload: &[u8],
+    name: &str,
+) -> Result<(MeshData, Option<Vec<f64>>)> {
     let mut lines = Lines {
         data: payload,
         pos: 0,
         line: header.lines,
     };
     let mut b = Builder::new(header, layout, payload.len());
-    let mut values = [0.0f64; 9];
+    let mut values = [0.0f64; 10];
     for (ei, e) in header.elements.iter().enumerate() {
         if e.props.is_empty() {
             continue;
@@ -874,6 +948,9 @@ fn read_ascii(header: &Header, layout: &Layout, payload: &[u8], name: &str) -> R
                         if ei == layout.vertex {
                             if let Some(slot) = layout.slots[k] {
                                 values[slot] = v.as_f64();
+                            }
+                            if layout.extra == Some(k) {
+                                values[EXTRA_SLOT] = v.as_f64();
                             }
                         }
                     }
@@ -1274,6 +1351,130 @@ mod tests {
             VertexProperty::new("a", vec![0.0; 5]),
         ];
         assert!(write_ply_to(&mut Vec::new(), &mesh, &dup, PlyEncoding::Ascii).is_err());
+    }
+
+    #[test]
+    fn a_requested_vertex_property_is_read_in_every_encoding() {
+        let mesh = full_mesh();
+        let confidence = vec![0.25, 1.0, 0.0, 0.5, 1e-300];
+        let extra = [
+            VertexProperty::new("wvf_x", vec![7.0; 5]),
+            VertexProperty::new("confidence", confidence.clone()),
+        ];
+        for enc in ENCODINGS {
+            let bytes = to_bytes(&mesh, &extra, enc);
+            let (back, values) = parse_ply_property(&bytes, "scan.ply", "confidence").unwrap();
+            assert!(same(&back, &mesh), "{enc:?}");
+            assert_eq!(values, confidence, "{enc:?}");
+            // A property the mesh already holds can be asked for too.
+            let (_, red) = parse_ply_property(&bytes, "scan.ply", "red").unwrap();
+            assert_eq!(red, [0.0, 255.0, 1.0, 200.0, 9.0], "{enc:?}");
+            let (_, x) = parse_ply_property(&bytes, "scan.ply", "x").unwrap();
+            let xs: Vec<f64> = mesh.vertices.iter().map(|v| v[0]).collect();
+            assert_eq!(x, xs, "{enc:?}");
+        }
+    }
+
+    /// What segmenters write: `uchar label` and `float confidence` on a point cloud, ASCII and
+    /// binary, between the coordinates.
+    #[test]
+    fn uchar_labels_and_float_confidence_of_a_point_cloud() {
+        let head = |format: &str| {
+            format!(
+                "ply\nformat {format} 1.0\nelement vertex 3\nproperty float x\n\
+                 property float y\nproperty uchar label\nproperty float z\n\
+                 property float confidence\nend_header\n"
+            )
+        };
+        let ascii = head("ascii") + "0 0 1 0 0.5\n1 0 0 0 0.75\n0 1 255 0.5 1\n";
+        let mut binary = head("binary_little_endian").into_bytes();
+        for (x, y, label, z, c) in [
+            (0f32, 0f32, 1u8, 0f32, 0.5f32),
+            (1.0, 0.0, 0, 0.0, 0.75),
+            (0.0, 1.0, 255, 0.5, 1.0),
+        ] {
+            binary.extend(x.to_le_bytes());
+            binary.extend(y.to_le_bytes());
+            binary.push(label);
+            binary.extend(z.to_le_bytes());
+            binary.extend(c.to_le_bytes());
+        }
+        for data in [ascii.as_bytes(), binary.as_slice()] {
+            let (mesh, label) = parse_ply_property(data, "scan.ply", "label").unwrap();
+            assert_eq!(label, [1.0, 0.0, 255.0]);
+            assert_eq!(mesh.vertices[2], [0.0, 1.0, 0.5]);
+            assert!(mesh.is_point_cloud());
+            let (_, c) = parse_ply_property(data, "scan.ply", "confidence").unwrap();
+            assert_eq!(c, [0.5, 0.75, 1.0]);
+            // The plain reader skips both.
+            assert_eq!(parse(data).unwrap(), mesh);
+        }
+    }
+
+    #[test]
+    fn a_missing_or_list_property_is_an_error_naming_file_and_property() {
+        let mut h = String::from("ply\nformat ascii 1.0\nelement vertex 2\nproperty double x\n");
+        h += "property double y\nproperty double z\nproperty list uchar int labels\n";
+        h += "element face 0\nproperty list uchar int vertex_indices\n";
+        h += "end_header\n0 0 0 2 1 2\n1 0 0 0\n";
+        let err = |prop: &str| match parse_ply_property(h.as_bytes(), "scan.ply", prop) {
+            Ok(v) => panic!("{prop}: accepted {v:?}"),
+            Err(e) => {
+                assert!(matches!(e, FoldMatchError::Format { .. }), "{e:?}");
+                e.to_string()
+            }
+        };
+        assert_eq!(
+            err("label"),
+            "scan.ply:3: vertex element has no property 'label' (it has: x, y, z, labels)"
+        );
+        assert_eq!(
+            err("labels"),
+            "scan.ply:3: vertex property 'labels' is a list, expected one number per vertex"
+        );
+        // Face properties are not vertex properties.
+        assert!(err("vertex_indices").contains("no property 'vertex_indices'"));
+        // Without a property the file reads as before.
+        assert_eq!(parse(h.as_bytes()).unwrap().vertices.len(), 2);
+        // Through a file: the path names it.
+        let dir = TempDir::new("ply-property");
+        let p = dir.join("labelled.ply");
+        std::fs::write(&p, &h).unwrap();
+        let e = read_ply_property(&p, "label").unwrap_err().to_string();
+        assert!(e.starts_with(&format!("{}:3: ", p.display())), "{e}");
+        assert!(read_ply_property(&dir.join("none.ply"), "label").is_err());
+    }
+
+    #[test]
+    fn a_requested_property_of_every_scalar_type_in_binary_with_lists() {
+        // The vertex record of the test below: int8 a, float32 x, list junk, int16 y, uint64 b.
+        let mut h = String::from("ply\nformat binary_big_endian 1.0\nelement vertex 2\n");
+        h += "property int8 a\nproperty float32 x\nproperty list uint8 int16 junk\n";
+        h += "property int16 y\nproperty uint64 b\nproperty float64 z\nend_header\n";
+        let mut d = h.into_bytes();
+        for i in 0..2u8 {
+            d.push(0xfe); // a = -2
+            d.extend_from_slice(&f32::from(i).to_be_bytes());
+            d.push(i);
+            for k in 0..i {
+                d.extend_from_slice(&i16::from(k).to_be_bytes());
+            }
+            d.extend_from_slice(&(-300i16).to_be_bytes());
+            d.extend_from_slice(&u64::from(i).to_be_bytes());
+            d.extend_from_slice(&1.5f64.to_be_bytes());
+        }
+        let get = |p: &str| parse_ply_property(&d, "t.ply", p).unwrap().1;
+        assert_eq!(get("a"), [-2.0, -2.0]);
+        assert_eq!(get("y"), [-300.0, -300.0]);
+        assert_eq!(get("b"), [0.0, 1.0]);
+        assert_eq!(get("z"), [1.5, 1.5]);
+        let e = parse_ply_property(&d, "t.ply", "junk")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("'junk' is a list"), "{e}");
+        // Truncated: the same errors as without a property.
+        let e = parse_ply_property(&d[..d.len() - 1], "t.ply", "a").unwrap_err();
+        assert!(e.to_string().contains("truncated"), "{e}");
     }
 
     #[test]

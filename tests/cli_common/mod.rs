@@ -114,3 +114,42 @@ pub fn tree(dir: &Path) -> Vec<String> {
 pub fn json(path: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
+
+/// An `.npy` file as `np.save` writes it (format 1.0, header padded to 64 bytes): `descr` e.g.
+/// `<f8` or `|b1`, `shape` e.g. `(400,)`, `payload` the little-endian data.
+pub fn npy_bytes(descr: &str, shape: &str, payload: &[u8]) -> Vec<u8> {
+    let mut dict = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, }}");
+    let used = 10 + dict.len() + 1;
+    dict.push_str(&" ".repeat((64 - used % 64) % 64));
+    dict.push('\n');
+    let mut out = b"\x93NUMPY\x01\x00".to_vec();
+    out.extend((dict.len() as u16).to_le_bytes());
+    out.extend(dict.as_bytes());
+    out.extend(payload);
+    out
+}
+
+/// Writes `values` as a `float64` `.npy` array of shape `(N,)`.
+pub fn write_npy_f64(path: &Path, values: &[f64]) {
+    let payload: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
+    let shape = format!("({},)", values.len());
+    std::fs::write(path, npy_bytes("<f8", &shape, &payload)).unwrap();
+}
+
+/// Writes a binary PLY point cloud with `double x y z` and a `uchar NAME` per vertex, as a
+/// segmenter writes its labels.
+pub fn write_labelled_cloud(path: &Path, points: &[[f64; 3]], name: &str, labels: &[u8]) {
+    let mut out = format!(
+        "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty double x\n\
+         property double y\nproperty double z\nproperty uchar {name}\nend_header\n",
+        points.len()
+    )
+    .into_bytes();
+    for (p, &l) in points.iter().zip(labels) {
+        for c in p {
+            out.extend(c.to_le_bytes());
+        }
+        out.push(l);
+    }
+    std::fs::write(path, out).unwrap();
+}
