@@ -39,6 +39,7 @@ fn to_pyerr(err: FoldMatchError) -> PyErr {
         FoldMatchError::Format { .. } => "MeshFormatError",
         FoldMatchError::Cancelled { .. } => "FitCancelled",
         FoldMatchError::Numerical(_) => "NumericalError",
+        FoldMatchError::OutOfMemory { .. } => "OutOfMemoryError",
     };
     raise(class, err.to_string())
 }

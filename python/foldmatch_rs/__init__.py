@@ -39,6 +39,7 @@ from .errors import (
     MeshFileError,
     MeshFormatError,
     NumericalError,
+    OutOfMemoryError,
 )
 
 __version__: str = _core.__version__
@@ -618,5 +619,6 @@ __all__ = [
     "MeshFormatError",
     "NumericalError",
     "FitCancelled",
+    "OutOfMemoryError",
     "InternalError",
 ]

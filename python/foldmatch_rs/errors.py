@@ -37,6 +37,12 @@ class FitCancelled(FoldMatchError, RuntimeError):
     """The fit was cancelled."""
 
 
+class OutOfMemoryError(FoldMatchError, MemoryError):
+    """Memory for a size the input announced could not be allocated (the sizes are checked
+    against the input and the documented limits first: the machine has less memory than the
+    input needs)."""
+
+
 class InternalError(FoldMatchError, RuntimeError):
     """A bug inside foldmatch_rs (a caught Rust panic). Please report it."""
 
@@ -49,5 +55,6 @@ __all__ = [
     "MeshFormatError",
     "NumericalError",
     "FitCancelled",
+    "OutOfMemoryError",
     "InternalError",
 ]

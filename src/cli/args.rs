@@ -1,7 +1,6 @@
 //! The command line grammar (clap derive). Doc comments are the help text; every fit
 //! parameter is a flag whose value, when given, overrides the default (or `--params FILE`).
 
-use crate::error::FoldMatchError;
 use crate::fit::FitParams;
 use clap::{Args, CommandFactory, Parser, Subcommand, ValueEnum};
 use serde_json::{Map, Value};
@@ -639,13 +638,11 @@ impl ParamArgs {
         let mut map = match &self.params {
             None => Map::new(),
             Some(path) => {
-                let text = std::fs::read_to_string(path).map_err(|e| {
-                    FoldMatchError::Io {
-                        path: path.display().to_string(),
-                        source: e,
-                    }
-                    .to_string()
-                })?;
+                let bytes =
+                    crate::io::read_bounded(path, crate::limits::MAX_PARAMS_FILE_BYTES)
+                        .map_err(|e| e.to_string())?;
+                let text = String::from_utf8(bytes)
+                    .map_err(|_| format!("{}: not UTF-8 text", path.display()))?;
                 match serde_json::from_str::<Value>(&text) {
                     Ok(Value::Object(map)) => map,
                     Ok(_) => {

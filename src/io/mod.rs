@@ -233,9 +233,89 @@ pub(crate) fn io_error(path: &Path, source: std::io::Error) -> FoldMatchError {
     }
 }
 
-/// Reads a whole file, mapping failures to [`FoldMatchError::Io`].
-pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>> {
-    fs::read(path).map_err(|e| io_error(path, e))
+/// Reads a whole file, mapping failures to [`FoldMatchError::Io`], with a bounded allocation:
+/// a regular file's size is reserved up front (a failure is [`FoldMatchError::OutOfMemory`]);
+/// a FIFO (a pipe given by name, such as `/dev/stdin`) is read up to
+/// [`crate::limits::MAX_STREAM_BYTES`]; devices (`/dev/zero`, `/dev/urandom`), sockets and
+/// folders are refused, also through symbolic links.
+pub fn read_file(path: &Path) -> Result<Vec<u8>> {
+    read_bounded(path, crate::limits::MAX_STREAM_BYTES)
+}
+
+/// [`read_file`] with `limit` as the most bytes read from a file (regular or not).
+pub fn read_bounded(path: &Path, limit: u64) -> Result<Vec<u8>> {
+    use std::io::Read;
+    let refuse = |what: &str| {
+        io_error(
+            path,
+            std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                format!("{what}: only regular files (or pipes) are read"),
+            ),
+        )
+    };
+    // Look before opening: opening a device can have effects of its own.
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        let kind = fs::metadata(path).map_err(|e| io_error(path, e))?.file_type();
+        if kind.is_char_device() || kind.is_block_device() {
+            return Err(refuse("a device"));
+        }
+    }
+    let mut file = File::open(path).map_err(|e| io_error(path, e))?;
+    let meta = file.metadata().map_err(|e| io_error(path, e))?;
+    let kind = meta.file_type();
+    let too_large = |size: u64| {
+        io_error(
+            path,
+            std::io::Error::new(
+                std::io::ErrorKind::InvalidData,
+                format!("larger than the limit of {limit} bytes ({size} bytes or more)"),
+            ),
+        )
+    };
+    if kind.is_file() {
+        let size = meta.len();
+        if size > limit {
+            return Err(too_large(size));
+        }
+        let mut data = crate::limits::try_vec::<u8>(size as usize + 1, &path.display().to_string())?;
+        // The file may grow while it is read: never past the limit.
+        (&mut file)
+            .take(limit + 1)
+            .read_to_end(&mut data)
+            .map_err(|e| io_error(path, e))?;
+        if data.len() as u64 > limit {
+            return Err(too_large(data.len() as u64));
+        }
+        return Ok(data);
+    }
+    if kind.is_dir() {
+        return Err(refuse("a folder"));
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if kind.is_fifo() {
+            let mut data = Vec::new();
+            (&mut file)
+                .take(limit + 1)
+                .read_to_end(&mut data)
+                .map_err(|e| io_error(path, e))?;
+            if data.len() as u64 > limit {
+                return Err(too_large(data.len() as u64));
+            }
+            return Ok(data);
+        }
+        if kind.is_char_device() || kind.is_block_device() {
+            return Err(refuse("a device"));
+        }
+        if kind.is_socket() {
+            return Err(refuse("a socket"));
+        }
+    }
+    Err(refuse("not a regular file"))
 }
 
 /// Distinguishes temporary files of concurrent writes from the same process.
