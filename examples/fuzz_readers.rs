@@ -326,7 +326,13 @@ fn number_spans(data: &[u8]) -> Vec<(usize, usize)> {
 }
 
 /// Applies one random mutation to `data` (never longer than `max_len`).
-fn mutate_once(data: &mut Vec<u8>, corpus: &[Vec<u8>], reader: Reader, rng: &mut Rng, max_len: usize) {
+fn mutate_once(
+    data: &mut Vec<u8>,
+    corpus: &[Vec<u8>],
+    reader: Reader,
+    rng: &mut Rng,
+    max_len: usize,
+) {
     let len = data.len();
     match rng.below(11) {
         0 if len > 0 => {
@@ -391,7 +397,7 @@ fn mutate_once(data: &mut Vec<u8>, corpus: &[Vec<u8>], reader: Reader, rng: &mut
             line.push(b'\n');
             data.splice(at..at, line);
         }
-        9 | 6 | 7 | 8 if len > 0 => {
+        6..=9 if len > 0 => {
             // Write a hostile integer into the payload, 1, 2, 4 or 8 bytes, either endian.
             let start = if reader.text() {
                 0
@@ -498,7 +504,10 @@ pub fn execute(reader: Reader, data: &[u8]) -> Verdict {
             }
             // The class of the error: its lowercase words up to the first quoted value (element
             // and property names, which mutations change, mostly are not).
-            let head: String = text.chars().take_while(|&c| c != '\'' && c != '"').collect();
+            let head: String = text
+                .chars()
+                .take_while(|&c| c != '\'' && c != '"')
+                .collect();
             let class: Vec<&str> = head
                 .split(|c: char| !c.is_ascii_alphabetic())
                 .filter(|w| w.len() >= 3 && w.bytes().all(|b| b.is_ascii_lowercase()))
@@ -562,13 +571,19 @@ pub fn run(cfg: &Config) -> Summary {
         corpus_start: corpus.len(),
         ..Default::default()
     };
-    let mut current = cfg.current.as_ref().and_then(|p| std::fs::File::create(p).ok());
+    let mut current = cfg
+        .current
+        .as_ref()
+        .and_then(|p| std::fs::File::create(p).ok());
     let started = Instant::now();
     let mut input = Vec::new();
     // The seeds themselves first, then mutations.
     let mut k = 0usize;
     loop {
-        if summary.runs % 64 == 0 && started.elapsed() >= cfg.duration && k >= cfg.corpus.len() {
+        if summary.runs.is_multiple_of(64)
+            && started.elapsed() >= cfg.duration
+            && k >= cfg.corpus.len()
+        {
             break;
         }
         if cfg.max_runs > 0 && summary.runs >= cfg.max_runs {
@@ -694,8 +709,7 @@ fn main() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let corpus_dir =
         corpus_dir.unwrap_or_else(|| root.join("tests/fuzz/corpus").join(reader.name()));
-    let crashes =
-        crashes.unwrap_or_else(|| root.join("target/fuzz-crashes").join(reader.name()));
+    let crashes = crashes.unwrap_or_else(|| root.join("target/fuzz-crashes").join(reader.name()));
     if supervise {
         std::process::exit(supervisor(&args, reader, seconds, seed, &crashes));
     }
@@ -758,7 +772,12 @@ fn supervisor(args: &[String], reader: Reader, seconds: f64, seed: u64, crashes:
         }
         let out = std::process::Command::new(&exe)
             .args(&worker_args)
-            .args(["--seconds", &format!("{left:.3}"), "--seed", &seed.to_string()])
+            .args([
+                "--seconds",
+                &format!("{left:.3}"),
+                "--seed",
+                &seed.to_string(),
+            ])
             .arg("--worker-current")
             .arg(&current)
             .stderr(std::process::Stdio::inherit())

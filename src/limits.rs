@@ -111,10 +111,7 @@ mod tests {
     #[test]
     fn impossible_reservations_are_typed_errors() {
         let err = try_vec::<[f64; 3]>(usize::MAX / 2, "vertices").unwrap_err();
-        assert!(
-            matches!(err, FoldMatchError::OutOfMemory { .. }),
-            "{err:?}"
-        );
+        assert!(matches!(err, FoldMatchError::OutOfMemory { .. }), "{err:?}");
         assert!(err.to_string().contains("vertices"), "{err}");
         let mut v: Vec<u8> = Vec::new();
         for i in 0..1000u32 {
@@ -130,7 +127,10 @@ mod tests {
         assert!(check_threads("threads", max_threads()).is_ok());
         for bad in [0, max_threads() + 1, 65_535] {
             let err = check_threads("threads", bad).unwrap_err().to_string();
-            assert!(err.starts_with(&format!("parameter threads = {bad}:")), "{err}");
+            assert!(
+                err.starts_with(&format!("parameter threads = {bad}:")),
+                "{err}"
+            );
             assert!(err.contains("hardware thread"), "{err}");
         }
     }

@@ -258,7 +258,9 @@ pub fn read_bounded(path: &Path, limit: u64) -> Result<Vec<u8>> {
     #[cfg(unix)]
     {
         use std::os::unix::fs::FileTypeExt;
-        let kind = fs::metadata(path).map_err(|e| io_error(path, e))?.file_type();
+        let kind = fs::metadata(path)
+            .map_err(|e| io_error(path, e))?
+            .file_type();
         if kind.is_char_device() || kind.is_block_device() {
             return Err(refuse("a device"));
         }
@@ -280,7 +282,8 @@ pub fn read_bounded(path: &Path, limit: u64) -> Result<Vec<u8>> {
         if size > limit {
             return Err(too_large(size));
         }
-        let mut data = crate::limits::try_vec::<u8>(size as usize + 1, &path.display().to_string())?;
+        let mut data =
+            crate::limits::try_vec::<u8>(size as usize + 1, &path.display().to_string())?;
         // The file may grow while it is read: never past the limit.
         (&mut file)
             .take(limit + 1)

@@ -622,12 +622,17 @@ mod tests {
             );
         }
         let err = err_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 5000000000//1 2//1 3//1\n");
-        assert!(err.contains("vertex index 5000000000 is too large"), "{err}");
+        assert!(
+            err.contains("vertex index 5000000000 is too large"),
+            "{err}"
+        );
         let err = err_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//9 2//1 3//1\n");
         assert!(err.contains("normal index 9 is out of range"), "{err}");
         // Forward references with normals: the first reference of a vertex gives its normal.
-        let m = parse("vn 1 0 0\nvn 0 1 0\nf 3//2 1//1 2//1\nf 3//1 2//2 1//2\nv 0 0 0\nv 1 0 0\nv 0 1 0\n")
-            .unwrap();
+        let m = parse(
+            "vn 1 0 0\nvn 0 1 0\nf 3//2 1//1 2//1\nf 3//1 2//2 1//2\nv 0 0 0\nv 1 0 0\nv 0 1 0\n",
+        )
+        .unwrap();
         assert_eq!(
             m.normals,
             Some(vec![[1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
