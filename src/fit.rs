@@ -16,7 +16,7 @@ use crate::curvature::{gaussian_curvature_mesh, gaussian_curvature_points};
 use crate::deformation::deformation_gradient;
 use crate::error::{FoldMatchError, Result};
 use crate::knn::{morton_order, neighborhood_size, NeighborCache, PointIndex, TargetNeighbours};
-use crate::limits::{MAX_ITERATIONS, MAX_PARAMETER};
+use crate::limits::{MAX_ITERATIONS, MAX_K, MAX_PARAMETER};
 use crate::math::{nearest_rotation_with, vec3, Mat3, Vec3};
 use crate::mesh::{clean_faces, validate_faces, validate_points, vertex_normals, VertexFaces};
 use crate::nbody::{self, NBodyParams, TwoWayPull};
@@ -688,7 +688,7 @@ impl FitParams {
         ];
         for (name, v, range) in rules {
             if !(range.contains)(v) {
-                return Err(FoldMatchError::parameter(name, v, range.rule));
+                return Err(FoldMatchError::parameter(name, shown(v), range.rule));
             }
         }
         if self.rigid_fraction + self.coarse_fraction > 1.0 {
@@ -754,14 +754,24 @@ impl FitParams {
                 "must be in 1..=8",
             ));
         }
-        if self.k_min == 0 || self.k_max < self.k_min {
+        if self.k_min == 0 || self.k_max < self.k_min || self.k_max > MAX_K {
             return Err(FoldMatchError::parameter(
                 "k_min/k_max",
                 format!("{}/{}", self.k_min, self.k_max),
-                "need 1 <= k_min <= k_max",
+                &format!("need 1 <= k_min <= k_max <= {MAX_K}"),
             ));
         }
         Ok(())
+    }
+}
+
+/// A value for an error message: plain (`2`, `0.25`) in the usual range, else in the shortest
+/// form that reads back (`1e300`, not 301 digits; `NaN`).
+fn shown(v: f64) -> String {
+    if v == 0.0 || (v.is_finite() && (1e-6..1e15).contains(&v.abs())) {
+        format!("{v}")
+    } else {
+        format!("{v:?}")
     }
 }
 

@@ -38,6 +38,34 @@ pub const MAX_SHEET_SCAN_POINTS: usize = 10_000_000;
 /// kept as a marker.
 pub const MAX_VERTICES: usize = u32::MAX as usize - 1;
 
+/// The largest K of the target neighborhoods (`k_max`): 1,024 (the defaults are 32 and the
+/// paper's 64; the neighbor lists take M·K entries).
+pub const MAX_K: usize = 1024;
+
+/// The most bytes the kept snapshots of a fit (`snapshot_every`) may take: 4 GiB.
+pub const MAX_SNAPSHOT_BYTES: usize = 4 << 30;
+
+/// Checks that the snapshots `params` asks for, of a template of `m` vertices, fit in
+/// [`MAX_SNAPSHOT_BYTES`] (one copy of the vertices every `snapshot_every` iterations).
+pub fn check_snapshots(params: &crate::FitParams, m: usize) -> Result<()> {
+    if params.snapshot_every == 0 {
+        return Ok(());
+    }
+    let count = params.iterations / params.snapshot_every + 1;
+    let bytes = count.saturating_mul(m).saturating_mul(24);
+    if bytes > MAX_SNAPSHOT_BYTES {
+        return Err(FoldMatchError::parameter(
+            "snapshot_every",
+            params.snapshot_every,
+            &format!(
+                "{count} snapshots of {m} vertices take {bytes} bytes, more than the limit of \
+                 {MAX_SNAPSHOT_BYTES}: keep fewer"
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// The most n-rings of a neighborhood (`rings`, `n_rings`): 8, as [`crate::FitParams`].
 pub const MAX_RINGS: usize = 8;
 
@@ -119,6 +147,80 @@ mod tests {
         }
         assert_eq!(v.len(), 1000);
         assert_eq!(v[999], (999 % 256) as u8);
+    }
+
+    /// Issue 31, items 3 and 8: iterations = 0 is refused by validation (it used to panic
+    /// with "min > max" inside the fit), as are 10⁹ iterations (32 GB of history up front)
+    /// and huge finite reals; the messages name the parameter and its value only.
+    #[test]
+    fn parameters_are_validated_against_their_domain() {
+        use crate::FitParams;
+        let check = |p: FitParams, expected: &str| {
+            let err = p.validate().unwrap_err().to_string();
+            assert!(err.starts_with(expected), "{err}");
+        };
+        check(
+            FitParams {
+                iterations: 0,
+                ..FitParams::default()
+            },
+            "parameter iterations = 0: must be in 1..=1000000",
+        );
+        check(
+            FitParams {
+                iterations: 1_000_000_000,
+                ..FitParams::default()
+            },
+            "parameter iterations = 1000000000:",
+        );
+        let mut p = FitParams::default();
+        p.nbody.gravity = 1e300;
+        check(p, "parameter gravity = 1e300: must be in (0, 1e6]");
+        let mut p = FitParams::default();
+        p.rho = f64::NAN;
+        check(p, "parameter rho = NaN:");
+        assert!(FitParams {
+            iterations: MAX_ITERATIONS,
+            ..FitParams::default()
+        }
+        .validate()
+        .is_ok());
+        // From JSON: the key alone is named, never the whole object.
+        for (json, expected) in [
+            (
+                r#"{"rho": "NaN", "psi": 0.1}"#,
+                "parameter rho = NaN: must be a finite number",
+            ),
+            (
+                r#"{"rho": "-inf"}"#,
+                "parameter rho = -inf: must be a finite number",
+            ),
+            (
+                r#"{"rho": null}"#,
+                "parameter rho = null: must be a finite number",
+            ),
+            (
+                r#"{"iterations": -1}"#,
+                "parameter iterations = -1: invalid value",
+            ),
+            (
+                r#"{"iterations": 0}"#,
+                "parameter iterations = 0: must be in 1..=",
+            ),
+            (r#"{"rings": "two"}"#, "parameter rings = two: invalid type"),
+        ] {
+            let err = FitParams::from_json(json).unwrap_err().to_string();
+            assert!(err.starts_with(expected), "{json}: {err}");
+            assert!(!err.contains('{'), "{err}");
+        }
+        // And the fit itself refuses them before doing anything (no panic).
+        let tri = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        let p = FitParams {
+            iterations: 0,
+            ..FitParams::default()
+        };
+        let err = crate::fit::fit(&tri, &[[0, 1, 2]], &tri, None, &p, &mut |_| true);
+        assert!(matches!(err, Err(FoldMatchError::Parameter { .. })));
     }
 
     #[test]

@@ -326,6 +326,7 @@ fn fit_raw<'py>(
     let tv = points("template_vertices", &template_vertices)?;
     let x = points("target", &target)?;
     let tf = faces("template_faces", &template_faces, tv.len())?;
+    crate::limits::check_snapshots(&params, tv.len()).map_err(to_pyerr)?;
     let xf = match &target_faces {
         Some(f) => Some(faces("target_faces", f, x.len())?),
         None => None,

@@ -389,7 +389,8 @@ def fit(
         ``mean_displacement``, ``max_displacement``); returning ``False`` stops the fit, which
         returns what it has. An exception raised by the callback propagates.
     threads : int, optional
-        Number of worker threads (default: all cores). Results are bit-identical for any count.
+        Number of worker threads (default: all cores; at most 4 per hardware thread). Results
+        are bit-identical for any count.
 
     Returns
     -------
@@ -400,9 +401,12 @@ def fit(
     InvalidInputError
         Empty or wrongly shaped arrays, NaN/Inf, face indices out of range, a far-away template.
     InvalidParameterError
-        A parameter out of range or an unknown option value.
+        A parameter out of range (``iterations`` 1..=10⁶, finite reals at most 10⁶, see
+        docs/cli.md "Limits"), an unknown option value, or an int that does not fit.
     NumericalError
         The fit diverged.
+    KeyboardInterrupt
+        Ctrl-C: the fit stops at its next iteration (with or without a callback).
     """
     if target is None:
         raise InvalidInputError("target: missing (pass the scan as the third argument)")

@@ -219,6 +219,7 @@ impl Runner<'_> {
             return Err(INTERRUPTED.into());
         }
         let start = job.start.unwrap_or(&template.vertices);
+        crate::limits::check_snapshots(self.params, start.len()).map_err(|e| e.to_string())?;
         let bar = self.ui.iterations_bar(&job.name, self.params.iterations);
         let every = (self.params.iterations / 10).max(1);
         let plain_detail = !self.ui.has_bars() && self.ui.verbosity() >= Verbosity::Verbose;

@@ -486,6 +486,50 @@ mod tests {
         assert!(reason(&err).contains("nope.ply"), "{err}");
     }
 
+    /// Issue 31, item 4: devices (also behind a symbolic link) and folders are refused before
+    /// anything is read; a pipe is read up to the limit and no further.
+    #[cfg(unix)]
+    #[test]
+    fn non_regular_files_are_refused_or_bounded() {
+        let dir = TempDir::new("nonregular");
+        let link = dir.join("zero.ply");
+        std::os::unix::fs::symlink("/dev/zero", &link).unwrap();
+        for path in [Path::new("/dev/zero"), Path::new("/dev/urandom"), &link] {
+            let err = read_file(path).unwrap_err();
+            assert!(matches!(err, FoldMatchError::Io { .. }), "{err:?}");
+            assert!(reason(&err).contains("a device"), "{err}");
+        }
+        assert!(reason(&read_mesh(&link).unwrap_err()).contains("a device"));
+        let folder = dir.join("folder.obj");
+        fs::create_dir(&folder).unwrap();
+        assert!(reason(&read_mesh(&folder).unwrap_err()).contains("a folder"));
+        // A FIFO fed without end: reading stops past the limit.
+        let fifo = dir.join("pipe.ply");
+        let made = Command::new("mkfifo").arg(&fifo).status();
+        if !made.is_ok_and(|s| s.success()) {
+            eprintln!("skipping the FIFO case: no mkfifo");
+            return;
+        }
+        let writer_path = fifo.clone();
+        let writer = std::thread::spawn(move || {
+            let mut f = OpenOptions::new().write(true).open(writer_path).unwrap();
+            let chunk = [b'x'; 4096];
+            // Until the reader closes its end (broken pipe).
+            while f.write_all(&chunk).is_ok() {}
+        });
+        let err = read_bounded(&fifo, 100_000).unwrap_err();
+        assert!(
+            reason(&err).contains("larger than the limit of 100000 bytes"),
+            "{err}"
+        );
+        writer.join().unwrap();
+        // A regular file over the limit is refused from its size, before reading.
+        let big = dir.join("big.ply");
+        fs::write(&big, [b'x'; 2000]).unwrap();
+        assert!(reason(&read_bounded(&big, 1000).unwrap_err()).contains("2000 bytes"));
+        assert_eq!(read_bounded(&big, 2000).unwrap().len(), 2000);
+    }
+
     #[test]
     fn atomic_write_replaces_and_leaves_no_temp_files() {
         let dir = TempDir::new("atomic");

@@ -1293,7 +1293,7 @@ mod tests {
     #[test]
     fn all_scalar_types_lists_on_vertices_and_unknown_elements() {
         // Little-endian binary with every type, a list on the vertex element, an unknown
-        // element with a list before the faces, and a quad plus a degenerate 2-gon.
+        // element with a list before the faces, and a quad plus a triangle.
         let mut h = String::from("ply\r\nformat binary_little_endian 1.0\r\ncomment hi\r\n");
         h += "obj_info made by hand\r\nelement vertex 4\r\n";
         h += "property int8 a\r\nproperty float32 x\r\nproperty list uint8 int16 junk\r\n";
@@ -1331,11 +1331,23 @@ mod tests {
             d.extend_from_slice(&v.to_le_bytes());
         }
         d.push(0);
-        d.extend_from_slice(&2u32.to_le_bytes());
-        d.extend_from_slice(&0u32.to_le_bytes());
-        d.extend_from_slice(&1u32.to_le_bytes());
+        d.extend_from_slice(&3u32.to_le_bytes());
+        for v in [3u32, 2, 1] {
+            d.extend_from_slice(&v.to_le_bytes());
+        }
         d.extend_from_slice(&[0u8; 24]); // edges
         let m = parse(&d).unwrap();
+        // The same file with a 2-gon for the triangle is an error naming the face (issue 31:
+        // PLY faces of 0 or 2 indices are errors, as OBJ's `f 1 2`).
+        let mut two = d.clone();
+        let at = two.len() - 24 - 16;
+        two[at..at + 4].copy_from_slice(&2u32.to_le_bytes());
+        two.drain(at + 12..at + 16);
+        let err = parse(&two).unwrap_err().to_string();
+        assert!(
+            err.contains("face 1 has 2 vertices, at least 3 are needed"),
+            "{err}"
+        );
         assert_eq!(
             m.vertices,
             vec![
@@ -1345,7 +1357,7 @@ mod tests {
                 [3.5, -3.0, 0.75]
             ]
         );
-        assert_eq!(m.faces, vec![[0, 1, 2], [0, 2, 3]]);
+        assert_eq!(m.faces, vec![[0, 1, 2], [0, 2, 3], [3, 2, 1]]);
         assert_eq!(
             m.colors.unwrap(),
             vec![[255, 0, 0], [255, 1, 0], [255, 2, 0], [255, 3, 0]]
