@@ -176,9 +176,13 @@ mod tests {
         let mut p = FitParams::default();
         p.nbody.gravity = 1e300;
         check(p, "parameter gravity = 1e300: must be in (0, 1e6]");
-        let mut p = FitParams::default();
-        p.rho = f64::NAN;
-        check(p, "parameter rho = NaN:");
+        check(
+            FitParams {
+                rho: f64::NAN,
+                ..FitParams::default()
+            },
+            "parameter rho = NaN:",
+        );
         assert!(FitParams {
             iterations: MAX_ITERATIONS,
             ..FitParams::default()
