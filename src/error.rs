@@ -84,6 +84,16 @@ pub enum FoldMatchError {
     /// The computation diverged (non-finite positions).
     #[error("numerical failure: {0}")]
     Numerical(String),
+    /// Memory for a size the input announced could not be allocated (the sizes are checked
+    /// against the input and the limits of [`crate::limits`] first, so this is a machine with
+    /// less memory than the input needs).
+    #[error("{what}: cannot allocate {bytes} bytes (out of memory)")]
+    OutOfMemory {
+        /// What the memory was for (and the file it comes from, when there is one).
+        what: String,
+        /// The bytes asked for.
+        bytes: usize,
+    },
 }
 
 /// Shorthand for `std::result::Result<T, FoldMatchError>`.
@@ -96,6 +106,13 @@ impl FoldMatchError {
             name: name.into(),
             value: value.to_string(),
             reason: reason.into(),
+        }
+    }
+    /// Convenience constructor for [`FoldMatchError::OutOfMemory`].
+    pub fn out_of_memory(what: &str, bytes: usize) -> Self {
+        Self::OutOfMemory {
+            what: what.into(),
+            bytes,
         }
     }
     /// Convenience constructor for [`FoldMatchError::Shape`].

@@ -16,6 +16,7 @@ use crate::curvature::{gaussian_curvature_mesh, gaussian_curvature_points};
 use crate::deformation::deformation_gradient;
 use crate::error::{FoldMatchError, Result};
 use crate::knn::{morton_order, neighborhood_size, NeighborCache, PointIndex, TargetNeighbours};
+use crate::limits::{MAX_ITERATIONS, MAX_K, MAX_PARAMETER};
 use crate::math::{nearest_rotation_with, vec3, Mat3, Vec3};
 use crate::mesh::{clean_faces, validate_faces, validate_points, vertex_normals, VertexFaces};
 use crate::nbody::{self, NBodyParams, TwoWayPull};
@@ -388,13 +389,15 @@ struct Range {
     rule: &'static str,
 }
 
+// The unbounded real parameters stop at `limits::MAX_PARAMETER` (10⁶): they act in the
+// normalized frame, where larger values only throw the template out of the scan's range.
 const POSITIVE: Range = Range {
-    contains: |v| v > 0.0 && v.is_finite(),
-    rule: "must be positive and finite",
+    contains: |v| v > 0.0 && v <= MAX_PARAMETER,
+    rule: "must be in (0, 1e6]",
 };
 const NON_NEGATIVE: Range = Range {
-    contains: |v| v >= 0.0 && v.is_finite(),
-    rule: "must be finite and >= 0",
+    contains: |v| (0.0..=MAX_PARAMETER).contains(&v),
+    rule: "must be in [0, 1e6]",
 };
 const UNIT: Range = Range {
     contains: |v| (0.0..=1.0).contains(&v),
@@ -409,8 +412,8 @@ const PSI: Range = Range {
     rule: "must be finite with |psi| < 1",
 };
 const AT_LEAST_ONE: Range = Range {
-    contains: |v| v >= 1.0 && v.is_finite(),
-    rule: "must be finite and >= 1",
+    contains: |v| (1.0..=MAX_PARAMETER).contains(&v),
+    rule: "must be in [1, 1e6]",
 };
 
 impl FitParams {
@@ -616,7 +619,7 @@ impl FitParams {
     pub fn from_json_over(text: &str, base: Self) -> Result<Self> {
         let mut given: serde_json::Map<String, serde_json::Value> = serde_json::from_str(text)
             .map_err(|e| {
-                FoldMatchError::parameter("params", text, &format!("not a JSON object: {e}"))
+                FoldMatchError::parameter("params", short(text), &format!("not a JSON object: {e}"))
             })?;
         let known = serde_json::to_value(Self::default()).expect("FitParams serializes");
         let known = known.as_object().expect("FitParams is an object");
@@ -632,10 +635,42 @@ impl FitParams {
         for (key, value) in base.as_object().expect("object") {
             given.entry(key.clone()).or_insert_with(|| value.clone());
         }
-        let params: Self = serde_json::from_value(serde_json::Value::Object(given))
-            .map_err(|e| FoldMatchError::parameter("params", text, &e.to_string()))?;
+        let params: Self = serde_json::from_value(serde_json::Value::Object(given.clone()))
+            .map_err(|e| Self::blame(&given, &base, e))?;
         params.validate()?;
         Ok(params)
+    }
+
+    /// The error of a parameter object that does not deserialize, naming the first key whose
+    /// value alone makes `base` fail (and only that key and value, not the whole object).
+    fn blame(
+        given: &serde_json::Map<String, serde_json::Value>,
+        base: &serde_json::Value,
+        whole: serde_json::Error,
+    ) -> FoldMatchError {
+        for (key, value) in given {
+            let mut one = base.clone();
+            one[key.as_str()] = value.clone();
+            if let Err(e) = serde_json::from_value::<Self>(one) {
+                let shown = match value {
+                    serde_json::Value::String(s) => short(s),
+                    other => short(&other.to_string()),
+                };
+                let non_finite = matches!(
+                    shown.to_ascii_lowercase().trim_start_matches(['+', '-']),
+                    "nan" | "inf" | "infinity" | "null"
+                );
+                let reason = if non_finite {
+                    "must be a finite number".to_string()
+                } else {
+                    let e = e.to_string();
+                    // serde's message ends with " at line L column C" of a text we made.
+                    e.split(" at line ").next().unwrap_or(&e).to_string()
+                };
+                return FoldMatchError::parameter(key, shown, &reason);
+            }
+        }
+        FoldMatchError::parameter("params", "?", &whole.to_string())
     }
 
     /// The parameters as a JSON object (every key, defaults included).
@@ -646,6 +681,13 @@ impl FitParams {
     /// Checks every parameter's range.
     pub fn validate(&self) -> Result<()> {
         let p = &self.nbody;
+        if !(1..=MAX_ITERATIONS).contains(&self.iterations) {
+            return Err(FoldMatchError::parameter(
+                "iterations",
+                self.iterations,
+                &format!("must be in 1..={MAX_ITERATIONS}"),
+            ));
+        }
         // Every real-valued parameter's range.
         let rules = [
             ("rho", self.rho, POSITIVE),
@@ -673,7 +715,7 @@ impl FitParams {
         ];
         for (name, v, range) in rules {
             if !(range.contains)(v) {
-                return Err(FoldMatchError::parameter(name, v, range.rule));
+                return Err(FoldMatchError::parameter(name, shown(v), range.rule));
             }
         }
         if self.rigid_fraction + self.coarse_fraction > 1.0 {
@@ -739,14 +781,32 @@ impl FitParams {
                 "must be in 1..=8",
             ));
         }
-        if self.k_min == 0 || self.k_max < self.k_min {
+        if self.k_min == 0 || self.k_max < self.k_min || self.k_max > MAX_K {
             return Err(FoldMatchError::parameter(
                 "k_min/k_max",
                 format!("{}/{}", self.k_min, self.k_max),
-                "need 1 <= k_min <= k_max",
+                &format!("need 1 <= k_min <= k_max <= {MAX_K}"),
             ));
         }
         Ok(())
+    }
+}
+
+/// A value for an error message: plain (`2`, `0.25`) in the usual range, else in the shortest
+/// form that reads back (`1e300`, not 301 digits; `NaN`).
+fn shown(v: f64) -> String {
+    if v == 0.0 || (v.is_finite() && (1e-6..1e15).contains(&v.abs())) {
+        format!("{v}")
+    } else {
+        format!("{v:?}")
+    }
+}
+
+/// `text`, or its first 60 characters and an ellipsis (for error messages).
+fn short(text: &str) -> String {
+    match text.char_indices().nth(60) {
+        Some((i, _)) => format!("{}…", &text[..i]),
+        None => text.to_string(),
     }
 }
 

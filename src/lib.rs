@@ -32,6 +32,7 @@ pub mod error;
 pub mod fit;
 pub mod io;
 pub mod knn;
+pub mod limits;
 pub mod math;
 pub mod mesh;
 pub mod metrics;

@@ -41,6 +41,7 @@ fn to_pyerr(err: FoldMatchError) -> PyErr {
         FoldMatchError::Format { .. } => "MeshFormatError",
         FoldMatchError::Cancelled { .. } => "FitCancelled",
         FoldMatchError::Numerical(_) => "NumericalError",
+        FoldMatchError::OutOfMemory { .. } => "OutOfMemoryError",
     };
     raise(class, err.to_string())
 }
@@ -59,28 +60,72 @@ fn raise(class: &str, message: String) -> PyErr {
     })
 }
 
-/// Runs `work` without the GIL, in a dedicated pool when `threads` is given or after a fork,
-/// turning a panic into `InternalError`.
+/// How often a computation's calling thread looks for signals (Ctrl-C) while it waits.
+const SIGNAL_POLL: std::time::Duration = std::time::Duration::from_millis(50);
+
+/// Runs `work` without the GIL on a worker thread, in a dedicated pool when `threads` is
+/// given or after a fork, turning a panic into `InternalError`.
+///
+/// The calling thread waits for it and, every [`SIGNAL_POLL`], takes the GIL briefly to run
+/// `Python::check_signals`: when that raises (Ctrl-C: `KeyboardInterrupt`), the flag passed
+/// to `work` is set (the fit's observer and the chunked stages stop at their next check),
+/// the work is waited for, its result dropped and the exception raised. Signal handlers only
+/// run on Python's main thread; called from another thread, nothing is interrupted.
 fn compute<T: Send>(
     py: Python<'_>,
     threads: Option<usize>,
-    work: impl FnOnce() -> T + Send,
+    work: impl FnOnce(&AtomicBool) -> T + Send,
 ) -> PyResult<T> {
+    let cancel = AtomicBool::new(false);
+    let mut interrupt: Option<PyErr> = None;
     let outcome = py.detach(|| {
-        catch_unwind(AssertUnwindSafe(|| {
-            if threads.is_some() || FORKED.load(Ordering::Relaxed) {
-                let pool = rayon::ThreadPoolBuilder::new()
-                    .num_threads(threads.unwrap_or(0))
-                    .build();
-                match pool {
-                    Ok(pool) => Ok(pool.install(work)),
-                    Err(e) => Err(format!("could not start {threads:?} threads: {e}")),
-                }
-            } else {
-                Ok(work())
+        std::thread::scope(|scope| {
+            let (tx, rx) = std::sync::mpsc::channel();
+            let cancel = &cancel;
+            let spawned = std::thread::Builder::new()
+                .name("foldmatch-call".into())
+                .stack_size(16 << 20)
+                .spawn_scoped(scope, move || {
+                    let outcome = catch_unwind(AssertUnwindSafe(|| {
+                        if threads.is_some() || FORKED.load(Ordering::Relaxed) {
+                            let pool = rayon::ThreadPoolBuilder::new()
+                                .num_threads(threads.unwrap_or(0))
+                                .build();
+                            match pool {
+                                Ok(pool) => Ok(pool.install(|| work(cancel))),
+                                Err(e) => Err(format!("could not start {threads:?} threads: {e}")),
+                            }
+                        } else {
+                            Ok(work(cancel))
+                        }
+                    }));
+                    let _ = tx.send(outcome);
+                });
+            if let Err(e) = spawned {
+                return Ok(Err(format!("could not start a worker thread: {e}")));
             }
-        }))
+            loop {
+                match rx.recv_timeout(SIGNAL_POLL) {
+                    Ok(outcome) => return outcome,
+                    Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {
+                        if interrupt.is_none() {
+                            if let Err(e) = Python::attach(|py| py.check_signals()) {
+                                interrupt = Some(e);
+                                cancel.store(true, Ordering::Relaxed);
+                            }
+                        }
+                    }
+                    // The worker ended without sending: only a panic in the sending itself.
+                    Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => {
+                        return Ok(Err("the worker thread ended without a result".into()));
+                    }
+                }
+            }
+        })
     });
+    if let Some(e) = interrupt {
+        return Err(e);
+    }
     match outcome {
         Ok(Ok(v)) => Ok(v),
         Ok(Err(msg)) => Err(raise("InternalError", msg)),
@@ -96,6 +141,51 @@ fn compute<T: Send>(
             ))
         }
     }
+}
+
+/// A whole-number argument: a Python int that does not fit (negative, or too large) or is not
+/// an int at all raises `InvalidParameterError` naming the argument, not `OverflowError`.
+fn whole(name: &str, obj: &Bound<'_, PyAny>, rule: &str) -> PyResult<usize> {
+    obj.extract::<usize>().map_err(|_| {
+        let shown = obj
+            .repr()
+            .map(|r| r.to_string())
+            .unwrap_or_else(|_| "?".into());
+        to_pyerr(FoldMatchError::parameter(name, shown, rule))
+    })
+}
+
+/// A count or size argument (`usize`).
+fn count(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<usize> {
+    whole(name, obj, "must be a whole number >= 0")
+}
+
+/// The `threads` argument: `None`, or 1 ..= [`crate::limits::max_threads`].
+fn threads_arg(obj: Option<&Bound<'_, PyAny>>) -> PyResult<Option<usize>> {
+    let Some(obj) = obj else { return Ok(None) };
+    let most = crate::limits::max_threads();
+    let n: usize = whole(
+        "threads",
+        obj,
+        &format!("must be a whole number in 1..={most}"),
+    )?;
+    crate::limits::check_threads("threads", n)
+        .map(Some)
+        .map_err(to_pyerr)
+}
+
+/// The `rings` argument: 1 ..= [`crate::limits::MAX_RINGS`] (the Python layer turns a
+/// negative or oversized int into `InvalidParameterError` before it gets here).
+fn rings_arg(n: usize) -> PyResult<usize> {
+    let most = crate::limits::MAX_RINGS;
+    if !(1..=most).contains(&n) {
+        return Err(to_pyerr(FoldMatchError::parameter(
+            "rings",
+            n,
+            &format!("must be in 1..={most}"),
+        )));
+    }
+    Ok(n)
 }
 
 /// A `(n, 3)` float64 C-contiguous array viewed as points, without a copy.
@@ -229,15 +319,17 @@ fn fit_raw<'py>(
     target_faces: Option<PyReadonlyArray2<'py, i64>>,
     params_json: &str,
     callback: Option<Py<PyAny>>,
-    threads: Option<usize>,
+    threads: Option<Bound<'py, PyAny>>,
     preset: &str,
     target_weights: Option<PyReadonlyArray1<'py, f64>>,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let threads = threads_arg(threads.as_ref())?;
     let base = FitParams::preset(preset).map_err(to_pyerr)?;
     let params = FitParams::from_json_over(params_json, base).map_err(to_pyerr)?;
     let tv = points("template_vertices", &template_vertices)?;
     let x = points("target", &target)?;
     let tf = faces("template_faces", &template_faces, tv.len())?;
+    crate::limits::check_snapshots(&params, tv.len()).map_err(to_pyerr)?;
     let xf = match &target_faces {
         Some(f) => Some(faces("target_faces", f, x.len())?),
         None => None,
@@ -254,8 +346,14 @@ fn fit_raw<'py>(
     let mut callback_error: Option<PyErr> = None;
     let result = {
         let callback_error = &mut callback_error;
-        let mut observer = |p: &Progress| -> bool {
-            let Some(cb) = &callback else { return true };
+        let callback = &callback;
+        // Every iteration: stop when Ctrl-C was seen (`compute` sets `cancel`), else call the
+        // callback (with the GIL, briefly).
+        let mut step = move |cancel: &AtomicBool, p: &Progress| -> bool {
+            if cancel.load(Ordering::Relaxed) {
+                return false;
+            }
+            let Some(cb) = callback else { return true };
             Python::attach(|py| {
                 let info = PyDict::new(py);
                 let filled = info
@@ -276,7 +374,8 @@ fn fit_raw<'py>(
                 }
             })
         };
-        compute(py, threads, || {
+        compute(py, threads, |cancel| {
+            let mut observer = |p: &Progress| step(cancel, p);
             fit::fit_weighted(tv, &tf, x, xf.as_deref(), weights, &params, &mut observer)
         })?
     };
@@ -337,9 +436,11 @@ fn knn_query<'py>(
     py: Python<'py>,
     points: PyReadonlyArray2<'py, f64>,
     queries: PyReadonlyArray2<'py, f64>,
-    k: usize,
-    threads: Option<usize>,
+    k: Bound<'py, PyAny>,
+    threads: Option<Bound<'py, PyAny>>,
 ) -> PyResult<(Bound<'py, PyArray2<u32>>, Bound<'py, PyArray2<f64>>)> {
+    let k = count("k", &k)?;
+    let threads = threads_arg(threads.as_ref())?;
     let p = self::points("points", &points)?;
     let q = self::points("queries", &queries)?;
     crate::mesh::validate_points("points", p).map_err(to_pyerr)?;
@@ -350,11 +451,26 @@ fn knn_query<'py>(
             &format!("must be in 1..={}", p.len()),
         )));
     }
-    let (idx, d2) = compute(py, threads, || {
+    // q·k results: reserved up front, a failure is OutOfMemoryError.
+    let cells = q
+        .len()
+        .checked_mul(k)
+        .ok_or_else(|| to_pyerr(FoldMatchError::out_of_memory("knn results", usize::MAX)))?;
+    let mut idx = crate::limits::try_vec::<u32>(cells, "knn results").map_err(to_pyerr)?;
+    let mut d2 = crate::limits::try_vec::<f64>(cells, "knn results").map_err(to_pyerr)?;
+    idx.resize(cells, 0);
+    d2.resize(cells, 0.0);
+    let (idx, d2) = compute(py, threads, |cancel| {
         let index = knn::PointIndex::new(p);
-        let mut idx = vec![0u32; q.len() * k];
-        let mut d2 = vec![0.0; q.len() * k];
-        index.nearest_all(q, k, &mut idx, &mut d2);
+        // In chunks of queries, so that Ctrl-C stops it between two.
+        const CHUNK: usize = 1 << 15;
+        for (c, qs) in q.chunks(CHUNK).enumerate() {
+            if cancel.load(Ordering::Relaxed) {
+                break;
+            }
+            let range = c * CHUNK * k..(c * CHUNK + qs.len()) * k;
+            index.nearest_all(qs, k, &mut idx[range.clone()], &mut d2[range]);
+        }
         (idx, d2)
     })?;
     Ok((
@@ -407,7 +523,7 @@ fn nbody_step<'py>(
         }
         nn.push(j as u32);
     }
-    let (vel, prop) = compute(py, None, || {
+    let (vel, prop) = compute(py, None, |_| {
         let mut vel = v.to_vec();
         let mut prop = vec![[0.0; 3]; y.len()];
         nbody::step(
@@ -434,11 +550,31 @@ fn nbody_step<'py>(
 fn n_rings<'py>(
     py: Python<'py>,
     faces: PyReadonlyArray2<'py, i64>,
-    n_vertices: usize,
+    n_vertices: Bound<'py, PyAny>,
     rings: usize,
 ) -> PyResult<(Bound<'py, PyArray1<u64>>, Bound<'py, PyArray1<u32>>)> {
+    let most = crate::limits::MAX_VERTICES;
+    let n_vertices: usize = whole(
+        "n_vertices",
+        &n_vertices,
+        &format!("must be a whole number in 0..={most}"),
+    )?;
+    if n_vertices > most {
+        return Err(to_pyerr(FoldMatchError::parameter(
+            "n_vertices",
+            n_vertices,
+            &format!("must be at most {most} (32-bit vertex indices)"),
+        )));
+    }
+    let rings = rings_arg(rings)?;
     let f = self::faces("faces", &faces, n_vertices)?;
-    let nb = compute(py, None, || rings::n_rings(&f, n_vertices, rings))?;
+    // Every vertex is in its own ring: offsets and members take at least 12 bytes a vertex.
+    // Ask for them first, so that a count the machine cannot hold is OutOfMemoryError.
+    drop(
+        crate::limits::try_vec::<[u32; 3]>(n_vertices.saturating_add(1), "n_rings")
+            .map_err(to_pyerr)?,
+    );
+    let nb = compute(py, None, |_| rings::n_rings(&f, n_vertices, rings))?;
     let offsets: Vec<u64> = nb.offsets.iter().map(|&o| o as u64).collect();
     Ok((offsets.into_pyarray(py), nb.members.into_pyarray(py)))
 }
@@ -457,7 +593,7 @@ fn gaussian_curvature<'py>(
         Some(f) => Some(self::faces("faces", f, p.len())?),
         None => None,
     };
-    let k = compute(py, None, || match &f {
+    let k = compute(py, None, |_| match &f {
         Some(f) => curvature::gaussian_curvature_mesh(p, f),
         None => curvature::gaussian_curvature_points(p, &knn::PointIndex::new(p)),
     })?;
@@ -476,6 +612,7 @@ fn deformation_gradients<'py>(
     rings: usize,
     normal_completion: f64,
 ) -> PyResult<(Bound<'py, PyArray3<f64>>, Bound<'py, PyArray1<bool>>)> {
+    let rings = rings_arg(rings)?;
     let o = points("old", &old)?;
     let n = points("new", &new)?;
     if o.len() != n.len() {
@@ -485,7 +622,7 @@ fn deformation_gradients<'py>(
         )));
     }
     let f = self::faces("faces", &faces, o.len())?;
-    let (h, deg) = compute(py, None, || {
+    let (h, deg) = compute(py, None, |_| {
         let clean = crate::mesh::clean_faces(&f).faces;
         let inc = crate::mesh::VertexFaces::new(&clean, o.len());
         let nb = rings::n_rings(&clean, o.len(), rings);
@@ -540,7 +677,7 @@ fn regularize_gradients<'py>(
                 "one of affine_invariant, log_euclidean, none",
             ))
         })?;
-    let (r, u) = compute(py, None, || {
+    let (r, u) = compute(py, None, |_| {
         let mut buf = regularize::RegularizeBuffers::new(h.len());
         let (mut r, mut u) = (vec![Mat3::zeros(); h.len()], vec![Mat3::zeros(); h.len()]);
         regularize::regularize(&h, &nb, mode, true, &mut buf, &mut r, &mut u);
@@ -629,7 +766,7 @@ fn foldmatch_update<'py>(
         )));
     }
     let f = self::faces("faces", &faces, o.len())?;
-    let (next, wvf) = compute(py, None, || {
+    let (next, wvf) = compute(py, None, |_| {
         let clean = crate::mesh::clean_faces(&f).faces;
         let inc = crate::mesh::VertexFaces::new(&clean, o.len());
         let nb = rings::n_rings(&clean, o.len(), params.rings);
@@ -671,13 +808,6 @@ fn folded_sheet<'py>(
     noise: f64,
     seed: u64,
 ) -> PyResult<Bound<'py, PyDict>> {
-    if nx < 2 || ny < 2 {
-        return Err(to_pyerr(FoldMatchError::parameter(
-            "nx/ny",
-            format!("{nx}/{ny}"),
-            "need at least 2 vertices per side",
-        )));
-    }
     let spec = synthetic::SheetSpec {
         nx,
         ny,
@@ -691,7 +821,8 @@ fn folded_sheet<'py>(
         noise,
         seed,
     };
-    let c = synthetic::folded_sheet(&spec);
+    spec.validate().map_err(to_pyerr)?;
+    let c = compute(py, None, |_| synthetic::folded_sheet(&spec))?;
     let d = PyDict::new(py);
     d.set_item("template_vertices", array2(py, c.template_vertices))?;
     let faces: Vec<i64> = c.faces.iter().flat_map(|f| f.map(i64::from)).collect();
@@ -740,7 +871,7 @@ fn evaluate<'py>(
         target: x,
         ground_truth: gt,
     };
-    let m = compute(py, None, || metrics::evaluate(&input, &params))?.map_err(to_pyerr)?;
+    let m = compute(py, None, |_| metrics::evaluate(&input, &params))?.map_err(to_pyerr)?;
     let d = PyDict::new(py);
     d.set_item("f_H", m.f_h)?;
     d.set_item("f_S", m.f_s)?;

@@ -2,6 +2,8 @@
 //! folds, a rigid offset, and a scan sampled from it. Used by the tests, the `demo` command and
 //! the benchmarks, so nothing generated is ever committed.
 
+use crate::error::{FoldMatchError, Result};
+use crate::limits::{MAX_PARAMETER, MAX_SHEET_SCAN_POINTS, MAX_SHEET_SIDE, MAX_SHEET_VERTICES};
 use crate::math::{vec3, Vec3};
 use nalgebra::Rotation3;
 
@@ -99,6 +101,68 @@ impl Default for SheetSpec {
             noise: 0.0,
             seed: 1,
         }
+    }
+}
+
+impl SheetSpec {
+    /// Checks the sizes against [`crate::limits`] before anything is generated: nx and ny in
+    /// 2..=[`MAX_SHEET_SIDE`], nx·ny ≤ [`MAX_SHEET_VERTICES`], scan_points ≤
+    /// [`MAX_SHEET_SCAN_POINTS`]; and the real values finite (sizes positive, noise ≥ 0).
+    pub fn validate(&self) -> Result<()> {
+        for (name, n) in [("nx", self.nx), ("ny", self.ny)] {
+            if !(2..=MAX_SHEET_SIDE).contains(&n) {
+                return Err(FoldMatchError::parameter(
+                    name,
+                    n,
+                    &format!("must be in 2..={MAX_SHEET_SIDE}"),
+                ));
+            }
+        }
+        if self.nx * self.ny > MAX_SHEET_VERTICES {
+            return Err(FoldMatchError::parameter(
+                "nx*ny",
+                self.nx * self.ny,
+                &format!("must be at most {MAX_SHEET_VERTICES}"),
+            ));
+        }
+        if self.scan_points > MAX_SHEET_SCAN_POINTS {
+            return Err(FoldMatchError::parameter(
+                "scan_points",
+                self.scan_points,
+                &format!("must be in 0..={MAX_SHEET_SCAN_POINTS} (0: the folded vertices)"),
+            ));
+        }
+        let reals = [
+            ("width", self.width, true),
+            ("height", self.height, true),
+            ("fold_amplitude", self.fold_amplitude, false),
+            ("folds", self.folds, false),
+            ("rotation_degrees", self.rotation_degrees, false),
+            ("offset[0]", self.offset[0], false),
+            ("offset[1]", self.offset[1], false),
+            ("offset[2]", self.offset[2], false),
+            ("noise", self.noise, false),
+        ];
+        for (name, v, positive) in reals {
+            if !v.is_finite() || v.abs() > MAX_PARAMETER {
+                return Err(FoldMatchError::parameter(
+                    name,
+                    v,
+                    "must be finite, at most 1e6 in size",
+                ));
+            }
+            if positive && v <= 0.0 {
+                return Err(FoldMatchError::parameter(name, v, "must be positive"));
+            }
+        }
+        if self.noise < 0.0 {
+            return Err(FoldMatchError::parameter(
+                "noise",
+                self.noise,
+                "must be >= 0",
+            ));
+        }
+        Ok(())
     }
 }
 

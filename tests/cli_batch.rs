@@ -108,7 +108,13 @@ fn good_scans_are_fitted_bad_ones_reported_and_resume_redoes_nothing() {
     // Every good scan fitted, nothing else written, nothing written outside -o.
     assert_eq!(
         tree(&d.join("out")),
-        ["good_a.ply", "good_b.ply", "good_c.ply", "report.json"]
+        [
+            ".foldmatch.lock",
+            "good_a.ply",
+            "good_b.ply",
+            "good_c.ply",
+            "report.json"
+        ]
     );
     assert_eq!(tree(&d.join("scans")), before);
     let report = json(&d.join("out/report.json"));
@@ -288,6 +294,7 @@ fn recursive_glob_collisions_and_the_output_inside_the_input() {
     assert_eq!(
         tree(&scans.join("out")),
         [
+            ".foldmatch.lock",
             "a.obj.obj",
             "a.ply.obj",
             "report.json",
@@ -403,7 +410,7 @@ fn ctrl_c_stops_cleanly() {
     assert!(started.elapsed() < Duration::from_secs(10), "slow to stop");
     assert_eq!(
         tree(&d.join("out")),
-        ["report.json"],
+        [".foldmatch.lock", "report.json"],
         "no partial output, no temporary file"
     );
     let report = json(&d.join("out/report.json"));
@@ -423,4 +430,205 @@ fn ctrl_c_stops_cleanly() {
         "{statuses:?}"
     );
     assert_eq!(statuses[2], "pending");
+}
+
+/// Starts `foldmatch batch template.ply scans -o out ARGS` in `d` without waiting.
+fn spawn_batch(d: &Path, args: &[&str]) -> std::process::Child {
+    std::process::Command::new(cli_common::bin())
+        .current_dir(d)
+        .env("FOLDMATCH_NO_PROGRESS", "1")
+        .args(["batch", "template.ply", "scans", "-o", "out"])
+        .args(args)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap()
+}
+
+/// The fitted outputs in `out` (not the report, the lock or staged files).
+fn outputs(d: &Path) -> Vec<String> {
+    if !d.join("out").is_dir() {
+        return Vec::new();
+    }
+    tree(&d.join("out"))
+        .into_iter()
+        .filter(|n| n.ends_with(".ply") && !n.starts_with('.'))
+        .collect()
+}
+
+/// Issue 31, items 6 and 7: after `kill -9` mid-batch, every output in the folder is recorded
+/// as done by the report (written before the output is renamed into place), and `--resume`
+/// fits none of them again (not even one killed between its report and its rename); the
+/// killed run's lock is stale and taken over.
+#[cfg(unix)]
+#[test]
+fn kill_9_mid_batch_then_resume_fits_nothing_twice() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    write_case(d);
+    std::fs::create_dir(d.join("scans")).unwrap();
+    let n = 6;
+    for i in 0..n {
+        write_scan(&d.join(format!("scans/s{i}.ply")), i as u64);
+    }
+    let args = ["--iterations", "60", "--jobs", "1"];
+    let mut child = spawn_batch(d, &args);
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while outputs(d).len() < 2 {
+        assert!(Instant::now() < deadline, "the batch wrote no output");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    child.kill().unwrap(); // SIGKILL
+    child.wait().unwrap();
+    let written = outputs(d);
+    assert!(written.len() < n, "the batch finished before the kill");
+    let report = json(&d.join("out/report.json"));
+    let files = entries(&report);
+    for name in &written {
+        let scan = name.clone();
+        assert_eq!(
+            files[&scan]["status"], "ok",
+            "{name} is not recorded: {report}"
+        );
+    }
+    // Simulate a kill between the report and the rename for the first output: recorded, but
+    // still under its staged name.
+    let first = written[0].clone();
+    std::fs::rename(
+        d.join("out").join(&first),
+        d.join("out").join(format!(".{first}.staged.ply")),
+    )
+    .unwrap();
+    let staged = format!(".{first}.staged.ply");
+    let stamps = mtimes(&d.join("out"), &[staged.as_str()]);
+    let others: Vec<&str> = written[1..].iter().map(String::as_str).collect();
+    let other_stamps = mtimes(&d.join("out"), &others);
+    let recorded = files.values().filter(|f| f["status"] == "ok").count();
+    std::thread::sleep(Duration::from_millis(20));
+
+    let out = foldmatch(d)
+        .args([
+            "batch",
+            "template.ply",
+            "scans",
+            "-o",
+            "out",
+            "--resume",
+            "-v",
+        ])
+        .args(args)
+        .assert()
+        .success()
+        .get_output()
+        .clone();
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert!(
+        stderr.contains(&format!(
+            "batch: {n} scans in scans, {} to fit",
+            n - recorded
+        )),
+        "{stderr}"
+    );
+    assert!(stderr.contains("taking over the lock"), "{stderr}");
+    assert_eq!(outputs(d).len(), n);
+    assert_eq!(
+        mtimes(&d.join("out"), &[first.as_str()]),
+        stamps,
+        "refitted {first}"
+    );
+    assert_eq!(
+        mtimes(&d.join("out"), &others),
+        other_stamps,
+        "refitted an output"
+    );
+    assert!(!d.join("out").join(&staged).exists());
+    let report = json(&d.join("out/report.json"));
+    assert_eq!(report["state"], "complete");
+    assert_eq!(report["summary"]["skipped"], recorded);
+    assert_eq!(report["summary"]["ok"], n - recorded);
+}
+
+/// Issue 31, item 6: two runs never write into one folder (the second is refused, naming the
+/// first one's pid), and `--resume` with other parameters refuses instead of mixing.
+#[cfg(unix)]
+#[test]
+fn one_run_per_folder_and_resume_never_mixes_parameters() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    write_case(d);
+    std::fs::create_dir(d.join("scans")).unwrap();
+    for i in 0..2 {
+        write_scan(&d.join(format!("scans/s{i}.ply")), i);
+    }
+    let mut first = spawn_batch(d, &["--iterations", "1000000", "--jobs", "1"]);
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while !d.join("out/report.json").exists() {
+        assert!(Instant::now() < deadline, "the first batch never started");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let out = foldmatch(d)
+        .args([
+            "batch",
+            "template.ply",
+            "scans",
+            "-o",
+            "out",
+            "--iterations",
+            "3",
+        ])
+        .assert()
+        .code(1)
+        .get_output()
+        .clone();
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert!(
+        stderr.contains(&format!(
+            "out: another foldmatch run (pid {}) is writing into this folder",
+            first.id()
+        )),
+        "{stderr}"
+    );
+    first.kill().unwrap();
+    first.wait().unwrap();
+
+    foldmatch(d)
+        .args([
+            "batch",
+            "template.ply",
+            "scans",
+            "-o",
+            "out",
+            "--iterations",
+            "3",
+        ])
+        .assert()
+        .success();
+    let stamps = mtimes(d, &["out/s0.ply", "out/s1.ply"]);
+    let out = foldmatch(d)
+        .args(["batch", "template.ply", "scans", "-o", "out", "--resume"])
+        .args(["--iterations", "4", "--psi", "0.1"])
+        .assert()
+        .code(1)
+        .get_output()
+        .clone();
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert!(
+        stderr.contains("--resume: out/report.json was written with other settings (")
+            && stderr.contains("iterations 3 -> 4")
+            && stderr.contains("psi 0.05 -> 0.1"),
+        "{stderr}"
+    );
+    assert_eq!(mtimes(d, &["out/s0.ply", "out/s1.ply"]), stamps);
+    assert_eq!(json(&d.join("out/report.json"))["params"]["iterations"], 3);
+    // The same parameters resume (nothing to do).
+    let out = foldmatch(d)
+        .args(["batch", "template.ply", "scans", "-o", "out", "--resume"])
+        .args(["--iterations", "3"])
+        .assert()
+        .success()
+        .get_output()
+        .clone();
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert!(stderr.contains("2 scans in scans, 0 to fit"), "{stderr}");
+    assert_eq!(mtimes(d, &["out/s0.ply", "out/s1.ply"]), stamps);
 }

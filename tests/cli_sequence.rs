@@ -173,7 +173,7 @@ fn a_failing_frame_is_reported_and_the_next_starts_from_the_last_good_fit() {
     assert_eq!(field(&report, "warm_start")[3], "2.ply");
     assert_eq!(
         tree(&d.join("out")),
-        ["1.ply", "2.ply", "4.ply", "report.json"]
+        [".foldmatch.lock", "1.ply", "2.ply", "4.ply", "report.json"]
     );
 }
 
@@ -236,8 +236,9 @@ fn tracks_the_diffcloth_wind_sequence() {
     for i in 1..expected.len() {
         assert_eq!(warm[i], expected[i - 1].as_str());
     }
+    // 26 frames, the report and the folder's lock file.
     let outputs = tree(&d.join("out"));
-    assert_eq!(outputs.len(), 27);
+    assert_eq!(outputs.len(), 28);
     // Tracking follows the cloth: on the last frame the fit is well below the error of the
     // template left where it was.
     let last = &report["files"][25];

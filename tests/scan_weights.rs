@@ -10,8 +10,11 @@ use foldmatch::synthetic::grid_sheet;
 use foldmatch::FoldMatchError;
 use nalgebra::Vector3;
 
+/// Template vertices, its faces and a scan.
+type Case = (Vec<[f64; 3]>, Vec<[u32; 3]>, Vec<[f64; 3]>);
+
 /// A 13 × 13 sheet and a wavy, lifted scan of it with more points than vertices.
-fn case() -> (Vec<[f64; 3]>, Vec<[u32; 3]>, Vec<[f64; 3]>) {
+fn case() -> Case {
     let (v, f) = grid_sheet(13, 13, 1.0, 1.0);
     let (dense, _) = grid_sheet(21, 21, 1.1, 1.1);
     let scan = dense
@@ -72,7 +75,10 @@ fn bad_weights_are_refused_with_the_culprit_named() {
     let n = case().2.len();
     let message = |w: &[f64]| match weighted(Some(w)) {
         Err(e @ FoldMatchError::Parameter { .. }) => e.to_string(),
-        other => panic!("expected a parameter error, got {:?}", other.map(|r| r.iterations)),
+        other => panic!(
+            "expected a parameter error, got {:?}",
+            other.map(|r| r.iterations)
+        ),
     };
     assert!(message(&[1.0; 3]).contains("one weight per scan point"));
     let mut w = vec![1.0; n];
@@ -88,7 +94,12 @@ fn bad_weights_are_refused_with_the_culprit_named() {
 #[test]
 fn the_weighted_force_is_the_weighted_mean_of_the_pair_forces() {
     let p = NBodyParams::default();
-    let target = [[0.1, 0.0, 0.0], [0.0, 0.2, 0.1], [-0.1, -0.1, 0.0], [0.3, 0.1, -0.2]];
+    let target = [
+        [0.1, 0.0, 0.0],
+        [0.0, 0.2, 0.1],
+        [-0.1, -0.1, 0.0],
+        [0.3, 0.1, -0.2],
+    ];
     let kappa = [0.5, -1.0, 0.0, 2.0];
     let w = [2.0, 0.0, 0.5, 1.5];
     let y = Vector3::new(0.05, 0.02, 0.3);
@@ -109,7 +120,8 @@ fn the_weighted_force_is_the_weighted_mean_of_the_pair_forces() {
     // 0.3 (beyond y's x = 0.05 by 0.05 + ...) weigh 0: the force is the weighted mean of the
     // other two.
     let o = Vector3::new(1.0, 0.0, 0.0);
-    let rim = weighted_gravitational_force(&y, &all, &target, &kappa, Some(&w), Some((o, 0.04)), &p);
+    let rim =
+        weighted_gravitational_force(&y, &all, &target, &kappa, Some(&w), Some((o, 0.04)), &p);
     let kept = weighted_gravitational_force(&y, &[1, 2], &target, &kappa, Some(&w), None, &p);
     assert!((rim - kept).norm() < 1e-14 * kept.norm());
 }
@@ -118,7 +130,12 @@ fn the_weighted_force_is_the_weighted_mean_of_the_pair_forces() {
 /// far from both.
 fn two_way(trust_radius: f64, rim: Option<(&[[f64; 3]], f64)>) -> [Vector3<f64>; 2] {
     let template = [[0.0; 3], [1.0, 0.0, 0.0]];
-    let scan = [[0.05, 0.0, 0.0], [0.0, 0.05, 0.0], [-0.05, 0.0, 0.0], [3.0, 0.0, 0.0]];
+    let scan = [
+        [0.05, 0.0, 0.0],
+        [0.0, 0.05, 0.0],
+        [-0.05, 0.0, 0.0],
+        [3.0, 0.0, 0.0],
+    ];
     let kappa = [0.0; 4];
     let mut reverse = ReverseAttraction::new(2, 4, false);
     let forward = foldmatch::knn::TargetNeighbours {
@@ -143,7 +160,12 @@ fn two_way(trust_radius: f64, rim: Option<(&[[f64; 3]], f64)>) -> [Vector3<f64>;
 #[test]
 fn scan_points_beyond_the_trust_radius_or_the_rim_pull_nothing() {
     let p = NBodyParams::default();
-    let far = pair_force(&Vector3::new(1.0, 0.0, 0.0), &Vector3::new(3.0, 0.0, 0.0), 0.0, &p);
+    let far = pair_force(
+        &Vector3::new(1.0, 0.0, 0.0),
+        &Vector3::new(3.0, 0.0, 0.0),
+        0.0,
+        &p,
+    );
     let all = two_way(f64::INFINITY, None);
     // Every point pulls: the far point pulls the second template point (share M / N = 2 / 4).
     assert!((all[1] - 0.5 * far).norm() < 1e-14 * far.norm());

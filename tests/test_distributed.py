@@ -94,6 +94,8 @@ def test_fit_batch_equals_the_local_batch_bit_for_bit(client, data):
     expected = outputs(data / "local")
     assert len(expected) == 6
     assert outputs(data / "dask") == expected
+    # Every staged output was committed by the driver (renamed once the report recorded it).
+    assert not list((data / "dask").glob(".*.staged.*"))
     local_report = json.loads((data / "local" / "report.json").read_text())
     assert report.keys() == local_report.keys()
     assert report["state"] == "complete" and report["command"] == "batch"
@@ -349,6 +351,7 @@ def test_a_worker_killed_mid_run_loses_nothing(client, data):
     report = result["report"]
     assert set(statuses(report).values()) == {"ok"}, report["files"]
     assert outputs(data / "dask") == outputs(data / "local")
+    assert not list((data / "dask").glob(".*.staged.*"))
     client.wait_for_workers(2, timeout=60)
     assert killed[1] not in client.run(os.getpid).values()
 

@@ -26,6 +26,7 @@ Examples
 from __future__ import annotations
 
 import json
+import math
 import os
 from dataclasses import dataclass, field
 from typing import Any, Callable, Optional
@@ -42,6 +43,7 @@ from .errors import (
     MeshFileError,
     MeshFormatError,
     NumericalError,
+    OutOfMemoryError,
     RunSetupError,
 )
 
@@ -109,8 +111,28 @@ def _weights(w: Any, n: int) -> Optional[np.ndarray]:
     return a
 
 
+def _whole(name: str, value: Any) -> int:
+    """An int argument as the core takes it (0 ≤ n < 2⁶⁴): anything else raises
+    :class:`InvalidParameterError` naming the argument (not ``OverflowError``)."""
+    try:
+        n = int(value)
+    except (TypeError, ValueError):
+        raise InvalidParameterError(
+            f"parameter {name} = {value!r}: must be a whole number"
+        ) from None
+    if not 0 <= n < 2**64:
+        raise InvalidParameterError(f"parameter {name} = {n}: must be a whole number in 0..2^64")
+    return n
+
+
 def _params_json(params: dict[str, Any]) -> str:
-    given = {k: v for k, v in params.items() if v is not None}
+    # JSON has no NaN or infinity: they go as text ("nan", "inf"), which the core rejects
+    # naming the parameter alone.
+    given = {
+        k: (repr(v) if isinstance(v, float) and not math.isfinite(v) else v)
+        for k, v in params.items()
+        if v is not None
+    }
     return json.dumps(given)
 
 
@@ -404,7 +426,8 @@ def fit(
         ``mean_displacement``, ``max_displacement``); returning ``False`` stops the fit, which
         returns what it has. An exception raised by the callback propagates.
     threads : int, optional
-        Number of worker threads (default: all cores). Results are bit-identical for any count.
+        Number of worker threads (default: all cores; at most 4 per hardware thread). Results
+        are bit-identical for any count.
 
     Returns
     -------
@@ -415,9 +438,12 @@ def fit(
     InvalidInputError
         Empty or wrongly shaped arrays, NaN/Inf, face indices out of range, a far-away template.
     InvalidParameterError
-        A parameter out of range or an unknown option value.
+        A parameter out of range (``iterations`` 1..=10⁶, finite reals at most 10⁶, see
+        docs/cli.md "Limits"), an unknown option value, or an int that does not fit.
     NumericalError
         The fit diverged.
+    KeyboardInterrupt
+        Ctrl-C: the fit stops at its next iteration (with or without a callback).
     """
     if target is None:
         raise InvalidInputError("target: missing (pass the scan as the third argument)")
@@ -514,7 +540,9 @@ def nbody_step(
 def n_rings(faces: Any, n_vertices: int, rings: int = 2) -> tuple[np.ndarray, np.ndarray]:
     """n-ring neighborhoods Γᵏ_Y as CSR arrays ``(offsets (M+1,), members)``; row k lists
     vertex k first, then the vertices within graph distance ``rings``."""
-    return _core.n_rings(_faces(faces, "faces"), int(n_vertices), int(rings))
+    return _core.n_rings(
+        _faces(faces, "faces"), _whole("n_vertices", n_vertices), _whole("rings", rings)
+    )
 
 
 def gaussian_curvature(points: Any, faces: Any = None) -> np.ndarray:
@@ -531,7 +559,7 @@ def deformation_gradients(
     """Deformation gradients H_k (Eq. 4, with the normal completion) of the motion
     ``old → new``. Returns ``(gradients (M, 3, 3), degenerate (M,) bool)``."""
     return _core.deformation_gradients(
-        _points(old, "old"), _points(new, "new"), _faces(faces, "faces"), int(rings),
+        _points(old, "old"), _points(new, "new"), _faces(faces, "faces"), _whole("rings", rings),
         float(normal_completion),
     )
 
@@ -629,7 +657,11 @@ def folded_sheet(**spec: Any) -> dict[str, np.ndarray]:
     ``faces``), the same sheet folded, rotated and offset (``ground_truth``, same vertex
     order), and a ``scan`` of it (the folded vertices, or ``scan_points`` surface samples with
     ``noise``). Keyword arguments: nx, ny, width, height, fold_amplitude, folds,
-    rotation_degrees, offset, scan_points, noise, seed."""
+    rotation_degrees, offset, scan_points, noise, seed. Sizes are bounded (nx, ny ≤ 10,000,
+    nx·ny ≤ 10⁷, scan_points ≤ 10⁷): larger ones raise :class:`InvalidParameterError`."""
+    for name in ("nx", "ny", "scan_points", "seed"):
+        if name in spec:
+            spec[name] = _whole(name, spec[name])
     return _core.folded_sheet(**spec)
 
 
@@ -658,5 +690,6 @@ __all__ = [
     "MeshFormatError",
     "NumericalError",
     "FitCancelled",
+    "OutOfMemoryError",
     "InternalError",
 ]

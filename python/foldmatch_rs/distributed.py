@@ -2,7 +2,8 @@
 'foldmatch-rs[dask]'``).
 
 Each scan (each frame of a sequence) is one Dask task that reads, fits and writes its output
-atomically on the worker, with the Rust code of ``foldmatch batch`` / ``foldmatch sequence``:
+(staged) on the worker, with the Rust code of ``foldmatch batch`` / ``foldmatch sequence``; the
+submitting process renames it into place once ``report.json`` records it, as those commands do:
 the files are those commands' bit for bit, whatever the number of workers, and the returned
 report is their ``report.json`` (written there too, and kept up to date as tasks finish).
 Workers must see the paths the driver sees (one machine, or shared storage); paths are made

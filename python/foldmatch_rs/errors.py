@@ -42,6 +42,12 @@ class RunSetupError(FoldMatchError, ValueError):
     parameter is invalid or the output folder cannot be written (the message says which)."""
 
 
+class OutOfMemoryError(FoldMatchError, MemoryError):
+    """Memory for a size the input announced could not be allocated (the sizes are checked
+    against the input and the documented limits first: the machine has less memory than the
+    input needs)."""
+
+
 class InternalError(FoldMatchError, RuntimeError):
     """A bug inside foldmatch_rs (a caught Rust panic). Please report it."""
 
@@ -55,5 +61,6 @@ __all__ = [
     "NumericalError",
     "FitCancelled",
     "RunSetupError",
+    "OutOfMemoryError",
     "InternalError",
 ]

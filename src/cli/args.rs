@@ -1,7 +1,6 @@
 //! The command line grammar (clap derive). Doc comments are the help text; every fit
 //! parameter is a flag whose value, when given, overrides the default (or `--params FILE`).
 
-use crate::error::FoldMatchError;
 use crate::fit::FitParams;
 use clap::{Args, CommandFactory, Parser, Subcommand, ValueEnum};
 use serde_json::{Map, Value};
@@ -77,9 +76,9 @@ pub struct Cli {
     /// Print more: parameters, per-iteration figures in plain logs, skipped files.
     #[arg(short, long, global = true)]
     pub verbose: bool,
-    /// Worker threads of the fit [default: one per core].
-    #[arg(long, global = true, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
-    pub threads: Option<u16>,
+    /// Worker threads of the fit, at most 4 per hardware thread [default: one per core].
+    #[arg(long, global = true, value_name = "N", value_parser = parse_threads)]
+    pub threads: Option<usize>,
 }
 
 /// The subcommands.
@@ -262,7 +261,7 @@ pub struct DemoCmd {
     #[arg(long, value_name = "N", default_value_t = 41, value_parser = clap::value_parser!(u32).range(3..=2000))]
     pub size: u32,
     /// Points sampled on the folded sheet to make the scan.
-    #[arg(long, value_name = "N", default_value_t = 4000, value_parser = clap::value_parser!(u32).range(10..))]
+    #[arg(long, value_name = "N", default_value_t = 4000, value_parser = clap::value_parser!(u32).range(10..=10_000_000))]
     pub scan_points: u32,
     /// Gaussian noise of the scan, relative to the sheet's width.
     #[arg(long, value_name = "SIGMA", default_value_t = 0.002)]
@@ -588,6 +587,19 @@ impl Command {
     }
 }
 
+/// Parses `--threads N`: 1 ..= 4 per hardware thread ([`crate::limits::max_threads`]).
+fn parse_threads(text: &str) -> Result<usize, String> {
+    let most = crate::limits::max_threads();
+    let n: usize = text
+        .trim()
+        .parse()
+        .map_err(|_| format!("expected a whole number in 1..={most}"))?;
+    crate::limits::check_threads("--threads", n).map_err(|e| match e {
+        crate::FoldMatchError::Parameter { reason, .. } => reason,
+        other => other.to_string(),
+    })
+}
+
 /// Parses `KEY=VALUE` of `--set`: VALUE as JSON, or as a string when it is not JSON.
 fn parse_setting(text: &str) -> Result<(String, Value), String> {
     let (key, value) = text
@@ -600,6 +612,15 @@ fn parse_setting(text: &str) -> Result<(String, Value), String> {
     let value = serde_json::from_str(value.trim())
         .unwrap_or_else(|_| Value::String(value.trim().to_string()));
     Ok((key, value))
+}
+
+/// A flag's number as JSON; a non-finite float (which JSON cannot hold) as its text ("NaN",
+/// "inf"), which the validation then rejects naming the parameter alone.
+fn json_number<T: Into<Value> + ToString + Copy>(x: T) -> Value {
+    match x.into() {
+        Value::Null => Value::String(x.to_string()),
+        v => v,
+    }
 }
 
 /// The serde name of a [`ValueEnum`] value: its kebab-case CLI name in snake_case.
@@ -622,23 +643,23 @@ impl ParamArgs {
             }
         };
         set("method", self.method.as_ref().map(enum_name));
-        set("iterations", self.iterations.map(Value::from));
-        set("rings", self.rings.map(Value::from));
-        set("rho", self.rho.map(Value::from));
-        set("k_min", self.k_min.map(Value::from));
-        set("k_max", self.k_max.map(Value::from));
-        set("gravity", self.gravity.map(Value::from));
-        set("softening", self.softening.map(Value::from));
-        set("damping", self.damping.map(Value::from));
-        set("time_step", self.time_step.map(Value::from));
-        set("template_mass", self.template_mass.map(Value::from));
-        set("target_mass", self.target_mass.map(Value::from));
-        set("alpha_floor", self.alpha_floor.map(Value::from));
+        set("iterations", self.iterations.map(json_number));
+        set("rings", self.rings.map(json_number));
+        set("rho", self.rho.map(json_number));
+        set("k_min", self.k_min.map(json_number));
+        set("k_max", self.k_max.map(json_number));
+        set("gravity", self.gravity.map(json_number));
+        set("softening", self.softening.map(json_number));
+        set("damping", self.damping.map(json_number));
+        set("time_step", self.time_step.map(json_number));
+        set("template_mass", self.template_mass.map(json_number));
+        set("target_mass", self.target_mass.map(json_number));
+        set("alpha_floor", self.alpha_floor.map(json_number));
         set("numerator", self.numerator.as_ref().map(enum_name));
         set("summation", self.summation.as_ref().map(enum_name));
         set("damping_mode", self.damping_mode.as_ref().map(enum_name));
-        set("psi", self.psi.map(Value::from));
-        set("normal_completion", self.normal_completion.map(Value::from));
+        set("psi", self.psi.map(json_number));
+        set("normal_completion", self.normal_completion.map(json_number));
         set(
             "regularization",
             self.regularization.as_ref().map(enum_name),
@@ -652,7 +673,7 @@ impl ParamArgs {
             self.no_velocity_sync.then_some(Value::Bool(false)),
         );
         set("normalize", self.no_normalize.then_some(Value::Bool(false)));
-        set("tolerance", self.tolerance.map(Value::from));
+        set("tolerance", self.tolerance.map(json_number));
         set(
             "use_curvature",
             self.no_curvature.then_some(Value::Bool(false)),
@@ -674,13 +695,10 @@ impl ParamArgs {
         let mut map = match &self.params {
             None => Map::new(),
             Some(path) => {
-                let text = std::fs::read_to_string(path).map_err(|e| {
-                    FoldMatchError::Io {
-                        path: path.display().to_string(),
-                        source: e,
-                    }
-                    .to_string()
-                })?;
+                let bytes = crate::io::read_bounded(path, crate::limits::MAX_PARAMS_FILE_BYTES)
+                    .map_err(|e| e.to_string())?;
+                let text = String::from_utf8(bytes)
+                    .map_err(|_| format!("{}: not UTF-8 text", path.display()))?;
                 match serde_json::from_str::<Value>(&text) {
                     Ok(Value::Object(map)) => map,
                     Ok(_) => {

@@ -2,13 +2,25 @@
 //! of a folder in order, each warm-started from the previous fit).
 //!
 //! Both keep `OUT_DIR/report.json` valid at all times: it is written (atomically) before the
-//! first file, rewritten as files finish (at most once a second), and written a last time at the
+//! first file, rewritten (atomically) as each file finishes, and written a last time at the
 //! end, so an interrupted or killed run still leaves a report of what was done.
+//!
+//! An output is committed in two steps: the fitted mesh is written to a staged file next to
+//! it ([`stage_path`]), the report that records it as done is written, and only then is the
+//! staged file renamed to the output. So every output in the folder is recorded as done by
+//! the report (a `kill -9` never leaves an unrecorded output that `--resume` would fit again),
+//! and a kill between the two steps leaves a recorded staged file, which `--resume` renames
+//! into place instead of fitting it again.
+//!
+//! Both hold the output folder's lock ([`OutputLock`]) for as long as they run, and `--resume`
+//! refuses an earlier report written with other parameters or another template: the outputs
+//! of one folder are always of one parameter set.
 
 use super::args::{BatchCmd, ParamArgs, SequenceCmd};
 use super::files::{find_scans, named_files, output_paths, Found};
 use super::interrupt;
-use super::job::{read_named, Job, Runner, ScanWeights, Template};
+use super::job::{read_named, stage_path, Job, Runner, ScanWeights, Template};
+use super::lock::OutputLock;
 use super::report::{write_json, FileReport, RunReport, RunState, Status, Summary};
 use super::ui::Ui;
 use super::{exit_code, Context};
@@ -17,10 +29,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
-use std::time::{Duration, Instant};
-
-/// Minimum time between two rewrites of the report while the run goes on.
-const REPORT_INTERVAL: Duration = Duration::from_secs(1);
+use std::time::Instant;
 
 /// Where the scans of a run come from.
 pub(super) enum Source<'a> {
@@ -47,6 +56,8 @@ pub(super) struct Setup {
     pub(super) out_dir: PathBuf,
     pub(super) report_path: PathBuf,
     previous: HashMap<String, FileReport>,
+    /// Held until the run ends (the Dask path's `RunBook` releases it when it finishes).
+    pub(super) lock: Option<OutputLock>,
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -75,6 +86,13 @@ pub(super) fn setup(
         Source::Files(paths) => named_files(paths)?,
     };
     std::fs::create_dir_all(out_dir).map_err(|e| format!("{}: {e}", out_dir.display()))?;
+    let lock = OutputLock::acquire(out_dir)?;
+    if let Some(owner) = &lock.stale {
+        ui.detail(format_args!(
+            "{}: taking over the lock of a run that did not end cleanly ({owner})",
+            lock.path.display()
+        ));
+    }
     let outputs = output_paths(&found, out_dir, extension);
     for (scan, output) in found.iter().zip(&outputs) {
         if scan.path.canonicalize().ok() == output.canonicalize().ok() && output.exists() {
@@ -91,9 +109,7 @@ pub(super) fn setup(
         if report_path.exists() {
             match RunReport::load(&report_path) {
                 Ok(old) => {
-                    if old.params != serde_json::to_value(&params).unwrap_or_default() {
-                        ui.warn("--resume: the parameters differ from the earlier run's; its finished files are kept");
-                    }
+                    check_same_run(&old, &params, template.path.as_path(), &report_path)?;
                     previous = old.files.into_iter().map(|f| (f.name.clone(), f)).collect();
                 }
                 Err(e) => ui.warn(format_args!("--resume: {e}; starting over")),
@@ -114,6 +130,7 @@ pub(super) fn setup(
         out_dir: out_dir.to_path_buf(),
         report_path,
         previous,
+        lock: Some(lock),
     })
 }
 
@@ -149,11 +166,68 @@ fn folder_scans(
     Ok(found)
 }
 
+/// `--resume` continues a run only with the same parameters and template: otherwise the
+/// folder would hold outputs of two parameter sets under a report that names one.
+fn check_same_run(
+    old: &RunReport,
+    params: &FitParams,
+    template: &Path,
+    report_path: &Path,
+) -> Result<(), String> {
+    let new = serde_json::to_value(params).unwrap_or_default();
+    let mut differences: Vec<String> = Vec::new();
+    if let (Some(a), Some(b)) = (old.params.as_object(), new.as_object()) {
+        for (key, value) in b {
+            match a.get(key) {
+                Some(v) if v == value => {}
+                Some(v) => differences.push(format!("{key} {v} -> {value}")),
+                None => differences.push(format!("{key} (new) {value}")),
+            }
+        }
+    } else if old.params != new {
+        differences.push("params".into());
+    }
+    if old.template != template.display().to_string() {
+        differences.push(format!(
+            "template {} -> {}",
+            old.template,
+            template.display()
+        ));
+    }
+    if differences.is_empty() {
+        return Ok(());
+    }
+    let shown = differences.len().min(5);
+    let more = if differences.len() > shown {
+        format!(" and {} more", differences.len() - shown)
+    } else {
+        String::new()
+    };
+    Err(format!(
+        "--resume: {} was written with other settings ({}{more}); resume with the same \
+         parameters and template, or run without --resume to fit every file again",
+        report_path.display(),
+        differences[..shown].join(", ")
+    ))
+}
+
 impl Setup {
-    /// The entry carried over from the earlier run when `--resume` may skip the file.
+    /// The entry carried over from the earlier run when `--resume` may skip the file. An
+    /// output the earlier run recorded but had not yet renamed into place (killed between
+    /// the two steps) is renamed now; a staged file it had not recorded is removed.
     pub(super) fn resumable(&self, i: usize) -> Option<FileReport> {
-        let old = self.previous.get(&self.found[i].name)?;
-        if !old.status.is_done() || !self.outputs[i].is_file() {
+        let staged = stage_path(&self.outputs[i]);
+        let old = self.previous.get(&self.found[i].name);
+        let done = old.is_some_and(|o| o.status.is_done());
+        if staged.is_file() {
+            if done {
+                let _ = std::fs::rename(&staged, &self.outputs[i]);
+            } else {
+                let _ = std::fs::remove_file(&staged);
+            }
+        }
+        let old = old?;
+        if !done || !self.outputs[i].is_file() {
             return None;
         }
         let mut entry = old.clone();
@@ -189,7 +263,6 @@ pub(super) struct Shared {
     pub(super) report: RunReport,
     path: PathBuf,
     started: Instant,
-    last_write: Instant,
     write_error: Option<String>,
 }
 
@@ -202,7 +275,6 @@ impl Shared {
             report,
             path: path.to_path_buf(),
             started: now,
-            last_write: now,
             write_error: None,
         };
         shared.write(RunState::Running);
@@ -216,15 +288,30 @@ impl Shared {
         self.report.state = state;
         self.report.seconds = self.started.elapsed().as_secs_f64();
         self.report.summary = Summary::of(&self.report.files);
-        self.last_write = Instant::now();
         if let Err(e) = write_json(&self.path, &self.report) {
             self.write_error = Some(e);
         }
     }
 
-    pub(super) fn record(&mut self, i: usize, entry: FileReport) {
+    /// Records a finished file and writes the report (atomically), then commits its staged
+    /// output (`stage`): renamed to the output only once the report that records it is on
+    /// disk. A failed rename turns the entry into an error.
+    pub(super) fn record(&mut self, i: usize, entry: FileReport, commit: Option<(&Path, &Path)>) {
+        let ok = entry.status == Status::Ok;
         self.report.files[i] = entry;
-        if self.last_write.elapsed() >= REPORT_INTERVAL {
+        self.write(RunState::Running);
+        let Some((stage, output)) = commit.filter(|(s, _)| s.is_file()) else {
+            return;
+        };
+        if !ok {
+            let _ = std::fs::remove_file(stage);
+            return;
+        }
+        if let Err(e) = std::fs::rename(stage, output) {
+            let _ = std::fs::remove_file(stage);
+            let entry = &mut self.report.files[i];
+            entry.status = Status::Error;
+            entry.error = Some(format!("{}: {e}", output.display()));
             self.write(RunState::Running);
         }
     }
@@ -407,16 +494,18 @@ pub fn batch(cmd: &BatchCmd, ctx: &Context) -> i32 {
                     start: None,
                     ascii: cmd.ascii,
                     weights: cmd.scan_weights_property.clone().map(ScanWeights::Property),
+                    stage: Some(stage_path(&setup.outputs[i])),
                 };
                 let outcome = runner.run(&job);
                 let finished = done.fetch_add(1, Ordering::SeqCst) + 1;
                 log_file(ui, finished, n, &outcome.report);
                 files_bar.inc();
                 files_bar.message(&job.name);
-                shared
-                    .lock()
-                    .unwrap_or_else(|p| p.into_inner())
-                    .record(i, outcome.report);
+                shared.lock().unwrap_or_else(|p| p.into_inner()).record(
+                    i,
+                    outcome.report,
+                    job.stage.as_deref().map(|s| (s, job.output.as_path())),
+                );
             });
         }
     });
@@ -517,7 +606,7 @@ pub fn sequence(cmd: &SequenceCmd, ctx: &Context) -> i32 {
                 Ok(mesh) if mesh.vertices.len() == setup.template.vertices.len() => {
                     entry.warm_start = warm.as_ref().map(|w| w.1.clone());
                     log_file(ui, i + 1, n, &entry);
-                    shared.record(i, entry);
+                    shared.record(i, entry, None);
                     warm = Some((mesh.vertices, name));
                     files_bar.inc();
                     continue;
@@ -537,11 +626,16 @@ pub fn sequence(cmd: &SequenceCmd, ctx: &Context) -> i32 {
             start: warm.as_ref().map(|w| w.0.as_slice()),
             ascii: cmd.ascii,
             weights: cmd.scan_weights_property.clone().map(ScanWeights::Property),
+            stage: Some(stage_path(&setup.outputs[i])),
         };
         let mut outcome = runner.run(&job);
         outcome.report.warm_start = warm.as_ref().map(|w| w.1.clone());
         log_file(ui, i + 1, n, &outcome.report);
-        shared.record(i, outcome.report);
+        shared.record(
+            i,
+            outcome.report,
+            job.stage.as_deref().map(|s| (s, job.output.as_path())),
+        );
         if let Some(fitted) = outcome.fitted {
             warm = Some((fitted, name));
         }

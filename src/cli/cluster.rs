@@ -6,7 +6,8 @@
 
 use super::args::{Command, ParamArgs};
 use super::batch::{finish, log_file, setup, Setup, Shared, Source};
-use super::job::{read_named, Job, Outcome, Runner, ScanWeights, Template};
+use super::job::{read_named, stage_path, Job, Outcome, Runner, ScanWeights, Template};
+use super::lock::OutputLock;
 use super::report::{RunReport, Status};
 use super::ui::{Bar, Ui};
 
@@ -153,7 +154,7 @@ impl Request {
             request,
             scheduler,
             workers: jobs.map(usize::from),
-            threads: cli.threads.map(usize::from),
+            threads: cli.threads,
             verbosity: if cli.quiet {
                 "quiet"
             } else if cli.verbose {
@@ -223,6 +224,9 @@ pub struct RunBook {
 
 struct Live {
     shared: Shared,
+    /// The output folder's lock, released by [`RunBook::finish`] (not when Python collects
+    /// the book).
+    lock: Option<OutputLock>,
     done: usize,
     bar: Bar,
     code: Option<i32>,
@@ -257,7 +261,7 @@ impl RunBook {
             ));
         }
         let kind = request.command;
-        let setup = setup(
+        let mut setup = setup(
             &ui,
             &request.param_args(),
             kind.default_preset(),
@@ -303,6 +307,7 @@ impl RunBook {
             scan_weights_property: request.scan_weights_property.clone(),
             live: Mutex::new(Live {
                 shared,
+                lock: setup.lock.take(),
                 done,
                 bar,
                 code: None,
@@ -363,18 +368,23 @@ impl RunBook {
         self.ui.info(message);
     }
 
-    /// Records a finished file: its log line, the bar, the report (rewritten at most once a
-    /// second). `index` is [`Planned::index`].
+    /// Records a finished file: its log line, the bar, the report (rewritten atomically), then
+    /// commits the output the worker staged ([`stage_path`]) as the local commands do: renamed
+    /// into place once the report records it, removed when the entry is not `ok`. `index` is
+    /// [`Planned::index`].
     pub fn record(&self, index: usize, entry: FileReport) -> Result<(), String> {
         if index >= self.total() {
             return Err(format!("file index {index} out of 0..{}", self.total()));
         }
+        let output = &self.setup.outputs[index];
+        let stage = stage_path(output);
         let mut live = self.live();
         live.done += 1;
         log_file(&self.ui, live.done, self.total(), &entry);
         live.bar.inc();
         live.bar.message(&entry.name);
-        live.shared.record(index, entry);
+        live.shared
+            .record(index, entry, Some((stage.as_path(), output.as_path())));
         Ok(())
     }
 
@@ -390,15 +400,17 @@ impl RunBook {
         self.record(index, entry)
     }
 
-    /// Writes the last report, prints the summary and returns the exit code
-    /// ([`super::exit_code`]) with the report; `interrupted` when the run was stopped before
-    /// every file was attempted. A second call returns the first call's code.
+    /// Writes the last report, prints the summary, releases the output folder's lock and
+    /// returns the exit code ([`super::exit_code`]) with the report; `interrupted` when the run
+    /// was stopped before every file was attempted. A second call returns the first call's
+    /// code.
     pub fn finish(&self, interrupted: bool) -> (i32, RunReport) {
         let mut live = self.live();
         if live.code.is_none() {
             live.bar.finish();
             let code = finish(&self.ui, &mut live.shared, self.kind.name(), interrupted);
             live.code = Some(code);
+            live.lock = None;
         }
         (live.code.unwrap_or_default(), live.shared.report.clone())
     }
@@ -438,7 +450,9 @@ impl FileFitter {
     }
 
     /// Fits one file exactly as `batch` (no `warm`) or `sequence` (warm-started from the
-    /// previous frame's fit and named after it) do; never fails: problems are in the entry.
+    /// previous frame's fit and named after it) do, writing the output to its staged path
+    /// ([`stage_path`]) for [`RunBook::record`] to commit; never fails: problems are in the
+    /// entry.
     pub fn fit(&self, file: &Planned, ascii: bool, warm: Option<(&[[f64; 3]], &str)>) -> Outcome {
         let runner = Runner {
             template: &self.template,
@@ -457,6 +471,8 @@ impl FileFitter {
                 .scan_weights_property
                 .clone()
                 .map(ScanWeights::Property),
+            // The driver renames it into place once its report records it (`RunBook::record`).
+            stage: Some(stage_path(&file.output)),
         });
         outcome.report.warm_start = warm.map(|w| w.1.to_string());
         outcome

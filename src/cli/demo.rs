@@ -76,6 +76,7 @@ fn run(cmd: &DemoCmd, ctx: &Context) -> Result<i32, String> {
         params.iterations
     ));
     let outcome = runner.run(&Job {
+        stage: None,
         name: "scan.ply".into(),
         scan: scan_path.clone(),
         output: fitted_path.clone(),

@@ -168,6 +168,24 @@ pub struct Job<'a> {
     pub ascii: bool,
     /// Per-point weights of the scan, when given.
     pub weights: Option<ScanWeights>,
+    /// Write the fitted mesh here instead of `output` and leave it there (`batch` and
+    /// `sequence` record the file in their report first, then rename it to `output`: see
+    /// [`stage_path`]).
+    pub stage: Option<PathBuf>,
+}
+
+/// Where `batch` and `sequence` write an output before it is recorded: `.NAME.staged.EXT`
+/// next to it (same folder, so the rename that commits it is atomic).
+pub fn stage_path(output: &Path) -> PathBuf {
+    let name = output
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let ext = output
+        .extension()
+        .map(|e| e.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    output.with_file_name(format!(".{name}.staged.{ext}"))
 }
 
 /// What came of a [`Job`].
@@ -275,6 +293,7 @@ impl Runner<'_> {
             return Err(INTERRUPTED.into());
         }
         let start = job.start.unwrap_or(&template.vertices);
+        crate::limits::check_snapshots(self.params, start.len()).map_err(|e| e.to_string())?;
         let bar = self.ui.iterations_bar(&job.name, self.params.iterations);
         let every = (self.params.iterations / 10).max(1);
         let plain_detail = !self.ui.has_bars() && self.ui.verbosity() >= Verbosity::Verbose;
@@ -326,7 +345,8 @@ impl Runner<'_> {
         if let Some(dir) = job.output.parent().filter(|d| !d.as_os_str().is_empty()) {
             std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
         }
-        write_mesh(&job.output, &mesh, &extra, job.ascii).map_err(|e| e.to_string())?;
+        let written = job.stage.as_deref().unwrap_or(&job.output);
+        write_mesh(written, &mesh, &extra, job.ascii).map_err(|e| e.to_string())?;
         let metrics = self.pool.install(|| {
             evaluate(
                 &MetricsInput {

@@ -31,6 +31,7 @@ mod eval;
 mod files;
 mod interrupt;
 mod job;
+mod lock;
 mod report;
 mod ui;
 
@@ -101,7 +102,7 @@ where
 fn dispatch(cli: &Cli, verbosity: Verbosity) -> i32 {
     let ui = Ui::new(verbosity);
     let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(cli.threads.map(usize::from).unwrap_or(0))
+        .num_threads(cli.threads.unwrap_or(0))
         .thread_name(|i| format!("foldmatch-{i}"))
         .build();
     let pool = match pool {
@@ -162,6 +163,7 @@ fn fit(cmd: &FitCmd, ctx: &Context) -> i32 {
         pool: &ctx.pool,
     };
     let outcome = runner.run(&Job {
+        stage: None,
         name: cmd.scan.display().to_string(),
         scan: cmd.scan.clone(),
         output: cmd.output.clone(),

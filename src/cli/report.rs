@@ -222,8 +222,8 @@ pub struct RunReport {
 impl RunReport {
     /// Reads an earlier report (for `--resume`).
     pub fn load(path: &Path) -> Result<Self, String> {
-        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-        serde_json::from_str(&text)
+        let bytes = crate::io::read_file(path).map_err(|e| e.to_string())?;
+        serde_json::from_slice(&bytes)
             .map_err(|e| format!("{}: not a foldmatch report: {e}", path.display()))
     }
 }

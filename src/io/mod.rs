@@ -240,9 +240,92 @@ pub(crate) fn io_error(path: &Path, source: std::io::Error) -> FoldMatchError {
     }
 }
 
-/// Reads a whole file, mapping failures to [`FoldMatchError::Io`].
-pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>> {
-    fs::read(path).map_err(|e| io_error(path, e))
+/// Reads a whole file, mapping failures to [`FoldMatchError::Io`], with a bounded allocation:
+/// a regular file's size is reserved up front (a failure is [`FoldMatchError::OutOfMemory`]);
+/// a FIFO (a pipe given by name, such as `/dev/stdin`) is read up to
+/// [`crate::limits::MAX_STREAM_BYTES`]; devices (`/dev/zero`, `/dev/urandom`), sockets and
+/// folders are refused, also through symbolic links.
+pub fn read_file(path: &Path) -> Result<Vec<u8>> {
+    read_bounded(path, crate::limits::MAX_STREAM_BYTES)
+}
+
+/// [`read_file`] with `limit` as the most bytes read from a file (regular or not).
+pub fn read_bounded(path: &Path, limit: u64) -> Result<Vec<u8>> {
+    use std::io::Read;
+    let refuse = |what: &str| {
+        io_error(
+            path,
+            std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                format!("{what}: only regular files (or pipes) are read"),
+            ),
+        )
+    };
+    // Look before opening: opening a device can have effects of its own.
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        let kind = fs::metadata(path)
+            .map_err(|e| io_error(path, e))?
+            .file_type();
+        if kind.is_char_device() || kind.is_block_device() {
+            return Err(refuse("a device"));
+        }
+    }
+    let mut file = File::open(path).map_err(|e| io_error(path, e))?;
+    let meta = file.metadata().map_err(|e| io_error(path, e))?;
+    let kind = meta.file_type();
+    let too_large = |size: u64| {
+        io_error(
+            path,
+            std::io::Error::new(
+                std::io::ErrorKind::InvalidData,
+                format!("larger than the limit of {limit} bytes ({size} bytes or more)"),
+            ),
+        )
+    };
+    if kind.is_file() {
+        let size = meta.len();
+        if size > limit {
+            return Err(too_large(size));
+        }
+        let mut data =
+            crate::limits::try_vec::<u8>(size as usize + 1, &path.display().to_string())?;
+        // The file may grow while it is read: never past the limit.
+        (&mut file)
+            .take(limit + 1)
+            .read_to_end(&mut data)
+            .map_err(|e| io_error(path, e))?;
+        if data.len() as u64 > limit {
+            return Err(too_large(data.len() as u64));
+        }
+        return Ok(data);
+    }
+    if kind.is_dir() {
+        return Err(refuse("a folder"));
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if kind.is_fifo() {
+            let mut data = Vec::new();
+            (&mut file)
+                .take(limit + 1)
+                .read_to_end(&mut data)
+                .map_err(|e| io_error(path, e))?;
+            if data.len() as u64 > limit {
+                return Err(too_large(data.len() as u64));
+            }
+            return Ok(data);
+        }
+        if kind.is_char_device() || kind.is_block_device() {
+            return Err(refuse("a device"));
+        }
+        if kind.is_socket() {
+            return Err(refuse("a socket"));
+        }
+    }
+    Err(refuse("not a regular file"))
 }
 
 /// Distinguishes temporary files of concurrent writes from the same process.
@@ -408,6 +491,50 @@ mod tests {
         let err = read_mesh(&p).unwrap_err();
         assert!(matches!(err, FoldMatchError::Io { .. }), "{err:?}");
         assert!(reason(&err).contains("nope.ply"), "{err}");
+    }
+
+    /// Issue 31, item 4: devices (also behind a symbolic link) and folders are refused before
+    /// anything is read; a pipe is read up to the limit and no further.
+    #[cfg(unix)]
+    #[test]
+    fn non_regular_files_are_refused_or_bounded() {
+        let dir = TempDir::new("nonregular");
+        let link = dir.join("zero.ply");
+        std::os::unix::fs::symlink("/dev/zero", &link).unwrap();
+        for path in [Path::new("/dev/zero"), Path::new("/dev/urandom"), &link] {
+            let err = read_file(path).unwrap_err();
+            assert!(matches!(err, FoldMatchError::Io { .. }), "{err:?}");
+            assert!(reason(&err).contains("a device"), "{err}");
+        }
+        assert!(reason(&read_mesh(&link).unwrap_err()).contains("a device"));
+        let folder = dir.join("folder.obj");
+        fs::create_dir(&folder).unwrap();
+        assert!(reason(&read_mesh(&folder).unwrap_err()).contains("a folder"));
+        // A FIFO fed without end: reading stops past the limit.
+        let fifo = dir.join("pipe.ply");
+        let made = Command::new("mkfifo").arg(&fifo).status();
+        if !made.is_ok_and(|s| s.success()) {
+            eprintln!("skipping the FIFO case: no mkfifo");
+            return;
+        }
+        let writer_path = fifo.clone();
+        let writer = std::thread::spawn(move || {
+            let mut f = OpenOptions::new().write(true).open(writer_path).unwrap();
+            let chunk = [b'x'; 4096];
+            // Until the reader closes its end (broken pipe).
+            while f.write_all(&chunk).is_ok() {}
+        });
+        let err = read_bounded(&fifo, 100_000).unwrap_err();
+        assert!(
+            reason(&err).contains("larger than the limit of 100000 bytes"),
+            "{err}"
+        );
+        writer.join().unwrap();
+        // A regular file over the limit is refused from its size, before reading.
+        let big = dir.join("big.ply");
+        fs::write(&big, [b'x'; 2000]).unwrap();
+        assert!(reason(&read_bounded(&big, 1000).unwrap_err()).contains("2000 bytes"));
+        assert_eq!(read_bounded(&big, 2000).unwrap().len(), 2000);
     }
 
     #[test]

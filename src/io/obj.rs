@@ -16,6 +16,7 @@
 
 use super::{format_error, read_file, write_atomically, write_to_stream, MeshData};
 use crate::error::{FoldMatchError, Result};
+use crate::limits::{push, try_vec};
 use std::io::Write;
 use std::path::Path;
 
@@ -43,7 +44,7 @@ pub fn parse_obj(data: &[u8], name: &str) -> Result<MeshData> {
         colors: Vec::new(),
         normals: Vec::new(),
         faces: Vec::new(),
-        normal_of_vertex: Vec::new(),
+        normal_refs: Vec::new(),
         forward_ref: [None; 2],
         corners: Vec::new(),
     };
@@ -88,8 +89,11 @@ struct Parser<'a> {
     colors: Vec<[f64; 3]>,
     normals: Vec<[f64; 3]>,
     faces: Vec<[u32; 3]>,
-    /// For each vertex, the first `vn` a face corner gave it (`u32::MAX`: none yet).
-    normal_of_vertex: Vec<u32>,
+    /// Every `(vertex, normal)` pair of a face corner with a normal, in file order (the first
+    /// one of a vertex wins). Nothing is allocated per vertex *index* while reading: an index
+    /// may refer forward, and is only known to be in range once the file ends, so the
+    /// per-vertex table is built in [`Parser::finish`] from the vertex count.
+    normal_refs: Vec<(u32, u32)>,
     /// Per [`Target`]: the largest positive index that referred past the entries defined so
     /// far, with its line (OBJ wants them defined first; we accept forward references and
     /// check them at the end).
@@ -168,19 +172,19 @@ impl Parser<'_> {
             b"v" => {
                 let tokens: Vec<&[u8]> = it.take(7).collect();
                 let xyz = self.floats::<3>(&tokens, lineno, "v")?;
-                self.vertices.push(xyz);
+                push(&mut self.vertices, xyz, self.name)?;
                 // 3 or 4 numbers: x y z [w]; 6 or more: x y z r g b [...].
                 if tokens.len() >= 6 {
                     let rgb = self.floats::<3>(&tokens[3..], lineno, "v")?;
                     if self.colors.len() == self.vertices.len() - 1 {
-                        self.colors.push(rgb);
+                        push(&mut self.colors, rgb, self.name)?;
                     }
                 }
             }
             b"vn" => {
                 let tokens: Vec<&[u8]> = it.take(3).collect();
                 let n = self.floats::<3>(&tokens, lineno, "vn")?;
-                self.normals.push(n);
+                push(&mut self.normals, n, self.name)?;
             }
             b"f" => {
                 self.corners.clear();
@@ -200,18 +204,12 @@ impl Parser<'_> {
                 }
                 for &(v, n) in &self.corners {
                     if let Some(n) = n {
-                        let v = v as usize;
-                        if self.normal_of_vertex.len() <= v {
-                            self.normal_of_vertex.resize(v + 1, NONE);
-                        }
-                        if self.normal_of_vertex[v] == NONE {
-                            self.normal_of_vertex[v] = n;
-                        }
+                        push(&mut self.normal_refs, (v, n), self.name)?;
                     }
                 }
                 let a = self.corners[0].0;
                 for w in self.corners[1..].windows(2) {
-                    self.faces.push([a, w[0].0, w[1].0]);
+                    push(&mut self.faces, [a, w[0].0, w[1].0], self.name)?;
                 }
             }
             _ => {} // vt, vp, o, g, s, usemtl, mtllib, l, p, curv, ...: not geometry we use
@@ -325,30 +323,46 @@ impl Parser<'_> {
                 }
             }
         }
-        let normals = if self.normal_of_vertex.iter().any(|&k| k != NONE) {
+        let normals = if !self.normal_refs.is_empty() {
+            // Every index is now known to be in range: the table has one entry per vertex.
+            let mut normal_of_vertex = try_vec::<u32>(n, self.name)?;
+            normal_of_vertex.resize(n, NONE);
+            for &(v, k) in &self.normal_refs {
+                let slot = &mut normal_of_vertex[v as usize];
+                if *slot == NONE {
+                    *slot = k;
+                }
+            }
             let in_order = self.normals.len() == n;
-            Some(
-                (0..n)
-                    .map(|i| match self.normal_of_vertex.get(i) {
-                        Some(&k) if k != NONE => self.normals[k as usize],
-                        _ if in_order => self.normals[i],
-                        _ => [0.0; 3],
-                    })
-                    .collect(),
-            )
+            let mut normals = try_vec::<[f64; 3]>(n, self.name)?;
+            normals.extend(normal_of_vertex.iter().enumerate().map(|(i, &k)| {
+                if k != NONE {
+                    self.normals[k as usize]
+                } else if in_order {
+                    self.normals[i]
+                } else {
+                    [0.0; 3]
+                }
+            }));
+            Some(normals)
         } else if self.normals.len() == n {
             Some(self.normals)
         } else {
             None
         };
-        let colors = (self.colors.len() == n).then(|| {
+        let colors = if self.colors.len() == n {
             let unit = self.colors.iter().flatten().all(|&c| c <= 1.0);
             let scale = if unit { 255.0 } else { 1.0 };
-            self.colors
-                .iter()
-                .map(|c| c.map(|x| (x * scale).round().clamp(0.0, 255.0) as u8))
-                .collect()
-        });
+            let mut colors = try_vec::<[u8; 3]>(n, self.name)?;
+            colors.extend(
+                self.colors
+                    .iter()
+                    .map(|c| c.map(|x| (x * scale).round().clamp(0.0, 255.0) as u8)),
+            );
+            Some(colors)
+        } else {
+            None
+        };
         Ok(MeshData {
             vertices: self.vertices,
             faces: self.faces,
@@ -590,6 +604,39 @@ mod tests {
     fn forward_references_within_range_are_accepted() {
         let m = parse("f 1 2 3\nv 0 0 0\nv 1 0 0\nv 0 1 0\n").unwrap();
         assert_eq!(m.faces, vec![[0, 1, 2]]);
+    }
+
+    /// Issue 31, item 1: a corner's vertex index with a normal (`v//vn`, `v/vt/vn`) is checked
+    /// against the file before anything is sized from it (it used to size a per-vertex table
+    /// from the index: 4 GB for `f 1000000000//1 ...`). The normals of forward references
+    /// still go to the right vertices.
+    #[test]
+    fn huge_corner_indices_with_normals_are_errors_before_allocating() {
+        for corner in ["1000000000//1", "1000000000/1/1", "4000000000//1"] {
+            let text = format!("v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf {corner} 2//1 3//1\n");
+            let err = err_text(&text);
+            assert!(err.starts_with("t.obj:5: "), "{err}");
+            assert!(
+                err.contains("out of range: the file defines 3 vertices"),
+                "{err}"
+            );
+        }
+        let err = err_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 5000000000//1 2//1 3//1\n");
+        assert!(
+            err.contains("vertex index 5000000000 is too large"),
+            "{err}"
+        );
+        let err = err_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//9 2//1 3//1\n");
+        assert!(err.contains("normal index 9 is out of range"), "{err}");
+        // Forward references with normals: the first reference of a vertex gives its normal.
+        let m = parse(
+            "vn 1 0 0\nvn 0 1 0\nf 3//2 1//1 2//1\nf 3//1 2//2 1//2\nv 0 0 0\nv 1 0 0\nv 0 1 0\n",
+        )
+        .unwrap();
+        assert_eq!(
+            m.normals,
+            Some(vec![[1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+        );
     }
 
     #[test]

@@ -17,6 +17,7 @@
 
 use super::{format_error, read_file, write_atomically, write_to_stream, MeshData, VertexProperty};
 use crate::error::{FoldMatchError, Result};
+use crate::limits::{push, try_vec};
 use std::io::Write;
 use std::path::Path;
 
@@ -569,7 +570,7 @@ struct Builder {
 }
 
 impl Builder {
-    fn new(header: &Header, layout: &Layout, payload_len: usize) -> Self {
+    fn new(header: &Header, layout: &Layout, payload_len: usize, name: &str) -> Result<Self> {
         // Counts were checked against the payload size (`check_sizes`), so the vertex
         // reservations are at most ~8× the file size (3 one-byte coordinates → 24 bytes). A
         // face record can be a single byte (an empty list), so the triangle reservation is
@@ -580,18 +581,22 @@ impl Builder {
             .face
             .map_or(0, |(fi, _)| header.elements[fi].count)
             .min(payload_len / 4);
-        Self {
+        // The reservations can still fail on a machine with less memory than the file needs:
+        // a typed error then, not an abort.
+        Ok(Self {
             n_vertices: n,
-            vertices: Vec::with_capacity(n),
-            normals: Vec::with_capacity(if layout.has_normals { n } else { 0 }),
-            colors: Vec::with_capacity(if layout.has_colors { n } else { 0 }),
-            faces: Vec::with_capacity(n_faces),
-            extra: Vec::with_capacity(if layout.extra.is_some() { n } else { 0 }),
+            vertices: try_vec(n, name)?,
+            normals: try_vec(if layout.has_normals { n } else { 0 }, name)?,
+            colors: try_vec(if layout.has_colors { n } else { 0 }, name)?,
+            faces: try_vec(n_faces, name)?,
+            extra: try_vec(if layout.extra.is_some() { n } else { 0 }, name)?,
             float_colors: layout.float_colors,
             polygon: Vec::new(),
-        }
+        })
     }
 
+    /// Stores one vertex (the vectors were reserved for the header's count, which the payload
+    /// was checked to hold, so these pushes do not allocate).
     fn push_vertex(&mut self, values: &[f64; 10], layout: &Layout) {
         self.vertices.push([values[0], values[1], values[2]]);
         if layout.extra.is_some() {
@@ -613,8 +618,19 @@ impl Builder {
         }
     }
 
-    /// Fan-triangulates `self.polygon` (face number `face`), checking its indices.
+    /// Fan-triangulates `self.polygon` (face number `face`), checking its indices; a face of
+    /// fewer than 3 indices is an error, as OBJ's `f 1 2`.
     fn push_polygon(&mut self, face: usize, name: &str, line: usize) -> Result<()> {
+        if self.polygon.len() < 3 {
+            return Err(format_error(
+                name,
+                line,
+                format!(
+                    "face {face} has {} vertices, at least 3 are needed",
+                    self.polygon.len()
+                ),
+            ));
+        }
         for &v in &self.polygon {
             if v < 0 || v as u64 >= self.n_vertices as u64 {
                 return Err(format_error(
@@ -627,11 +643,9 @@ impl Builder {
                 ));
             }
         }
-        if self.polygon.len() >= 3 {
-            let a = self.polygon[0] as u32;
-            for w in self.polygon[1..].windows(2) {
-                self.faces.push([a, w[0] as u32, w[1] as u32]);
-            }
+        let a = self.polygon[0] as u32;
+        for w in self.polygon[1..].windows(2) {
+            push(&mut self.faces, [a, w[0] as u32, w[1] as u32], name)?;
         }
         Ok(())
     }
@@ -744,7 +758,7 @@ fn read_binary(
         pos: 0,
         big,
     };
-    let mut b = Builder::new(header, layout, payload.len());
+    let mut b = Builder::new(header, layout, payload.len(), name)?;
     let truncated = |e: &Element, i: usize| {
         format_error(
             name,
@@ -809,7 +823,7 @@ fn read_binary(
                                 b.polygon.clear();
                                 for _ in 0..n {
                                     let v = cur.read(item).ok_or_else(|| truncated(e, i))?;
-                                    b.polygon.push(v.as_int().unwrap_or(-1));
+                                    push(&mut b.polygon, v.as_int().unwrap_or(-1), name)?;
                                 }
                                 b.push_polygon(i, name, 0)?;
                             } else {
@@ -896,7 +910,7 @@ fn read_ascii(
         pos: 0,
         line: header.lines,
     };
-    let mut b = Builder::new(header, layout, payload.len());
+    let mut b = Builder::new(header, layout, payload.len(), name)?;
     let mut values = [0.0f64; 10];
     for (ei, e) in header.elements.iter().enumerate() {
         if e.props.is_empty() {
@@ -971,7 +985,7 @@ fn read_ascii(
                         for _ in 0..n {
                             let v = next(item, &p.name)?;
                             if keep {
-                                b.polygon.push(v.as_int().unwrap_or(-1));
+                                push(&mut b.polygon, v.as_int().unwrap_or(-1), name)?;
                             }
                         }
                         if keep {
@@ -1480,7 +1494,7 @@ mod tests {
     #[test]
     fn all_scalar_types_lists_on_vertices_and_unknown_elements() {
         // Little-endian binary with every type, a list on the vertex element, an unknown
-        // element with a list before the faces, and a quad plus a degenerate 2-gon.
+        // element with a list before the faces, and a quad plus a triangle.
         let mut h = String::from("ply\r\nformat binary_little_endian 1.0\r\ncomment hi\r\n");
         h += "obj_info made by hand\r\nelement vertex 4\r\n";
         h += "property int8 a\r\nproperty float32 x\r\nproperty list uint8 int16 junk\r\n";
@@ -1518,11 +1532,23 @@ mod tests {
             d.extend_from_slice(&v.to_le_bytes());
         }
         d.push(0);
-        d.extend_from_slice(&2u32.to_le_bytes());
-        d.extend_from_slice(&0u32.to_le_bytes());
-        d.extend_from_slice(&1u32.to_le_bytes());
+        d.extend_from_slice(&3u32.to_le_bytes());
+        for v in [3u32, 2, 1] {
+            d.extend_from_slice(&v.to_le_bytes());
+        }
         d.extend_from_slice(&[0u8; 24]); // edges
         let m = parse(&d).unwrap();
+        // The same file with a 2-gon for the triangle is an error naming the face (issue 31:
+        // PLY faces of 0 or 2 indices are errors, as OBJ's `f 1 2`).
+        let mut two = d.clone();
+        let at = two.len() - 24 - 16;
+        two[at..at + 4].copy_from_slice(&2u32.to_le_bytes());
+        two.drain(at + 12..at + 16);
+        let err = parse(&two).unwrap_err().to_string();
+        assert!(
+            err.contains("face 1 has 2 vertices, at least 3 are needed"),
+            "{err}"
+        );
         assert_eq!(
             m.vertices,
             vec![
@@ -1532,7 +1558,7 @@ mod tests {
                 [3.5, -3.0, 0.75]
             ]
         );
-        assert_eq!(m.faces, vec![[0, 1, 2], [0, 2, 3]]);
+        assert_eq!(m.faces, vec![[0, 1, 2], [0, 2, 3], [3, 2, 1]]);
         assert_eq!(
             m.colors.unwrap(),
             vec![[255, 0, 0], [255, 1, 0], [255, 2, 0], [255, 3, 0]]

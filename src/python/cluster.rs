@@ -119,9 +119,10 @@ impl FileFitter {
             .map_err(|e| raise("RunSetupError", e))
     }
 
-    /// Fits one planned file (JSON, from `RunBook.files_json`) and writes its output
-    /// atomically: `(entry JSON, fitted vertices or None)`. A failed file is an `error` entry,
-    /// not an exception. `warm`: the previous frame's fit and name (`sequence`).
+    /// Fits one planned file (JSON, from `RunBook.files_json`) and writes its output to the
+    /// staged path that `RunBook.record` commits: `(entry JSON, fitted vertices or None)`. A
+    /// failed file is an `error` entry, not an exception. `warm`: the previous frame's fit and
+    /// name (`sequence`).
     #[pyo3(signature = (file_json, ascii=false, warm=None))]
     fn fit<'py>(
         &self,
