@@ -329,8 +329,8 @@ def fit(
         Trust radius of the two-way attraction, a multiple c of the fit's current misfit: a scan
         point pulls its nearest vertex only within ``c * max(median vertex-to-scan distance,
         mean edge length)`` of it, so what the garment cannot explain (skin, hair, another
-        garment) does not drag it (3; 0: every point pulls; docs/method.md "Scans of dressed
-        people").
+        garment) does not drag it (4, and ¾ of it on a scan much larger than the template;
+        0: every point pulls; docs/method.md "Scans of dressed people").
     two_way_rim : float
         Rim rule, in mean edge lengths: on a scan much larger than the template (a dressed
         body), scan points beyond the template's boundary by more than this pull nothing — the
