@@ -4,7 +4,9 @@
 
 mod cli_common;
 
-use cli_common::{ascii_cloud, foldmatch, json, tree, write_case, write_scan};
+use cli_common::{
+    ascii_cloud, batch, foldmatch, json, tree, write_case, write_case_and_scans, write_scan,
+};
 use serde_json::Value;
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -86,18 +88,7 @@ fn good_scans_are_fitted_bad_ones_reported_and_resume_redoes_nothing() {
     scan_folder(d);
     let before = tree(&d.join("scans"));
 
-    let out = foldmatch(d)
-        .args([
-            "batch",
-            "template.ply",
-            "scans",
-            "-o",
-            "out",
-            "--iterations",
-            "4",
-            "--jobs",
-            "2",
-        ])
+    let out = batch(d, &["--iterations", "4", "--jobs", "2"])
         .assert()
         .code(2)
         .stdout_eq("")
@@ -170,19 +161,7 @@ fn good_scans_are_fitted_bad_ones_reported_and_resume_redoes_nothing() {
     let outputs = ["out/good_a.ply", "out/good_b.ply", "out/good_c.ply"];
     let stamps = mtimes(d, &outputs);
     std::thread::sleep(Duration::from_millis(20));
-    let out = foldmatch(d)
-        .args([
-            "batch",
-            "template.ply",
-            "scans",
-            "-o",
-            "out",
-            "--iterations",
-            "4",
-            "--resume",
-            "--jobs",
-            "1",
-        ])
+    let out = batch(d, &["--iterations", "4", "--resume", "--jobs", "1"])
         .assert()
         .code(2)
         .get_output()
@@ -371,11 +350,7 @@ fn fatal_errors_exit_with_1_and_write_nothing() {
 fn ctrl_c_stops_cleanly() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    write_case(d);
-    std::fs::create_dir(d.join("scans")).unwrap();
-    for i in 0..3 {
-        write_scan(&d.join(format!("scans/s{i}.ply")), i);
-    }
+    write_case_and_scans(d, 3);
     let mut child = std::process::Command::new(cli_common::bin())
         .current_dir(d)
         .env("FOLDMATCH_NO_PROGRESS", "1")
@@ -465,12 +440,8 @@ fn outputs(d: &Path) -> Vec<String> {
 fn kill_9_mid_batch_then_resume_fits_nothing_twice() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    write_case(d);
-    std::fs::create_dir(d.join("scans")).unwrap();
     let n = 6;
-    for i in 0..n {
-        write_scan(&d.join(format!("scans/s{i}.ply")), i as u64);
-    }
+    write_case_and_scans(d, n as u64);
     let args = ["--iterations", "60", "--jobs", "1"];
     let mut child = spawn_batch(d, &args);
     let deadline = Instant::now() + Duration::from_secs(60);
@@ -506,16 +477,7 @@ fn kill_9_mid_batch_then_resume_fits_nothing_twice() {
     let recorded = files.values().filter(|f| f["status"] == "ok").count();
     std::thread::sleep(Duration::from_millis(20));
 
-    let out = foldmatch(d)
-        .args([
-            "batch",
-            "template.ply",
-            "scans",
-            "-o",
-            "out",
-            "--resume",
-            "-v",
-        ])
+    let out = batch(d, &["--resume", "-v"])
         .args(args)
         .assert()
         .success()
@@ -555,27 +517,14 @@ fn kill_9_mid_batch_then_resume_fits_nothing_twice() {
 fn one_run_per_folder_and_resume_never_mixes_parameters() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    write_case(d);
-    std::fs::create_dir(d.join("scans")).unwrap();
-    for i in 0..2 {
-        write_scan(&d.join(format!("scans/s{i}.ply")), i);
-    }
+    write_case_and_scans(d, 2);
     let mut first = spawn_batch(d, &["--iterations", "1000000", "--jobs", "1"]);
     let deadline = Instant::now() + Duration::from_secs(30);
     while !d.join("out/report.json").exists() {
         assert!(Instant::now() < deadline, "the first batch never started");
         std::thread::sleep(Duration::from_millis(10));
     }
-    let out = foldmatch(d)
-        .args([
-            "batch",
-            "template.ply",
-            "scans",
-            "-o",
-            "out",
-            "--iterations",
-            "3",
-        ])
+    let out = batch(d, &["--iterations", "3"])
         .assert()
         .code(1)
         .get_output()
@@ -591,21 +540,9 @@ fn one_run_per_folder_and_resume_never_mixes_parameters() {
     first.kill().unwrap();
     first.wait().unwrap();
 
-    foldmatch(d)
-        .args([
-            "batch",
-            "template.ply",
-            "scans",
-            "-o",
-            "out",
-            "--iterations",
-            "3",
-        ])
-        .assert()
-        .success();
+    batch(d, &["--iterations", "3"]).assert().success();
     let stamps = mtimes(d, &["out/s0.ply", "out/s1.ply"]);
-    let out = foldmatch(d)
-        .args(["batch", "template.ply", "scans", "-o", "out", "--resume"])
+    let out = batch(d, &["--resume"])
         .args(["--iterations", "4", "--psi", "0.1"])
         .assert()
         .code(1)

@@ -12,6 +12,27 @@ use serde_json::json;
 use snapbox::str;
 use std::path::Path;
 
+/// `foldmatch -q fit template.ply SCAN -o OUT --iterations 8 --report OUT.json EXTRA` in `d`:
+/// it succeeds and says nothing.
+fn fit_quietly(d: &Path, scan: &str, out: &str, extra: &[&str]) {
+    foldmatch(d)
+        .args([
+            "-q",
+            "fit",
+            "template.ply",
+            scan,
+            "-o",
+            out,
+            "--iterations",
+            "8",
+        ])
+        .args(["--report", &format!("{out}.json")])
+        .args(extra)
+        .assert()
+        .code(0)
+        .stderr_eq(str![""]);
+}
+
 /// A "dressed" scan: the 400 garment points of `write_case`'s scan with 100 other points
 /// interleaved (after every fourth garment point, 0.3 above it), and its 0/1 garment mask.
 fn dressed(seed: u64) -> (Vec<[f64; 3]>, Vec<u8>) {
@@ -55,24 +76,7 @@ fn a_mask_fits_exactly_as_the_masked_scan() {
     std::fs::write(d.join("mask.npy"), npy_bytes("|b1", "(500,)", &mask)).unwrap();
     std::fs::write(d.join("mask_u8.npy"), npy_bytes("|u1", "(500, 1)", &mask)).unwrap();
     write_labelled_cloud(&d.join("labelled.ply"), &points, "label", &mask);
-    let fit = |scan: &str, out: &str, extra: &[&str]| {
-        foldmatch(d)
-            .args([
-                "-q",
-                "fit",
-                "template.ply",
-                scan,
-                "-o",
-                out,
-                "--iterations",
-                "8",
-            ])
-            .args(["--report", &format!("{out}.json")])
-            .args(extra)
-            .assert()
-            .code(0)
-            .stderr_eq(str![""]);
-    };
+    let fit = |scan: &str, out: &str, extra: &[&str]| fit_quietly(d, scan, out, extra);
     fit("scan.ply", "plain.ply", &[]);
     fit("dressed.ply", "mask.ply", &["--scan-weights", "mask.npy"]);
     fit(
@@ -130,24 +134,7 @@ fn fractional_weights_weigh_and_equal_weights_change_nothing() {
     .unwrap();
     let threes: Vec<u8> = (0..n).flat_map(|_| 3i32.to_le_bytes()).collect();
     std::fs::write(d.join("threes.npy"), npy_bytes("<i4", "(400,)", &threes)).unwrap();
-    let fit = |out: &str, extra: &[&str]| {
-        foldmatch(d)
-            .args([
-                "-q",
-                "fit",
-                "template.ply",
-                "scan.ply",
-                "-o",
-                out,
-                "--iterations",
-                "8",
-            ])
-            .args(["--report", &format!("{out}.json")])
-            .args(extra)
-            .assert()
-            .code(0)
-            .stderr_eq(str![""]);
-    };
+    let fit = |out: &str, extra: &[&str]| fit_quietly(d, "scan.ply", out, extra);
     fit("plain.ply", &[]);
     fit("weighted.ply", &["--scan-weights", "confidence.npy"]);
     fit("weighted32.ply", &["--scan-weights", "confidence32.npy"]);

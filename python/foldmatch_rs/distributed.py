@@ -133,7 +133,7 @@ def fit_batch(
         gt_dir=gt_dir,
         params=params,
     )
-    book = _core.RunBook(json.dumps(request), "normal" if progress else "quiet")
+    book = _book(request, progress)
     with connect(client, workers=workers, retries=retries) as c:
         ((_, report),) = run_books(c, "batch", [book], ascii=ascii, threads=threads, retries=retries)
     return report
@@ -192,7 +192,7 @@ def track_sequences(
             gt_dir=None if gt_dirs is None else gt_dirs[k],
             params=params,
         )
-        books.append(_core.RunBook(json.dumps(request), "normal" if progress else "quiet"))
+        books.append(_book(request, progress))
     with connect(client, workers=workers, retries=retries) as c:
         results = run_books(c, "sequence", books, ascii=ascii, threads=threads, retries=retries)
     return {name: report for name, (_, report) in zip(names, results)}
@@ -364,6 +364,11 @@ def _request(
     else:
         request["files"] = [os.path.abspath(p) for p in scans]
     return request
+
+
+def _book(request: dict[str, Any], progress: bool) -> _core.RunBook:
+    """The Rust ``RunBook`` of a request from :func:`_request`, with progress lines or quiet."""
+    return _core.RunBook(json.dumps(request), "normal" if progress else "quiet")
 
 
 def _plain(value: Any) -> Any:

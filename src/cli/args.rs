@@ -964,33 +964,19 @@ mod tests {
         );
         // A folder of scans: only the property (one name for every file).
         for command in ["batch", "sequence"] {
-            let cli = parse([
-                "foldmatch",
-                command,
-                "t.ply",
-                "d",
-                "-o",
-                "o",
-                "--scan-weights-property",
-                "confidence",
-            ])
-            .unwrap();
+            let folder = |extra: &[&str]| {
+                let mut argv = vec!["foldmatch", command, "t.ply", "d", "-o", "o"];
+                argv.extend(extra);
+                parse(argv)
+            };
+            let cli = folder(&["--scan-weights-property", "confidence"]).unwrap();
             let property = match cli.command {
                 Command::Batch(c) => c.scan_weights_property,
                 Command::Sequence(c) => c.scan_weights_property,
                 _ => panic!(),
             };
             assert_eq!(property.as_deref(), Some("confidence"));
-            let file = parse([
-                "foldmatch",
-                command,
-                "t.ply",
-                "d",
-                "-o",
-                "o",
-                "--scan-weights",
-                "w.npy",
-            ]);
+            let file = folder(&["--scan-weights", "w.npy"]);
             assert_eq!(
                 file.unwrap_err().kind(),
                 clap::error::ErrorKind::UnknownArgument

@@ -105,46 +105,36 @@ impl Request {
     /// including a command line that does not parse (the local program reports it).
     pub fn from_cli(argv: Vec<String>) -> Option<CliRun> {
         let cli = super::args::parse(argv).ok()?;
+        // A batch and a sequence plan alike but for their kind, their folder and recursion.
+        macro_rules! folder_run {
+            ($cmd:ident, $kind:expr, $input_dir:expr, $recursive:expr) => {
+                Self {
+                    command: $kind,
+                    template: $cmd.template,
+                    input_dir: Some($input_dir),
+                    files: None,
+                    output: $cmd.output,
+                    resume: $cmd.resume,
+                    recursive: $recursive,
+                    glob: $cmd.glob,
+                    format: $cmd.format.extension().into(),
+                    ascii: $cmd.ascii,
+                    gt_dir: $cmd.gt_dir,
+                    preset: $cmd.params.preset.clone(),
+                    params_file: $cmd.params.params.clone(),
+                    params: $cmd.params.overrides(),
+                    scan_weights_property: $cmd.scan_weights_property,
+                }
+            };
+        }
         let (request, scheduler, jobs) = match cli.command {
             Command::Batch(cmd) => (
-                Self {
-                    command: RunKind::Batch,
-                    template: cmd.template,
-                    input_dir: Some(cmd.scan_dir),
-                    files: None,
-                    output: cmd.output,
-                    resume: cmd.resume,
-                    recursive: cmd.recursive,
-                    glob: cmd.glob,
-                    format: cmd.format.extension().into(),
-                    ascii: cmd.ascii,
-                    gt_dir: cmd.gt_dir,
-                    preset: cmd.params.preset.clone(),
-                    params_file: cmd.params.params.clone(),
-                    params: cmd.params.overrides(),
-                    scan_weights_property: cmd.scan_weights_property,
-                },
+                folder_run!(cmd, RunKind::Batch, cmd.scan_dir, cmd.recursive),
                 cmd.scheduler?,
                 cmd.jobs,
             ),
             Command::Sequence(cmd) => (
-                Self {
-                    command: RunKind::Sequence,
-                    template: cmd.template,
-                    input_dir: Some(cmd.frame_dir),
-                    files: None,
-                    output: cmd.output,
-                    resume: cmd.resume,
-                    recursive: false,
-                    glob: cmd.glob,
-                    format: cmd.format.extension().into(),
-                    ascii: cmd.ascii,
-                    gt_dir: cmd.gt_dir,
-                    preset: cmd.params.preset.clone(),
-                    params_file: cmd.params.params.clone(),
-                    params: cmd.params.overrides(),
-                    scan_weights_property: cmd.scan_weights_property,
-                },
+                folder_run!(cmd, RunKind::Sequence, cmd.frame_dir, false),
                 cmd.scheduler?,
                 None,
             ),

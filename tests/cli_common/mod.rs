@@ -80,6 +80,23 @@ pub fn write_scan(path: &Path, seed: u64) {
     write_mesh(path, &MeshData::point_cloud(c.scan), &[], false).unwrap();
 }
 
+/// Writes the case of `write_case` and a folder `scans/` of `n` scans `s0.ply`, `s1.ply`, …
+/// (`s{i}.ply` of seed `i`).
+pub fn write_case_and_scans(dir: &Path, n: u64) {
+    write_case(dir);
+    std::fs::create_dir(dir.join("scans")).unwrap();
+    for i in 0..n {
+        write_scan(&dir.join(format!("scans/s{i}.ply")), i);
+    }
+}
+
+/// `foldmatch batch template.ply scans -o out ARGS` running in `dir` (as `foldmatch` runs).
+pub fn batch(dir: &Path, args: &[&str]) -> snapbox::cmd::Command {
+    foldmatch(dir)
+        .args(["batch", "template.ply", "scans", "-o", "out"])
+        .args(args)
+}
+
 /// An ASCII PLY point cloud with the given rows, written as is (for broken inputs).
 pub fn ascii_cloud(rows: &[&str], announced: usize) -> String {
     let mut s = format!(
