@@ -2028,41 +2028,29 @@ impl ScheduleRun {
             (_, true) => self.phase_sample[1],
             _ => None,
         };
-        match sampled.map(|i| &mut self.samples[i]) {
+        // The phase's points: a sample's copies of its vertices, or every vertex.
+        let (attraction, pos, vel, scan_stride) = match sampled.map(|i| &mut self.samples[i]) {
             Some(sample) => {
                 for (i, &v) in sample.vertices.iter().enumerate() {
                     sample.pos[i] = self.pos[v as usize];
                     sample.vel[i] = self.vel[v as usize];
                 }
-                let (pos, vel) = (&sample.pos, &mut sample.vel);
-                let scan = prepared.scan_points(sample.scan_stride);
-                sample.attraction.propose(
-                    scan,
-                    &prepared.rim,
-                    params,
-                    it,
-                    pos,
-                    vel,
-                    t,
-                    &mut self.diagnostics,
-                );
-                for (i, &v) in sample.vertices.iter().enumerate() {
-                    self.vel[v as usize] = sample.vel[i];
-                }
+                let stride = sample.scan_stride;
+                (
+                    &mut sample.attraction,
+                    &sample.pos[..],
+                    &mut sample.vel[..],
+                    stride,
+                )
             }
-            None => {
-                let (pos, vel) = (&self.pos, &mut self.vel);
-                let scan = prepared.scan_points(1);
-                self.attraction.propose(
-                    scan,
-                    &prepared.rim,
-                    params,
-                    it,
-                    pos,
-                    vel,
-                    t,
-                    &mut self.diagnostics,
-                );
+            None => (&mut self.attraction, &self.pos[..], &mut self.vel[..], 1),
+        };
+        let scan = prepared.scan_points(scan_stride);
+        let diagnostics = &mut self.diagnostics;
+        attraction.propose(scan, &prepared.rim, params, it, pos, vel, t, diagnostics);
+        if let Some(sample) = sampled.map(|i| &self.samples[i]) {
+            for (i, &v) in sample.vertices.iter().enumerate() {
+                self.vel[v as usize] = sample.vel[i];
             }
         }
         let update_start = std::time::Instant::now();

@@ -284,14 +284,8 @@ pub fn read_bounded(path: &Path, limit: u64) -> Result<Vec<u8>> {
             ),
         )
     };
-    if kind.is_file() {
-        let size = meta.len();
-        if size > limit {
-            return Err(too_large(size));
-        }
-        let mut data =
-            crate::limits::try_vec::<u8>(size as usize + 1, &path.display().to_string())?;
-        // The file may grow while it is read: never past the limit.
+    // Reads the rest of the file into `data`, refusing more than `limit` bytes.
+    let mut read_capped = |mut data: Vec<u8>| -> Result<Vec<u8>> {
         (&mut file)
             .take(limit + 1)
             .read_to_end(&mut data)
@@ -299,7 +293,16 @@ pub fn read_bounded(path: &Path, limit: u64) -> Result<Vec<u8>> {
         if data.len() as u64 > limit {
             return Err(too_large(data.len() as u64));
         }
-        return Ok(data);
+        Ok(data)
+    };
+    if kind.is_file() {
+        let size = meta.len();
+        if size > limit {
+            return Err(too_large(size));
+        }
+        let data = crate::limits::try_vec::<u8>(size as usize + 1, &path.display().to_string())?;
+        // The file may grow while it is read: never past the limit.
+        return read_capped(data);
     }
     if kind.is_dir() {
         return Err(refuse("a folder"));
@@ -308,15 +311,7 @@ pub fn read_bounded(path: &Path, limit: u64) -> Result<Vec<u8>> {
     {
         use std::os::unix::fs::FileTypeExt;
         if kind.is_fifo() {
-            let mut data = Vec::new();
-            (&mut file)
-                .take(limit + 1)
-                .read_to_end(&mut data)
-                .map_err(|e| io_error(path, e))?;
-            if data.len() as u64 > limit {
-                return Err(too_large(data.len() as u64));
-            }
-            return Ok(data);
+            return read_capped(Vec::new());
         }
         if kind.is_char_device() || kind.is_block_device() {
             return Err(refuse("a device"));
