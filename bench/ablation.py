@@ -6,7 +6,7 @@ separately by bench/fidelity.py).
 Runs FoldMatch with each literal reading switched back on, one at a time, plus NRGa, on
 generated cases with ground truth, and prints a Markdown table (and writes JSON).
 
-    .venv/bin/python bench/ablation.py [--out bench/out/ablation.json]
+    .venv/bin/python -m bench.ablation [--out bench/out/ablation.json]
 """
 
 from __future__ import annotations

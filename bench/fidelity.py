@@ -4,7 +4,7 @@ Each option is switched on alone on top of the paper preset, then the chosen com
 default), on a generated sheet and real garment pairs from ../shared/data whose targets are
 resampled as noisy 5,000-point clouds (no method sees the vertex order).
 
-    .venv/bin/python bench/fidelity.py [--out bench/out/fidelity.json]
+    .venv/bin/python -m bench.fidelity [--out bench/out/fidelity.json]
 """
 
 from __future__ import annotations

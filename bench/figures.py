@@ -8,9 +8,10 @@ import pathlib
 from typing import Any
 
 import numpy as np
-import render
-from render import plt
-from report import NAMES, label
+
+from bench import render
+from bench.render import plt
+from bench.report import NAMES, label
 
 COLORS = {
     "foldmatch": "#d62728", "nrga": "#ff9896", "cpd_pycpd": "#1f77b4", "cpd_probreg": "#6baed6",

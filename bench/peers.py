@@ -16,7 +16,7 @@ paper's constants plus the fidelity options of docs/method.md); "FoldMatch (pape
 chosen by the sweep in ``bench/tune.py`` (held-out generated cases, lowest mean of f_R +
 scan→fit p95; see docs/results.md, "How the peers were tuned").
 
-Peak memory: each run is its own Python process (``python bench/peers.py CASE METHOD OUT``);
+Peak memory: each run is its own Python process (``python -m bench.peers CASE METHOD OUT``);
 ``resource.getrusage(RUSAGE_SELF).ru_maxrss`` at the end is the peak resident set of the whole
 process (interpreter, libraries, data and the method; it sees Rust, BLAS and NumPy-C
 allocations, which tracemalloc does not). The same value taken just before the method starts

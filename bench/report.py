@@ -12,7 +12,8 @@ from collections.abc import Iterable
 from typing import Any
 
 import numpy as np
-import peers
+
+from bench import peers
 
 NAMES = {
     "f_R": "f_R", "s2f_mean_rel": "scan→fit mean", "s2f_p95_rel": "scan→fit p95",

@@ -13,9 +13,9 @@ own). Every case the default loses is listed with its ratios and the reason foun
 investigated"), those lost on f_R or f_λ in one table, on flips or scan→fit in another; every
 case is in a folded table below them::
 
-    .venv/bin/python bench/standing.py                   # rewrites the block in docs/results.md
-    .venv/bin/python bench/standing.py --print           # prints it instead
-    .venv/bin/python bench/standing.py --from-json F     # re-renders an earlier run's rows
+    .venv/bin/python -m bench.standing                   # rewrites the block in docs/results.md
+    .venv/bin/python -m bench.standing --print           # prints it instead
+    .venv/bin/python -m bench.standing --from-json F     # re-renders an earlier run's rows
 
 The rows go to ``--out`` (JSON, as bench/variants.py writes them).
 """
@@ -30,12 +30,9 @@ import re
 import sys
 from typing import Any
 
-HERE = pathlib.Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
+from bench import harness, report, variants
 
-import harness  # noqa: E402
-import report  # noqa: E402
-import variants  # noqa: E402
+HERE = pathlib.Path(__file__).resolve().parent
 
 GROUPS = ["real", "small", "paper", "sheets", "wind"]
 #: The two configurations reported: the default, and the method as the paper prints it.
@@ -259,9 +256,9 @@ def stamp_line(from_json: str | None = None) -> str:
     now = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     code = harness.code_version()
     if from_json:
-        return (f"_Re-rendered {now} ({code}) by `.venv/bin/python bench/standing.py "
+        return (f"_Re-rendered {now} ({code}) by `.venv/bin/python -m bench.standing "
                 f"--from-json {pathlib.Path(from_json).name}` (the fits of an earlier run)._")
-    return (f"_Generated {now} ({code}) by `.venv/bin/python bench/standing.py` "
+    return (f"_Generated {now} ({code}) by `.venv/bin/python -m bench.standing` "
             "(the 91 harness cases, the library's current default and paper preset)._")
 
 
@@ -276,7 +273,7 @@ def main() -> int:
     ap.add_argument("--out", default=str(HERE / "out" / "standing.json"))
     ap.add_argument("--from-json", metavar="FILE", help="render an earlier run's rows")
     ap.add_argument("--peers", metavar="FILE", action="append", default=None,
-                    help="as bench/variants.py --peers (default bench/peer_figures.json)")
+                    help="as python -m bench.variants --peers (default bench/peer_figures.json)")
     ap.add_argument("--print", action="store_true", help="print the block, leave docs alone")
     ap.add_argument("--results", default=str(HERE.parent / "docs" / "results.md"))
     args = ap.parse_args()

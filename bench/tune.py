@@ -1,7 +1,7 @@
 #!/usr/bin/env python
 """The parameter sweep behind the peers' settings in ``bench/peers.py``.
 
-Run ``.venv/bin/python bench/tune.py`` (≈45 min on 2 cores; ``--skip-bcpd`` ≈15 min). It fits
+Run ``.venv/bin/python -m bench.tune`` (≈45 min on 2 cores; ``--skip-bcpd`` ≈15 min). It fits
 three held-out generated cases — shapes and scans not used in the comparison (a sheet with
 other fold parameters, a skirt and a shirt with other fold phases, noisy scans with other
 seeds) — with every setting of a small grid per method, ranks the settings by the mean over
@@ -25,15 +25,13 @@ import sys
 import time
 import warnings
 
-HERE = pathlib.Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
-
-import cases as C
-import harness
 import numpy as np
-import peers
-import report
-from harness import log
+
+from bench import cases as C
+from bench import harness, peers, report
+from bench.harness import log
+
+HERE = pathlib.Path(__file__).resolve().parent
 
 
 def tuning_cases() -> list[C.Case]:

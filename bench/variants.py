@@ -4,12 +4,12 @@ Each variant is a set of keyword arguments on top of the library defaults; each 
 every case of the chosen groups and scored by the harness's metrics. Prints f_R / f_λ per case
 and, per group, the medians of f_R, f_λ, f_H, f_E, f_F and scan→fit mean::
 
-    .venv/bin/python bench/variants.py --groups real,small \\
+    .venv/bin/python -m bench.variants --groups real,small \\
         --variant 'no rigid={"rigid_fraction": 0}' --variant 'default={}'
-    .venv/bin/python bench/variants.py --preset schedule --groups real,small,sheets,wind,paper
-    .venv/bin/python bench/variants.py --preset placement
-    .venv/bin/python bench/variants.py --preset margin --groups real,small,sheets,wind,paper
-    .venv/bin/python bench/variants.py --preset pull --groups real,small,sheets,wind,paper
+    .venv/bin/python -m bench.variants --preset schedule --groups real,small,sheets,wind,paper
+    .venv/bin/python -m bench.variants --preset placement
+    .venv/bin/python -m bench.variants --preset margin --groups real,small,sheets,wind,paper
+    .venv/bin/python -m bench.variants --preset pull --groups real,small,sheets,wind,paper
 
 Groups: ``real`` (22 pre-placed real-garment cases), ``small`` / ``paper`` (generated, rotated
 and offset), ``sheets`` (24 random sheets), ``wind`` (30 wind frames), ``dressed`` (6 scans of
@@ -31,13 +31,10 @@ from typing import Any
 
 import numpy as np
 
-HERE = pathlib.Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
+from bench import cases as cases_mod
+from bench import compare, harness, peers
 
-import cases as cases_mod  # noqa: E402
-import compare  # noqa: E402
-import harness  # noqa: E402
-import peers  # noqa: E402
+HERE = pathlib.Path(__file__).resolve().parent
 
 PRESETS: dict[str, list[tuple[str, dict[str, Any]]]] = {
     # Does the rigid phase help when the template is already placed? (docs/method.md)
@@ -113,7 +110,7 @@ def group_cases(group: str) -> list[cases_mod.Case]:
     """The cases of a group, exactly as bench/compare.py builds them (``dressed``: the
     dressed-body scans of bench/dressed_scans.py, whole scan, placed template)."""
     if group == "dressed":
-        import dressed_scans
+        from bench import dressed_scans
 
         return list(dressed_scans.dressed_cases())
     if group not in GROUPS:
@@ -137,7 +134,7 @@ def parse_variant(text: str) -> tuple[str, dict[str, Any]]:
 #: docs/results.md does not print case by case): the peers' code and the cases are
 #: deterministic, so the figures stand until either changes.
 PEER_FIGURES = HERE / "peer_figures.json"
-#: The same for the dressed-body cases (group ``dressed``), written by bench/dressed.py --peers.
+#: The same for the dressed-body cases (group ``dressed``), written by python -m bench.dressed --peers.
 PEER_FIGURES_DRESSED = HERE / "peer_figures_dressed.json"
 
 #: Every compared method but FoldMatch's own two configurations (NRGa counts as a peer).
@@ -318,7 +315,7 @@ def load_best(names: list[str] | None) -> tuple[Best, str]:
         json_run = HERE / "out" / "results.json"
         fallback = PEER_FIGURES if PEER_FIGURES.is_file() else HERE.parent / "docs" / "results.md"
         names = [str(json_run if json_run.is_file() else fallback)]
-        if PEER_FIGURES_DRESSED.is_file():  # bench/dressed.py --peers (group ``dressed``)
+        if PEER_FIGURES_DRESSED.is_file():  # python -m bench.dressed --peers (group ``dressed``)
             names.append(str(PEER_FIGURES_DRESSED))
     best: Best = {}
     for name in names:
@@ -393,7 +390,7 @@ def main() -> int:
         pathlib.Path(args.save_peers).write_text(json.dumps(
             {"about": "per case, the lowest f_R, f_lambda and s2f_mean_rel of the peers "
                       f"({', '.join(PEERS)}) and the truth's f_F; written by "
-                      "bench/variants.py --save-peers from " + source,
+                      "python -m bench.variants --save-peers from " + source,
              "cases": best}, indent=1, sort_keys=True) + "\n")
         return 0
 
