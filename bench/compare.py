@@ -2,7 +2,7 @@
 """FoldMatch against the methods users would pick instead, on the same cases (issue 4,
 SPEC §6).
 
-One command regenerates docs/results.md (its generated blocks), the figures in docs/figures/
+One command regenerates docs/notes/comparison-full-run.md (its generated blocks), the figures in docs/figures/
 and the JSON in bench/out/results.json::
 
     .venv/bin/python -m bench.compare --cases all          # the full run (hours on 2 cores)
@@ -319,7 +319,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="the CI case: a tiny sheet, every method that imports; report and JSON "
                          "under --out, docs/ untouched")
     ap.add_argument("--report", default=None,
-                    help="Markdown report to update (default docs/results.md; with --quick "
+                    help="Markdown report to update (default docs/notes/comparison-full-run.md; with --quick "
                          "OUT/results.md)")
     ap.add_argument("--figures-dir", default=None,
                     help="where figures go (default docs/figures; with --quick OUT/figures)")
@@ -345,7 +345,7 @@ def main(argv: list[str] | None = None) -> int:
         if m not in peers.METHODS:
             ap.error(f"unknown method {m!r} (known: {', '.join(peers.METHODS)})")
     report_path = pathlib.Path(args.report) if args.report else (
-        out / "results.md" if args.quick else REPO / "docs" / "results.md")
+        out / "results.md" if args.quick else REPO / "docs" / "notes" / "comparison-full-run.md")
     figdir = pathlib.Path(args.figures_dir) if args.figures_dir else (
         out / "figures" if args.quick else REPO / "docs" / "figures")
 

@@ -14,7 +14,7 @@ Parameters: FoldMatch and NRGa run with the library's defaults (``fm.DEFAULT_PAR
 paper's constants plus the fidelity options of docs/method.md); "FoldMatch (paper preset)" is
 ``fm.fit(preset="paper")``, the method as the paper prints it. Every peer's parameters were
 chosen by the sweep in ``bench/tune.py`` (held-out generated cases, lowest mean of f_R +
-scan→fit p95; see docs/results.md, "How the peers were tuned").
+scan→fit p95; see docs/notes/comparison-full-run.md, "How the peers were tuned").
 
 Peak memory: each run is its own Python process (``python -m bench.peers CASE METHOD OUT``);
 ``resource.getrusage(RUSAGE_SELF).ru_maxrss`` at the end is the peak resident set of the whole
@@ -37,7 +37,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-# ---- parameters (chosen by bench/tune.py; see docs/results.md) ------------------------------
+# ---- parameters (chosen by bench/tune.py; see docs/notes/comparison-full-run.md) ------------
 
 #: CPD (all three implementations share the model and the parameters): λ (alpha) the
 #: smoothness weight, β the Gaussian kernel width in the normalized frame (target diagonal 1),

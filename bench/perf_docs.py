@@ -14,38 +14,56 @@ DOC = pathlib.Path(__file__).resolve().parent.parent / "docs" / "performance.md"
 
 DOC_TEMPLATE = """# Performance
 
-Issue 5 / SPEC §7: where FoldMatch's time goes, how it scales, and how it compares with the
-methods a user would pick instead, on one machine in one run. Every figure below comes from
-one run of
+Where FoldMatch's time goes, how it scales, and how it compares in speed with the methods a
+user would pick instead, on one machine in one run. Every figure below comes from one run of
 
 ```sh
-.venv/bin/python -m bench.perf            # full run; --quick: small sizes, < 2 minutes
+.venv/bin/python -m bench.perf            # full run (about 11 minutes on 2 idle cores)
+.venv/bin/python -m bench.perf --quick    # small sizes only, < 2 minutes: a smoke test
 ```
 
-(the per-stage micro-benchmarks are `cargo bench --bench stages`, criterion, on the
-paper-sized case; see [benches/stages.rs](../benches/stages.rs)). The blocks between `BEGIN
-GENERATED` / `END GENERATED` markers are rewritten by that command; the text around them is
-written by hand.
+which rewrites the blocks between the `BEGIN GENERATED` / `END GENERATED` markers (and
+`docs/figures/perf_scaling.png`); the text around them is written by hand. The header says
+which commit and machine the figures are of: wall times depend on the machine and its load,
+so compare runs of one machine only. The per-stage micro-benchmarks are
+`cargo bench --bench stages` (criterion, on the paper-sized case;
+[benches/stages.rs](../benches/stages.rs)).
 
 <!-- BEGIN GENERATED: header -->
 <!-- END GENERATED: header -->
 
 ## Targets
 
+Each target, what was wanted and what this run measured. "Paper-sized" is the paper's case:
+a 115 × 115 sheet (13,225 template vertices) fitted to 14,400 scan points, 100 iterations.
+"vs the fastest peer" divides the fastest peer's wall time by FoldMatch's on the same case,
+and holds only where FoldMatch's f_λ is no worse; the note gives both methods' f_λ and f_R
+and the ground truth's own f_λ.
+
 <!-- BEGIN GENERATED: targets -->
 <!-- END GENERATED: targets -->
 
 ## (a) The paper-sized case, and the peers on the same cases
+
+For each method on each case: wall time, time per iteration, peak memory of the whole process,
+threads, and the fit's quality by `fm.evaluate` against the ground truth. FoldMatch's rows
+break the time down by stage (`diagnostics["stage_seconds"]`, scaled to the wall time).
 
 <!-- BEGIN GENERATED: peers -->
 <!-- END GENERATED: peers -->
 
 ## (b) ≈100K template vertices on a ≈1M-point scan
 
+The peers cannot finish this case on the machine: they are capped (one iteration, an
+address-space limit, a timeout), and their time per iteration is compared with FoldMatch's.
+
 <!-- BEGIN GENERATED: large -->
 <!-- END GENERATED: large -->
 
 ## (c) Scaling in M and N
+
+Time per iteration and peak memory as the template grows (M, fixed scan) and as the scan grows
+(N, fixed template), with the exponent of a power law fitted on the larger half of each sweep.
 
 ![time per iteration and peak memory vs M, time vs N](figures/perf_scaling.png)
 
@@ -54,41 +72,41 @@ written by hand.
 
 ## (d) 1 vs 2 threads
 
+The same fits with 1 and 2 threads: the speed-up overall and per stage.
+
 <!-- BEGIN GENERATED: threads -->
 <!-- END GENERATED: threads -->
 
-## Where a target is missed: the profile, and what would close it
+## Where a target is missed
+
+For each missed target: where the time goes, and what would make each stage cheaper.
 
 <!-- BEGIN GENERATED: missed -->
 <!-- END GENERATED: missed -->
 
-## Notes
-
-_(hand-written; kept across regenerations)_
-
 ## How it is measured
 
-* Each measurement is a fresh Python process (`python -m bench.perf --worker`): the case is generated
-  (`fm.folded_sheet`, deterministic), then the method is timed (`time.perf_counter` around the
-  call alone). Peak memory is the process's `VmHWM` right after the call (whole process:
-  interpreter, NumPy, data, Rust/BLAS allocations); "baseline" is the same before the call.
-* FoldMatch runs are repeated (full run: up to 3 times within 20 s) and the best wall time is
-  kept; the stage breakdown is `diagnostics["stage_seconds"]` of that run scaled to the
-  iterations' wall time (`diagnostics["wall_seconds"]`; the default's two schedule runs overlap
-  in time, so their summed stage times exceed it), "setup + final" the rest of the wall time
-  (k-d tree, curvature, rings, the accumulated wrinkle field, the schedule selection).
-* Threads: asked (`fm.fit(threads=...)`; "all" = rayon's default, every core), the most OS
-  threads seen during the call, and CPU time ÷ wall time ("busy": cores kept busy).
-* Peers use bench/peers.py's adapters and tuned parameters (docs/results.md); quality is
-  `fm.evaluate` on the same ground truth. Dense CPD (pycpd, probreg) is skipped where its
-  M×N arrays exceed 3 GiB. On the large case peers are capped (one iteration, 12 GB address
-  space, a timeout) and their time per iteration is what is compared.
+* Each measurement is a fresh Python process (`python -m bench.perf --worker`): the case is
+  generated (`fm.folded_sheet`, deterministic), then the method is timed
+  (`time.perf_counter` around the call alone). Peak memory is the process's `VmHWM` right
+  after the call (the whole process: interpreter, NumPy, data, Rust allocations); "baseline"
+  is the same before the call.
+* FoldMatch's runs, and the peers' on the paper-sized and small cases, are repeated (up to 3
+  times within 20 s) and the best wall time is kept. The default's two candidate schedules
+  run side by side, so their summed stage times exceed the wall time; "setup + final" is the
+  rest of the wall time (the scan tree, curvature, rings, the accumulated wrinkle field, the
+  schedule selection).
+* Threads: asked (`fm.fit(threads=...)`; "all" = every core), the most OS threads seen during
+  the call, and CPU time ÷ wall time ("busy": the cores actually kept busy).
+* Peers use `bench/peers.py`'s adapters and tuned parameters; quality is `fm.evaluate` on the
+  same ground truth. Dense CPD (pycpd, probreg) is skipped where its M×N arrays exceed 3 GiB.
 * The NumPy reference (`tests/reference.py`, loops over vertices with `numpy.linalg`) runs a
-  couple of iterations of the paper preset's FoldMatch phase (k-NN by scipy's cKDTree); its
-  100-iteration time is extrapolated (setup + 100 × per-iteration).
-* The machine is shared: the 1-minute load average before every measurement is in the JSON
-  (`loadavg_before`); a load above the core count inflates wall times and deflates the thread
-  speedup.
+  couple of iterations of the paper preset; its 100-iteration time is extrapolated.
+* On a shared machine the 1-minute load average before every measurement is in the JSON
+  (`loadavg_before`); a load above the core count inflates wall times and deflates the
+  thread speed-up. A speed change between two builds is best judged by instruction counts
+  (`RAYON_NUM_THREADS=1 valgrind --tool=callgrind target/profiling/examples/timing`) or by
+  timing the two builds in alternation (`python3 -m bench.ab_timing OLD NEW --pairs 15`).
 """
 
 

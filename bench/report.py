@@ -1,4 +1,4 @@
-"""Markdown tables for docs/results.md, and the generated-block mechanism: the harness
+"""Markdown tables for docs/notes/comparison-full-run.md, and the generated-block mechanism: the harness
 rewrites only the text between ``<!-- BEGIN GENERATED: name -->`` and
 ``<!-- END GENERATED: name -->``, so the hand-written analysis around the blocks survives a
 regeneration."""

@@ -129,9 +129,9 @@ def parse_variant(text: str) -> tuple[str, dict[str, Any]]:
     return name, json.loads(kw)
 
 
-#: The best-peer figures of every harness case (``--save-peers``: docs/results.md's per-case
+#: The best-peer figures of every harness case (``--save-peers``: docs/notes/comparison-full-run.md's per-case
 #: tables merged with a bench/compare.py run for the random sheets and the wind frames, which
-#: docs/results.md does not print case by case): the peers' code and the cases are
+#: docs/notes/comparison-full-run.md does not print case by case): the peers' code and the cases are
 #: deterministic, so the figures stand until either changes.
 PEER_FIGURES = HERE / "peer_figures.json"
 #: The same for the dressed-body cases (group ``dressed``), written by python -m bench.dressed --peers.
@@ -151,7 +151,8 @@ def geo_mean(ratios: Any) -> float:
 #: flipped-face fraction (NaN without ground truth).
 Best = dict[str, dict[str, float]]
 
-#: The columns of docs/results.md's per-case tables read by :func:`best_peers_from_markdown`.
+#: The columns of docs/notes/comparison-full-run.md's per-case tables read by
+#: :func:`best_peers_from_markdown`.
 _MD_COLUMNS = {"f_R": "f_R", "f_lambda": "f_λ", "s2f_mean_rel": "scan→fit mean", "f_F": "f_F"}
 
 
@@ -175,7 +176,8 @@ def best_peers(results: pathlib.Path) -> Best:
 
 def best_peers_from_markdown(report: pathlib.Path) -> Best:
     """:data:`Best` read back from the per-case tables ("Every case, every metric") of a report
-    that bench/compare.py generated (docs/results.md), for a machine without its results.json:
+    that bench/compare.py generated (docs/notes/comparison-full-run.md), for a machine without
+    its results.json:
     the peers' code and the cases are deterministic, so their rows stand until either changes.
     Figures are as printed there (4 significant digits)."""
     labels = {peers.METHODS[p]["label"]: p for p in PEERS}
@@ -309,11 +311,12 @@ def summary(rows: list[dict[str, Any]]) -> None:
 def load_best(names: list[str] | None) -> tuple[Best, str]:
     """The best-peer figures of the files `names` (merged, a later file's cases replacing an
     earlier's; see ``--peers``), and a label naming them. None: ``bench/out/results.json`` if a
-    bench/compare.py run left one, else :data:`PEER_FIGURES`, else docs/results.md; and
+    bench/compare.py run left one, else :data:`PEER_FIGURES`, else docs/notes/comparison-full-run.md; and
     :data:`PEER_FIGURES_DRESSED` when present."""
     if names is None:
         json_run = HERE / "out" / "results.json"
-        fallback = PEER_FIGURES if PEER_FIGURES.is_file() else HERE.parent / "docs" / "results.md"
+        full_run = HERE.parent / "docs" / "notes" / "comparison-full-run.md"
+        fallback = PEER_FIGURES if PEER_FIGURES.is_file() else full_run
         names = [str(json_run if json_run.is_file() else fallback)]
         if PEER_FIGURES_DRESSED.is_file():  # python -m bench.dressed --peers (group ``dressed``)
             names.append(str(PEER_FIGURES_DRESSED))
@@ -377,10 +380,11 @@ def main() -> int:
     ap.add_argument("--from-json", metavar="FILE", help="print the summary of an earlier run")
     ap.add_argument("--peers", metavar="FILE", action="append", default=None,
                     help="the peers to score against: a bench/compare.py results.json, or the "
-                         "report it generated (docs/results.md, its per-case tables); repeat "
+                         "report it generated (docs/notes/comparison-full-run.md, its per-case "
+                         "tables); repeat "
                          "to merge several (a later file's cases replace an earlier's); "
                          "default bench/out/results.json if present, else bench/peer_figures.json, "
-                         "else docs/results.md")
+                         "else docs/notes/comparison-full-run.md")
     ap.add_argument("--save-peers", metavar="FILE",
                     help="write the merged best-peer figures (JSON, per case) and exit; "
                          "bench/peer_figures.json is read by default when present")
