@@ -25,12 +25,10 @@ LEVERS = {
     "box-pruned tree over the scan (kiddo's split-plane pruning cost ~20 µs per re-query for "
     "template points off the scan's surface at 1M points). In the rigid and coarse phases a "
     "template point far off the surface (height h ≫ ρ) sees all its candidates at ≈ h, so its "
-    "margin d_c − d_K is tiny and it re-queried nearly every iteration (25 % of the "
-    "vertex-iterations at 1M points); since the thirteenth round those two phases re-use the "
-    "candidates while every neighbour is within (1 + σ) × the true K-th distance (`knn_slack`, "
-    "default 0.1, which costs no accuracy on the harness: 5.5M → 4.25M fresh queries at 1M "
-    "points and K = 64; 0.3, the large case's second row, 3.4M, at f_R ×1.017 on the harness, "
-    "no faster since K = 32 in the fourteenth round). "
+    "margin d_c − d_K is tiny and it would re-query nearly every iteration; those two phases "
+    "re-use the candidates while every neighbour is within (1 + σ) × the true K-th distance "
+    "(`knn_slack`, default 0.1; docs/method.md \"Approximate neighbours in the rigid and "
+    "coarse phases\"). "
     "Re-ranking the 2K candidates is memory-bound. Re-queries and first queries are best-first "
     "searches of the box tree writing a sorted list in place (bounded by the old candidates' "
     "ball for re-queries). Closing: what is left is mostly points that moved beyond their "
@@ -44,13 +42,9 @@ LEVERS = {
     "them; where the scan has more than 8 points per rigid-phase vertex (the 1M-point case), "
     "only every s-th scan point pulls in the rigid phase (`rigid_scan_sample`, automatic), "
     "and with at least 8 points per vertex every 2nd in the coarse phase "
-    "(`coarse_scan_sample`, automatic: the 1M-point case 32 → 24 s at f_R ×0.999). Where the "
-    "lists are exact (the FoldMatch iterations) the tree searches skip nodes whose smallest "
-    "K-th neighbour distance exceeds the best found (the same answer; −6 % of that stage at "
-    "1M points). Tried and not kept: local certificates (a per-cell minimum ρ on a grid; a "
-    "near set of the template points with ρ below the 10 % quantile offering themselves "
-    "within τ): 11–17 % fewer queries, no wall-time gain; a parallel inversion of the lists: "
-    "no gain (the two candidate schedules already fill both cores). Closing: the coarse "
+    "(`coarse_scan_sample`, automatic). Where the lists are exact (the fine phase) the tree "
+    "searches skip nodes whose smallest K-th neighbour distance exceeds the best found (the "
+    "same answer). Closing: the coarse "
     "phase's uncertified queries (the template still off the scan), a cheaper exact far query",
     "nbody": "force: f64x4 SIMD over the K neighbors, neighbors' coordinates and κ gathered "
     "once per vertex",
@@ -63,13 +57,12 @@ LEVERS = {
     "wherever the ψ-modified eigenvalues stay positive (a determinant/trace bound), so the "
     "iterations skip the Procrustes solve and the ψ-stretch's Jacobi eigen-decomposition; the "
     "wrinkle field is computed once, after the last iteration. Nothing left to close",
-    "update": "update: the coarse phase's 8-ring Kabsch fits, their sums of per-point moments "
-    "taken from an adjacent ring's sum plus and minus the ~35 differing members "
-    "(`rings::RingDeltas`: a third of the reads on a grid), and their nearest rotations by "
-    "Horn's unit quaternion (`math::rotation_quaternion`: the flat rings' rank-2 covariances "
-    "included, about 500 instructions a vertex against 1,300 for the Jacobi path they took "
-    "before); what is left is the moments' reads and one quaternion solve a vertex",
-    "setup": "setup: curvature of the scan, the scan tree and the coarse 8-ring BFS (shared "
+    "update": "update: the coarse phase's Kabsch fits of the coarse rings, their sums of "
+    "per-point moments taken from an adjacent ring's sum plus and minus the differing members "
+    "(`rings::RingDeltas`), and their nearest rotations by Horn's unit quaternion "
+    "(`math::rotation_quaternion`); what is left is the moments' reads and one quaternion "
+    "solve a vertex",
+    "setup": "setup: curvature of the scan, the scan tree and the coarse rings' BFS (shared "
     "by both schedules); the final wrinkle fields and the selection's scan distances and edge "
     "spreads",
 }
@@ -164,11 +157,10 @@ def plan(quick: bool) -> dict[str, Any]:
 #: default, the fast preset (one schedule: what closes the time targets at an accuracy cost,
 #: FAST_PRICE) and the paper's method.
 PEER_PRESETS = ("default", "fast", "paper")
-#: The fast preset's accuracy on the harness against the default's (docs/method.md
-#: "Eighteenth round", bench/variants.py on the 91 cases; not measured by this script).
-FAST_PRICE = ("on the harness f_R ÷ best peer 0.879 and f_λ ÷ best 0.969 against the default's "
-              "0.761 and 0.964, held out f_R 4–22 % above the default's (docs/method.md, Eighteenth "
-              "round)")
+#: The fast preset's price, which this script does not measure (docs/method.md "Presets").
+FAST_PRICE = ("its price is accuracy, which this run does not measure: on the comparison harness "
+              "it is farther from the truth than the default (`python -m bench.variants "
+              "--variant 'fast={\"preset\": \"fast\"}'` scores it)")
 
 #: Peers measured on the paper-sized and small cases (bench/peers.py adapters and tuned
 #: parameters), and how many iterations their uncapped run does at most.
@@ -177,8 +169,8 @@ PEERS = ["cpd_rustcpd", "cpd_probreg", "cpd_pycpd", "nricp_amberg"]
 DENSE = {"cpd_pycpd", "cpd_probreg"}
 DENSE_LIMIT_BYTES = 3 * 2**30
 #: The large case's second FoldMatch row: the rigid and coarse phases' k-NN slack σ
-#: (``knn_slack``), measured 0.3 on the harness (docs/performance.md, "Thirteenth round"; at
-#: K = 32, since the fourteenth round, it no longer beats the default's 0.1).
+#: (``knn_slack``) of 0.3 against the default's 0.1 (docs/method.md "Approximate neighbours in
+#: the rigid and coarse phases").
 LARGE_KNN_SLACK = 0.3
 
 #: Address-space cap of peer processes on the large case (protects the shared machine).
@@ -291,7 +283,7 @@ def jobs_for(p: dict[str, Any]) -> list[dict[str, Any]]:
     spec = cases["large"]["spec"]
     m, n = spec["nx"] * spec["ny"], spec["scan_points"]
     # The default, then the same with a larger k-NN slack in the rigid and coarse phases (an
-    # option: docs/performance.md, "Thirteenth round").
+    # option: docs/method.md "Approximate neighbours in the rigid and coarse phases").
     slack = {"knn_slack": LARGE_KNN_SLACK}
     for extra, variant in (({}, None), (slack, f"knn_slack {LARGE_KNN_SLACK}")):
         jobs.append(
