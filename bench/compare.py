@@ -1,6 +1,6 @@
 #!/usr/bin/env python
 """FoldMatch against the methods users would pick instead, on the same cases (issue 4,
-SPEC §6).
+docs/results.md).
 
 One command regenerates docs/notes/comparison-full-run.md (its generated blocks), the figures in docs/figures/
 and the JSON in bench/out/results.json::

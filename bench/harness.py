@@ -22,7 +22,7 @@ from bench import peers
 HERE = pathlib.Path(__file__).resolve().parent
 PY = sys.executable
 
-#: Metrics shown first (ground truth and scan distance, SPEC §3: never rank by f_λ alone).
+#: Metrics shown first (ground truth and scan distance: never rank by f_λ alone).
 PRIMARY = ["f_R", "s2f_mean_rel", "s2f_p95_rel", "chamfer_rel"]
 PAPER = ["f_H", "f_S", "f_E", "f_F", "f_lambda"]
 METRICS = PRIMARY + PAPER

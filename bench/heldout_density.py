@@ -1,4 +1,4 @@
-"""Held-out check of the target-neighbourhood size on dense scans (docs/method.md, "Thirteenth
+"""Held-out check of the target-neighbourhood size on dense scans (docs/notes/method-history.md, "Thirteenth
 round"): cases the harness does not have, where ρN exceeds `k_min` so ρ matters.
 
 * every real garment pair of ``../shared/data`` as a 15,000-point noisy cloud (the harness
@@ -12,7 +12,7 @@ prints f_R and f_λ per case and their geometric-mean ratios::
 
 ``--points`` and ``--against`` (the parameters the default is compared with, JSON) make it the
 held-out check of other density-dependent options, e.g. the coarse phase's scan sample
-(docs/method.md, "Fourteenth round")::
+(docs/notes/method-history.md, "Fourteenth round")::
 
     .venv/bin/python -m bench.heldout_density --points 60000 --against '{"coarse_scan_sample": 1}'
 

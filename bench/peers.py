@@ -5,7 +5,7 @@ Every adapter is ``run(template_vertices, faces, target_points, target_faces=Non
 **params) -> (fitted_vertices (M, 3), trace)`` where ``trace`` is a list of per-iteration vertex
 arrays (or None when not asked for / not available).
 
-Frame: the peers are given the data in FoldMatch's normalized frame (SPEC §1: centered on the
+Frame: the peers are given the data in FoldMatch's normalized frame (docs/method.md "Frame": centered on the
 target's centroid, target bounding-box diagonal = 1), so one set of parameters is meaningful
 on every case; the result is mapped back. FoldMatch and NRGa do the same internally.
 (trimesh's NRICP additionally re-normalizes by the template, internally.)
@@ -243,14 +243,14 @@ METHODS: dict[str, dict[str, Any]] = {
     "foldmatch": {"label": "FoldMatch", "run": run_foldmatch, "params": FOLDMATCH_PARAMS,
                       "modules": ["foldmatch_rs"], "pip": [], "family": "ours",
                       "note": "library defaults (fm.DEFAULT_PARAMS, recorded in the header): the "
-                           "paper's constants (G=1.67, ε=0.1, η=0.1, Δt=0.006, ψ=0.05, ρ=0.2 %, "
-                           "2-ring, ξ=100) plus the fidelity options of docs/method.md"},
+                           "paper's constants (G=1.67, ε=0.1, η=0.1, Δt=0.006, ψ=0.05, 2-ring, ξ=100) "
+                           "plus the additions of docs/method.md (ρ = 0.1 %, K ≤ 32)"},
     "foldmatch_paper": {"label": "FoldMatch (paper preset)", "run": run_foldmatch_paper,
                             "params": FOLDMATCH_PARAMS, "modules": ["foldmatch_rs"], "pip": [],
                             "family": "ours",
                             "note": "fm.fit(preset='paper'): the method as the paper prints it "
                                  "(one-way attraction, no rigid/coarse phases), with only the "
-                                 "converging readings of SPEC §2"},
+                                 "converging readings of docs/method.md"},
     "nrga": {"label": "NRGa", "run": run_nrga, "params": FOLDMATCH_PARAMS, "modules": ["foldmatch_rs"],
                  "pip": [], "family": "ours",
                  "note": "fm.fit(preset='paper', method='nrga'): the same N-body model, per-vertex "

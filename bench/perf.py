@@ -1,8 +1,8 @@
-"""End-to-end performance figures of FoldMatch (issue 5, SPEC §7): wall time, time per
+"""End-to-end performance figures of FoldMatch (docs/performance.md): wall time, time per
 iteration, per-stage breakdown, peak memory and threads, for
 
 (a) the paper-sized case (13,225 template vertices, 14,400 scan points) and the 2K/2.5K case
-    of SPEC §7, with the peers on the same cases in the same run (rustcpd, probreg CPD, pycpd,
+    of the small peer case, with the peers on the same cases in the same run (rustcpd, probreg CPD, pycpd,
     trimesh NRICP) and the loop-based NumPy implementation of ``tests/reference.py`` as the
     same-algorithm baseline;
 (b) ≈100K template vertices on a ≈1M-point scan;
@@ -19,7 +19,7 @@ It prints a table per section, writes the JSON (``--out``, default ``bench/out/p
 ``bench/out/perf_quick.json`` with ``--quick``), the figure, and rewrites the generated blocks
 of ``docs/performance.md`` (``--no-docs`` leaves docs/ alone).
 
-Every measurement runs in a fresh Python process (``perf.py --worker SPEC``), so its peak
+Every measurement runs in a fresh Python process (``python -m bench.perf --worker JOB``), so its peak
 memory is its own: the child reports ``VmHWM`` from ``/proc/self/status`` (the peak resident
 set of the whole process: interpreter, NumPy, the data and the method, Rust allocations
 included) right after the method returns, and the same value before the call as a baseline.

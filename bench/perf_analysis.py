@@ -138,10 +138,10 @@ def targets(recs: list[dict[str, Any]], a: dict[str, Any], p: dict[str, Any]) ->
     if ref:
         add(
             "paper preset vs the NumPy reference (100 iterations, extrapolated)",
-            "≥ 180× (SPEC §7)",
+            "≥ 180×",
             f"{ref[0]['ratio']:.0f}×",
             ref[0]["ratio"] >= 180,
-            "the reference here is loop-based, slower than SPEC §7's vectorized one",
+            "the reference here is loop-based, slower than a vectorized one",
         )
     r = find(recs, section="large", kind="foldmatch")
     if ok(r):

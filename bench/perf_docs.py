@@ -384,7 +384,7 @@ def md_missed(recs: list[dict[str, Any]], a: dict[str, Any], quick: bool) -> str
 
 
 #: How md_fast_closing names the cases.
-CASE_NAMES = {"paper": "paper-sized case", "small": "SPEC §7 case"}
+CASE_NAMES = {"paper": "paper-sized case", "small": "small peer case"}
 
 
 def md_fast_closing(recs: list[dict[str, Any]], a: dict[str, Any]) -> str:

@@ -125,7 +125,7 @@ def plan(quick: bool) -> dict[str, Any]:
             "spec": sheet(115, 14_400),
         },
         "small": {
-            "label": "SPEC §7 peer case: 45×45 sheet (2,025 vertices), 2,500 scan points",
+            "label": "small peer case: 45×45 sheet (2,025 vertices), 2,500 scan points",
             "spec": sheet(45, 2_500),
         },
         "large": {
@@ -221,7 +221,7 @@ def jobs_for(p: dict[str, Any]) -> list[dict[str, Any]]:
             **{"timeout": t, **extra},
         )
 
-    # (a) the paper-sized case and the SPEC §7 peer case.
+    # (a) the paper-sized case and the small peer case.
     for cname in ("paper", "small"):
         spec = cases[cname]["spec"]
         m, n = spec["nx"] * spec["ny"], spec["scan_points"]

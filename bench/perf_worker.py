@@ -1,4 +1,4 @@
-"""One measurement of ``bench.perf`` in a fresh process (``python -m bench.perf --worker SPEC``):
+"""One measurement of ``bench.perf`` in a fresh process (``python -m bench.perf --worker JOB``):
 the case generated, the method timed, peak memory (``VmHWM``) and threads sampled, one
 ``PERF_RESULT`` line printed."""
 
@@ -126,7 +126,7 @@ def work_foldmatch(job: dict[str, Any], case: dict[str, np.ndarray]) -> dict[str
         "mean_ring_size": r.diagnostics["mean_ring_size"],
     }
     out["quality"] = _metrics(case, r.vertices)
-    # The exact answer's own figures (SPEC §3's "oracle"), where the tables set methods side
+    # The exact answer's own figures (the oracle), where the tables set methods side
     # by side: f_H stays above 0 for it (the scan's noise and the sheet's boundary), so a fit
     # can score a lower f_λ than the truth.
     # (once a case: on its default run)

@@ -173,9 +173,9 @@ def render(rows: list[dict[str, Any]], best: variants.Best, source: str, stamp: 
     out += [report.table(header, body, ["l", "l"] + ["r"] * (len(groups) + 1)), ""]
     if truth:
         out += [f"The rows of the **{variants.EXACT}** score the ground truth itself as a fit "
-                "(SPEC §3's oracle): what the criteria allow. Where the truth does not meet a "
+                "(the oracle): what the criteria allow. Where the truth does not meet a "
                 "criterion, the best peer beats the exact answer on it (a lower f_λ or scan→fit "
-                "distance than the truth's own, SPEC §3's warning).", ""]
+                "distance than the truth's own).", ""]
 
     def truth_cell(case: str, key: str, digits: int) -> str:
         t = truth.get(case)

@@ -6,7 +6,7 @@ three held-out generated cases — shapes and scans not used in the comparison (
 other fold parameters, a skirt and a shirt with other fold phases, noisy scans with other
 seeds) — with every setting of a small grid per method, ranks the settings by the mean over
 the three cases of f_R + scan→fit p95 (ground-truth RMSE and surface fidelity, equally
-weighted, both in target diagonals; f_λ is never used to rank, SPEC §3), and writes
+weighted, both in target diagonals; f_λ is never used to rank), and writes
 ``bench/out/tuning.json`` and the "tuning" block of docs/notes/comparison-full-run.md. The chosen settings are
 then copied by hand into ``bench/peers.py`` (they are constants there, so the comparison does
 not depend on having run this).

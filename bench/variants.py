@@ -37,14 +37,14 @@ from bench import compare, harness, peers
 HERE = pathlib.Path(__file__).resolve().parent
 
 PRESETS: dict[str, list[tuple[str, dict[str, Any]]]] = {
-    # Does the rigid phase help when the template is already placed? (docs/method.md)
+    # Does the rigid phase help when the template is already placed? (docs/notes/method-history.md)
     "placement": [
         ("default (rigid 30 %, coarse 30 %)", {}),
         ("rigid 10 %, coarse 30 %", {"rigid_fraction": 0.1}),
         ("no rigid phase, coarse 30 %", {"rigid_fraction": 0.0}),
         ("no rigid phase, coarse 50 %", {"rigid_fraction": 0.0, "coarse_fraction": 0.5}),
     ],
-    # The schedule grid behind the default of 2026-11-22 (docs/method.md), one schedule per
+    # The schedule grid behind the default of 2026-11-22 (docs/notes/method-history.md), one schedule per
     # fit; every setting spelled out.
     "schedule": [
         (name, {"two_way": tw, "rigid_fraction": rf, "coarse_fraction": cf, "anneal": an,
@@ -62,7 +62,7 @@ PRESETS: dict[str, list[tuple[str, dict[str, Any]]]] = {
             ("two-way 2, coarse 50 %, anneal ×3, 3-ring", 2.0, 0.3, 0.5, 3.0, 0.6, 3),
         ]
     ],
-    # Schedule selection (docs/method.md): each schedule alone, and the default (both, keep
+    # Schedule selection (docs/notes/method-history.md): each schedule alone, and the default (both, keep
     # the fit closer to the scan); the last two as coarse-phase levels, for the record.
     "selection": [
         ("given schedule alone (two-way 2, coarse 50 %, annealed)", {"selection": "single"}),
@@ -73,14 +73,14 @@ PRESETS: dict[str, list[tuple[str, dict[str, Any]]]] = {
         ("default + 2 coarse levels (8, 4 rings)", {"coarse_levels": 2}),
         ("default + 3 coarse levels (16, 8, 4 rings)", {"coarse_levels": 3, "coarse_rings": 16}),
     ],
-    # Schedule selection's near-tie margin (docs/method.md, eighth round): the previous rule
+    # Schedule selection's near-tie margin (docs/notes/method-history.md, eighth round): the previous rule
     # (0, the closer fit alone) first, so the per-case block compares every other value with it.
     "margin": [
         (f"selection_margin {m}" + (" (default)" if m == 0.06 else "")
          + (" (previous default)" if m == 0.0 else ""), {"selection_margin": m})
         for m in (0.0, 0.03, 0.06, 0.1)
     ],
-    # The two-way pulls summed by coverage (docs/method.md, ninth round), at the rest-shape
+    # The two-way pulls summed by coverage (docs/notes/method-history.md, ninth round), at the rest-shape
     # rigidity they were measured with (0.5; the default is 0.65 since the same round): the
     # previous default (their mean, weight 3) first, so the per-case block compares every
     # other row with it.
@@ -91,7 +91,7 @@ PRESETS: dict[str, list[tuple[str, dict[str, Any]]]] = {
         for pull, w in [("mean", 3.0), ("mean", 4.5), ("coverage", 2.0), ("coverage", 3.0),
                         ("coverage", 4.5), ("coverage", 6.0)]
     ],
-    # Rest-shape rigidity (docs/method.md, seventh round; re-tuned in the ninth): the rule
+    # Rest-shape rigidity (docs/notes/method-history.md, seventh round; re-tuned in the ninth): the rule
     # before it (0) first, so the per-case block compares every other value with it.
     "rest": [
         (f"rest_rigidity {b}" + (" (default)" if b == 0.65 else ""), {"rest_rigidity": b})
@@ -344,7 +344,7 @@ def fit_rows(groups: list[str], variants: list[tuple[str, dict[str, Any]]],
     `groups`: one row per case and variant (group, case, variant, seconds and :data:`METRICS`),
     each case's f_R / f_λ printed as a markdown row as it comes. With `truth`, also a row
     named :data:`EXACT` per case that has a ground truth: the truth itself scored as a fit
-    (SPEC §3's "oracle", seconds 0)."""
+    (the "oracle", seconds 0)."""
     import foldmatch_rs as fm
 
     rows = []
