@@ -8,8 +8,8 @@ callgrind's instruction counts (which do not drift) are the other. Usage::
     cargo build --profile profiling --example timing && cp target/profiling/examples/timing /tmp/timing_a
     # ... change the code ...
     cargo build --profile profiling --example timing && cp target/profiling/examples/timing /tmp/timing_b
-    python3 bench/ab_timing.py /tmp/timing_a /tmp/timing_b --pairs 15
-    python3 bench/ab_timing.py /tmp/timing_a /tmp/timing_b --pairs 15 --threads 1 -- 45 2500
+    python3 -m bench.ab_timing /tmp/timing_a /tmp/timing_b --pairs 15
+    python3 -m bench.ab_timing /tmp/timing_a /tmp/timing_b --pairs 15 --threads 1 -- 45 2500
 
 Arguments after ``--`` go to both binaries (``[side] [scan] [preset] [json]``, see
 examples/timing.rs). Prints each build's mean, median and best total wall time, how many pairs

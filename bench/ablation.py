@@ -1,12 +1,12 @@
-"""Ablation of the readings SPEC §2 chose over the paper's literal text (docs/method.md).
+"""Ablation of the readings chosen over the paper's literal text (docs/method.md, Eq. 2–8).
 
-All variants start from ``preset="paper"`` (the fidelity options of the default are measured
-separately by bench/fidelity.py).
+All variants start from ``preset="paper"`` (the default's additions are measured on the 91
+harness cases by ``python -m bench.variants``).
 
 Runs FoldMatch with each literal reading switched back on, one at a time, plus NRGa, on
 generated cases with ground truth, and prints a Markdown table (and writes JSON).
 
-    .venv/bin/python bench/ablation.py [--out bench/out/ablation.json]
+    .venv/bin/python -m bench.ablation [--out bench/out/ablation.json]
 """
 
 from __future__ import annotations

@@ -4,8 +4,8 @@ worker processes, on the same generated folder of scans, and the scheduling over
 
 One command::
 
-    .venv/bin/python bench/cluster.py              # 16 scans, 3 rounds: about 2 minutes on 2 cores
-    .venv/bin/python bench/cluster.py --scans 8 --repeat 1 --check 1.25
+    .venv/bin/python -m bench.cluster              # 16 scans, 3 rounds: about 2 minutes on 2 cores
+    .venv/bin/python -m bench.cluster --scans 8 --repeat 1 --check 1.25
 
 The local batch runs in this process through the extension's ``run_cli`` (``--jobs`` = its
 default, one file per core up to 4, on one pool of every core). The two local clusters are
@@ -34,15 +34,11 @@ import sys
 import tempfile
 import time
 
-# tests/ gives the PLY writer of the tests. (This file is not named distributed.py: with
-# bench/ on the path, as test_compare.py puts it, that name would hide Dask's package from the
-# workers.)
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent.parent / "tests"))
-
 import foldmatch_rs as fm
 from foldmatch_rs import _foldmatch_rs as core
 from foldmatch_rs import distributed as fmd
-from test_cli import write_ply
+
+from tests.test_cli import write_ply  # the tests' plain ASCII PLY writer
 
 
 def make_folder(root: pathlib.Path, scans: int, size: int, points: int) -> tuple[pathlib.Path, pathlib.Path]:

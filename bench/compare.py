@@ -1,12 +1,12 @@
 #!/usr/bin/env python
 """FoldMatch against the methods users would pick instead, on the same cases (issue 4,
-SPEC §6).
+docs/results.md).
 
-One command regenerates docs/results.md (its generated blocks), the figures in docs/figures/
+One command regenerates docs/notes/comparison-full-run.md (its generated blocks), the figures in docs/figures/
 and the JSON in bench/out/results.json::
 
-    .venv/bin/python bench/compare.py --cases all          # the full run (hours on 2 cores)
-    .venv/bin/python bench/compare.py --quick              # the CI case (< 1 min)
+    .venv/bin/python -m bench.compare --cases all          # the full run (hours on 2 cores)
+    .venv/bin/python -m bench.compare --quick              # the CI case (< 1 min)
 
 Groups (``--cases``, comma-separated): ``small`` (generated, ≈1.6K vertices, 3 shapes × 3 scan
 variants), ``paper`` (the same at ≈13K vertices / 14.4K points), ``real`` (../shared/data, mesh
@@ -31,15 +31,13 @@ import sys
 import time
 from typing import Any
 
-HERE = pathlib.Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
-
-import cases as cases_mod
-import harness
 import numpy as np
-import peers
-import report
-from harness import log
+
+from bench import cases as cases_mod
+from bench import harness, peers, report
+from bench.harness import log
+
+HERE = pathlib.Path(__file__).resolve().parent
 
 REPO = HERE.parent
 GROUPS = ["small", "paper", "real", "samples", "figures"]
@@ -111,7 +109,7 @@ def save_json(path: pathlib.Path, data: Any) -> None:
 
 def make_figures(runner: harness.Runner, results: dict, methods: list[str], figdir: pathlib.Path
                  ) -> list[tuple[str, str]]:
-    import figures
+    from bench import figures
 
     made: list[tuple[str, str]] = []
     groups = results["groups"]
@@ -223,7 +221,7 @@ def make_figures(runner: harness.Runner, results: dict, methods: list[str], figd
 
 SKELETON = """# FoldMatch against CPD, non-rigid ICP and NRGa
 
-Regenerate with `.venv/bin/python bench/compare.py --cases all` (see bench/README.md). The
+Regenerate with `.venv/bin/python -m bench.compare --cases all` (see bench/README.md). The
 blocks between `BEGIN GENERATED` / `END GENERATED` markers are rewritten by that command; the
 text around them is written by hand.
 """
@@ -321,7 +319,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="the CI case: a tiny sheet, every method that imports; report and JSON "
                          "under --out, docs/ untouched")
     ap.add_argument("--report", default=None,
-                    help="Markdown report to update (default docs/results.md; with --quick "
+                    help="Markdown report to update (default docs/notes/comparison-full-run.md; with --quick "
                          "OUT/results.md)")
     ap.add_argument("--figures-dir", default=None,
                     help="where figures go (default docs/figures; with --quick OUT/figures)")
@@ -347,7 +345,7 @@ def main(argv: list[str] | None = None) -> int:
         if m not in peers.METHODS:
             ap.error(f"unknown method {m!r} (known: {', '.join(peers.METHODS)})")
     report_path = pathlib.Path(args.report) if args.report else (
-        out / "results.md" if args.quick else REPO / "docs" / "results.md")
+        out / "results.md" if args.quick else REPO / "docs" / "notes" / "comparison-full-run.md")
     figdir = pathlib.Path(args.figures_dir) if args.figures_dir else (
         out / "figures" if args.quick else REPO / "docs" / "figures")
 
@@ -396,7 +394,7 @@ def main(argv: list[str] | None = None) -> int:
         made = [tuple(x) for x in results["figures"]]
     results["elapsed_s"] = round(time.time() - t0, 1)
     save_json(results_path, results)
-    command = "bench/compare.py " + " ".join(argv if argv is not None else sys.argv[1:])
+    command = "python -m bench.compare " + " ".join(argv if argv is not None else sys.argv[1:])
     if not args.no_report:
         try:
             figrel = os.path.relpath(figdir, report_path.parent)

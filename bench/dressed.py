@@ -4,13 +4,13 @@ holds the garment *and* the visible skin, as a full-body scanner sees it.
 
 Run (a newcomer's command; a few minutes on 2 cores, the scans are cached)::
 
-    .venv/bin/python bench/dressed.py                        # the default on every case
-    .venv/bin/python bench/dressed.py --set two_way=0 --set iterations=150
-    .venv/bin/python bench/dressed.py --preset paper --cases 'tshirt-*' --json out.json
-    .venv/bin/python bench/dressed.py --starts placed --no-real   # quicker (≈ 1.5 min)
-    .venv/bin/python bench/dressed.py --seed 7               # other cameras / noise / holes
-    .venv/bin/python bench/dressed.py --build-only --preview DIR  # scans + PNG previews
-    nice -n 19 .venv/bin/python bench/dressed.py --peers     # the peers (≈ 1 h on 2 cores)
+    .venv/bin/python -m bench.dressed                        # the default on every case
+    .venv/bin/python -m bench.dressed --set two_way=0 --set iterations=150
+    .venv/bin/python -m bench.dressed --preset paper --cases 'tshirt-*' --json out.json
+    .venv/bin/python -m bench.dressed --starts placed --no-real   # quicker (≈ 1.5 min)
+    .venv/bin/python -m bench.dressed --seed 7               # other cameras / noise / holes
+    .venv/bin/python -m bench.dressed --build-only --preview DIR  # scans + PNG previews
+    nice -n 19 .venv/bin/python -m bench.dressed --peers     # the peers (≈ 1 h on 2 cores)
 
 The group ``dressed`` of bench/variants.py / bench/standing.py (``--groups dressed``) is the
 six whole scans with the placed template; their peers' figures are
@@ -40,11 +40,8 @@ from typing import Any
 
 import numpy as np
 
-HERE = pathlib.Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
-
-import cases as cases_mod  # noqa: E402
-from dressed_scans import (  # noqa: E402
+from bench import cases as cases_mod
+from bench.dressed_scans import (
     OUT,
     SOURCES,
     build_source,
@@ -53,6 +50,8 @@ from dressed_scans import (  # noqa: E402
     preview,
     rms,
 )
+
+HERE = pathlib.Path(__file__).resolve().parent
 
 #: Ratios the issue asks for (issue 26, "Done when").
 TARGETS = {"whole/body-free": 1.25, "whole/placed": 0.8, "masked/body-free": 1.05,
@@ -272,10 +271,7 @@ def run_peers(sources: list[str], seed: int, methods: list[str], timeout: float,
     cached in ``bench/out/dressed/peers``) on the whole-scan cases with the placed template;
     writes ``bench/out/dressed/peers/results.json`` (bench/compare.py's format) and
     :data:`PEER_FIGURES`. Returns the latter's content."""
-    import compare
-    import harness
-    import peers
-    import variants
+    from bench import compare, harness, peers, variants
 
     out = OUT / "peers"
     out.mkdir(parents=True, exist_ok=True)
@@ -311,7 +307,7 @@ def run_peers(sources: list[str], seed: int, methods: list[str], timeout: float,
                         f"({', '.join(variants.PEERS)}) and the truth's f_F (`cases`, read by "
                         "bench/variants.py); every method's figures (`methods`; rmse_mm: RMS "
                         "distance to the truth in mm); written by .venv/bin/python "
-                        "bench/dressed.py --peers",
+                        "python -m bench.dressed --peers",
                "code": results["code"], "seed": seed,
                "cases": variants.best_peers(path), "methods": per_method,
                "skipped": {m: status[m] for m in methods if status.get(m)}}
@@ -324,7 +320,7 @@ def run_peers(sources: list[str], seed: int, methods: list[str], timeout: float,
 def render_peers(figures: dict[str, Any], rows: list[dict[str, Any]]) -> str:
     """The peers' RMS distances (mm) on the whole scans with the placed template, beside this
     run's whole-scan fit."""
-    import peers
+    from bench import peers
 
     mine = {f"dressed-{r['source']}-whole": r for r in rows if r["start"] == "placed"}
     ran = {m for per in figures["methods"].values() for m, x in per.items()
@@ -422,7 +418,7 @@ def main() -> int:
     if args.build_only:
         return 0
     if args.peers:
-        import peers
+        from bench import peers
 
         methods = [m for m in args.methods.split(",") if m] or list(peers.ALL_METHODS)
         figures = run_peers(names, args.seed, methods, args.timeout, args.force)
@@ -448,7 +444,7 @@ def main() -> int:
         truth_rows = at_truth_rows(built, real, kw, log)
     total = time.perf_counter() - t0
 
-    from harness import code_version
+    from bench.harness import code_version
 
     params = json.dumps(kw) if kw else "the library default"
     print(f"# Dressed-body scans (issue 26): {params}\n")
@@ -489,7 +485,7 @@ def main() -> int:
                 print(render_truth(part))
                 print()
     if PEER_FIGURES.is_file() and args.seed == 0:
-        print("## Peers (whole scan, placed template; `bench/dressed.py --peers`)\n")
+        print("## Peers (whole scan, placed template; `python -m bench.dressed --peers`)\n")
         figures = json.loads(PEER_FIGURES.read_text())
         skipped: dict[str, str] = {}
         for per in figures["methods"].values():

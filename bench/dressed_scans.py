@@ -59,10 +59,9 @@ from typing import Any
 
 import numpy as np
 
-HERE = pathlib.Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
+from bench import cases as cases_mod
 
-import cases as cases_mod  # noqa: E402
+HERE = pathlib.Path(__file__).resolve().parent
 
 OUT = HERE / "out" / "dressed"
 

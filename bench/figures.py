@@ -1,6 +1,6 @@
-"""The figures of docs/results.md (matplotlib, headless): box plots of every metric per method
-over sample sets (paper Fig. 6), f_λ per iteration (Fig. 4), the accumulated wrinkle-field
-magnitude for 1- to 4-ring neighborhoods (Fig. 5) and before/after overlays."""
+"""The figures of the full comparison (docs/notes/comparison-full-run.md; matplotlib, headless):
+box plots of every metric per method over sample sets (paper Fig. 6), f_λ per iteration (Fig. 4),
+the accumulated wrinkle-field magnitude for 1- to 4-ring neighborhoods (Fig. 5) and before/after overlays."""
 
 from __future__ import annotations
 
@@ -8,9 +8,10 @@ import pathlib
 from typing import Any
 
 import numpy as np
-import render
-from render import plt
-from report import NAMES, label
+
+from bench import render
+from bench.render import plt
+from bench.report import NAMES, label
 
 COLORS = {
     "foldmatch": "#d62728", "nrga": "#ff9896", "cpd_pycpd": "#1f77b4", "cpd_probreg": "#6baed6",

@@ -14,14 +14,15 @@ import time
 from collections.abc import Iterable
 from typing import Any
 
-import cases as cases_mod
 import numpy as np
-import peers
+
+from bench import cases as cases_mod
+from bench import peers
 
 HERE = pathlib.Path(__file__).resolve().parent
 PY = sys.executable
 
-#: Metrics shown first (ground truth and scan distance, SPEC §3: never rank by f_λ alone).
+#: Metrics shown first (ground truth and scan distance: never rank by f_λ alone).
 PRIMARY = ["f_R", "s2f_mean_rel", "s2f_p95_rel", "chamfer_rel"]
 PAPER = ["f_H", "f_S", "f_E", "f_F", "f_lambda"]
 METRICS = PRIMARY + PAPER
@@ -101,8 +102,8 @@ def method_status(methods: Iterable[str]) -> dict[str, str | None]:
     ``_rtree`` → why mesh targets cannot be used by trimesh's NRICP."""
     methods = list(methods)
     blocked = {m for m in os.environ.get(BLOCK_ENV, "").split(",") if m}
-    out = subprocess.run([PY, str(HERE / "peers.py"), "--missing", *methods], check=False,
-                         capture_output=True, text=True, timeout=600)
+    out = subprocess.run([PY, "-m", "bench.peers", "--missing", *methods], check=False,
+                         capture_output=True, text=True, timeout=600, cwd=HERE.parent)
     try:
         status = json.loads(out.stdout.strip().splitlines()[-1])
     except (IndexError, json.JSONDecodeError):
@@ -198,7 +199,7 @@ class Runner:
         if cached is None:
             for p in (npz, meta):
                 p.unlink(missing_ok=True)
-            cmd = [PY, str(HERE / "peers.py"), str(cp), method, str(npz)]
+            cmd = [PY, "-m", "bench.peers", str(cp), method, str(npz)]
             if trace:
                 cmd.append("--trace")
             if overrides:
@@ -208,7 +209,7 @@ class Runner:
             try:
                 proc = subprocess.run(cmd, check=False, capture_output=True, text=True,
                                       timeout=self.timeout,
-                                      env=env)
+                                      env=env, cwd=HERE.parent)
                 if meta.exists():
                     cached = json.loads(meta.read_text())
                 else:

@@ -1,4 +1,4 @@
-"""Held-out check of the target-neighbourhood size on dense scans (docs/method.md, "Thirteenth
+"""Held-out check of the target-neighbourhood size on dense scans (docs/notes/method-history.md, "Thirteenth
 round"): cases the harness does not have, where ρN exceeds `k_min` so ρ matters.
 
 * every real garment pair of ``../shared/data`` as a 15,000-point noisy cloud (the harness
@@ -8,13 +8,13 @@ round"): cases the harness does not have, where ρN exceeds `k_min` so ρ matter
 Each is fitted with the default and with the paper's neighbourhoods (ρ = 0.2 %, K ≤ 64);
 prints f_R and f_λ per case and their geometric-mean ratios::
 
-    .venv/bin/python bench/heldout_density.py
+    .venv/bin/python -m bench.heldout_density
 
 ``--points`` and ``--against`` (the parameters the default is compared with, JSON) make it the
 held-out check of other density-dependent options, e.g. the coarse phase's scan sample
-(docs/method.md, "Fourteenth round")::
+(docs/notes/method-history.md, "Fourteenth round")::
 
-    .venv/bin/python bench/heldout_density.py --points 60000 --against '{"coarse_scan_sample": 1}'
+    .venv/bin/python -m bench.heldout_density --points 60000 --against '{"coarse_scan_sample": 1}'
 
 ``--peers`` (comma-separated bench/peers.py methods, run in this process with their harness
 parameters) scores the default, and the compared parameters, against those peers on the same
@@ -22,7 +22,7 @@ held-out cases: per case the lowest f_R and f_λ of the peers, and at the end ho
 each configuration has the lowest f_R / f_λ of all (the harness's first two criteria on cases
 nothing was tuned on)::
 
-    .venv/bin/python bench/heldout_density.py --points 5000 --against '{"iterations": 150}' \
+    .venv/bin/python -m bench.heldout_density --points 5000 --against '{"iterations": 150}' \
         --peers cpd_rustcpd,nricp_amberg
 """
 
@@ -34,10 +34,10 @@ import math
 import sys
 import warnings
 
-import cases as cases_mod
-import harness
 import numpy as np
-import peers
+
+from bench import cases as cases_mod
+from bench import harness, peers
 
 POINTS = 15_000
 PAPER_NEIGHBOURHOODS = {"rho": 0.002, "k_max": 64}

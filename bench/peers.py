@@ -5,7 +5,7 @@ Every adapter is ``run(template_vertices, faces, target_points, target_faces=Non
 **params) -> (fitted_vertices (M, 3), trace)`` where ``trace`` is a list of per-iteration vertex
 arrays (or None when not asked for / not available).
 
-Frame: the peers are given the data in FoldMatch's normalized frame (SPEC §1: centered on the
+Frame: the peers are given the data in FoldMatch's normalized frame (docs/method.md "Frame": centered on the
 target's centroid, target bounding-box diagonal = 1), so one set of parameters is meaningful
 on every case; the result is mapped back. FoldMatch and NRGa do the same internally.
 (trimesh's NRICP additionally re-normalizes by the template, internally.)
@@ -14,9 +14,9 @@ Parameters: FoldMatch and NRGa run with the library's defaults (``fm.DEFAULT_PAR
 paper's constants plus the fidelity options of docs/method.md); "FoldMatch (paper preset)" is
 ``fm.fit(preset="paper")``, the method as the paper prints it. Every peer's parameters were
 chosen by the sweep in ``bench/tune.py`` (held-out generated cases, lowest mean of f_R +
-scan→fit p95; see docs/results.md, "How the peers were tuned").
+scan→fit p95; see docs/notes/comparison-full-run.md, "How the peers were tuned").
 
-Peak memory: each run is its own Python process (``python bench/peers.py CASE METHOD OUT``);
+Peak memory: each run is its own Python process (``python -m bench.peers CASE METHOD OUT``);
 ``resource.getrusage(RUSAGE_SELF).ru_maxrss`` at the end is the peak resident set of the whole
 process (interpreter, libraries, data and the method; it sees Rust, BLAS and NumPy-C
 allocations, which tracemalloc does not). The same value taken just before the method starts
@@ -37,7 +37,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-# ---- parameters (chosen by bench/tune.py; see docs/results.md) ------------------------------
+# ---- parameters (chosen by bench/tune.py; see docs/notes/comparison-full-run.md) ------------
 
 #: CPD (all three implementations share the model and the parameters): λ (alpha) the
 #: smoothness weight, β the Gaussian kernel width in the normalized frame (target diagonal 1),
@@ -243,14 +243,14 @@ METHODS: dict[str, dict[str, Any]] = {
     "foldmatch": {"label": "FoldMatch", "run": run_foldmatch, "params": FOLDMATCH_PARAMS,
                       "modules": ["foldmatch_rs"], "pip": [], "family": "ours",
                       "note": "library defaults (fm.DEFAULT_PARAMS, recorded in the header): the "
-                           "paper's constants (G=1.67, ε=0.1, η=0.1, Δt=0.006, ψ=0.05, ρ=0.2 %, "
-                           "2-ring, ξ=100) plus the fidelity options of docs/method.md"},
+                           "paper's constants (G=1.67, ε=0.1, η=0.1, Δt=0.006, ψ=0.05, 2-ring, ξ=100) "
+                           "plus the additions of docs/method.md (ρ = 0.1 %, K ≤ 32)"},
     "foldmatch_paper": {"label": "FoldMatch (paper preset)", "run": run_foldmatch_paper,
                             "params": FOLDMATCH_PARAMS, "modules": ["foldmatch_rs"], "pip": [],
                             "family": "ours",
                             "note": "fm.fit(preset='paper'): the method as the paper prints it "
                                  "(one-way attraction, no rigid/coarse phases), with only the "
-                                 "converging readings of SPEC §2"},
+                                 "converging readings of docs/method.md"},
     "nrga": {"label": "NRGa", "run": run_nrga, "params": FOLDMATCH_PARAMS, "modules": ["foldmatch_rs"],
                  "pip": [], "family": "ours",
                  "note": "fm.fit(preset='paper', method='nrga'): the same N-body model, per-vertex "

@@ -1,4 +1,4 @@
-"""Markdown tables for docs/results.md, and the generated-block mechanism: the harness
+"""Markdown tables for docs/notes/comparison-full-run.md, and the generated-block mechanism: the harness
 rewrites only the text between ``<!-- BEGIN GENERATED: name -->`` and
 ``<!-- END GENERATED: name -->``, so the hand-written analysis around the blocks survives a
 regeneration."""
@@ -12,7 +12,8 @@ from collections.abc import Iterable
 from typing import Any
 
 import numpy as np
-import peers
+
+from bench import peers
 
 NAMES = {
     "f_R": "f_R", "s2f_mean_rel": "scan→fit mean", "s2f_p95_rel": "scan→fit p95",

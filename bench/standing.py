@@ -13,9 +13,9 @@ own). Every case the default loses is listed with its ratios and the reason foun
 investigated"), those lost on f_R or f_λ in one table, on flips or scan→fit in another; every
 case is in a folded table below them::
 
-    .venv/bin/python bench/standing.py                   # rewrites the block in docs/results.md
-    .venv/bin/python bench/standing.py --print           # prints it instead
-    .venv/bin/python bench/standing.py --from-json F     # re-renders an earlier run's rows
+    .venv/bin/python -m bench.standing                   # rewrites the block in docs/results.md
+    .venv/bin/python -m bench.standing --print           # prints it instead
+    .venv/bin/python -m bench.standing --from-json F     # re-renders an earlier run's rows
 
 The rows go to ``--out`` (JSON, as bench/variants.py writes them).
 """
@@ -30,12 +30,9 @@ import re
 import sys
 from typing import Any
 
-HERE = pathlib.Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
+from bench import harness, report, variants
 
-import harness  # noqa: E402
-import report  # noqa: E402
-import variants  # noqa: E402
+HERE = pathlib.Path(__file__).resolve().parent
 
 GROUPS = ["real", "small", "paper", "sheets", "wind"]
 #: The two configurations reported: the default, and the method as the paper prints it.
@@ -44,7 +41,8 @@ CRITERIA = [("f_R", "lowest f_R"), ("f_lambda", "lowest f_λ"),
             ("flips", "flips ≤ truth + 1 pt"), ("s2f", "scan→fit ≤ best peer")]
 SHORT = {"f_R": "f_R", "f_lambda": "f_λ", "flips": "flips", "s2f": "scan→fit"}
 
-#: Why the default loses a case, as found (docs/method.md names the round that measured it):
+#: Why the default loses a case, as found (the mechanism only: the measurements are lab notes,
+#: docs/notes/method-history.md, which names the round that measured each):
 #: (pattern on the case's name, the criteria whose loss the reason explains, the reason). The
 #: first pattern that matches and explains the criterion in question gives the reason.
 F_R, F_L, S2F, FLIPS = "f_R", "f_lambda", "s2f", "flips"
@@ -56,53 +54,51 @@ REASONS: list[tuple[str, frozenset[str], str]] = [
     (r"holes$", frozenset({F_R, F_L}),
      "holes: a vertex over a hole is pulled to the hole's rim, where "
      "NRICP-Amberg's smoothness term fills it; robust weights that hold such vertices fix the "
-     "holed cases but cost the real garments and the wind frames (method.md, Ninth round)"),
+     "holed cases but cost the real garments and the wind frames"),
     (r"^wind-(150|250)-mesh", frozenset({F_R, S2F}),
      "large articulated motion still under way at iteration "
-     "100: a region of ~17 % of the vertices lies on the scan but slid along it; 150 "
-     "iterations (the `accurate` preset) bring f_R to 0.0186 / 0.0270 (method.md, Thirteenth "
-     "and Fifteenth rounds)"),
+     "100: a region of the template lies on the scan but slid along it; more iterations "
+     "(the `accurate` preset) resolve part of it"),
     (r"^wind-iter0-0[1-5]0-pts", frozenset({F_R, F_L, S2F}),
      "the template starts on the truth (early frames): Eq. "
      "2's mean over a boundary vertex's one-sided neighbours pulls the boundary inward "
      "(4r/3π for a half disc), leaving the scan's edge uncovered; releasing that pull fixes "
-     "these frames but costs the random sheets (method.md, Ninth round)"),
+     "these frames but costs the random sheets"),
     (r"^wind-iter0-(1[7-9]|2[01])0-pts", frozenset({F_R, F_L, S2F}),
      "curled frames: a boundary flap stays straight "
      "across the concave side of the curl, where the pulls of the two sides balance (f_H); "
-     "more FoldMatch iterations resolve it (method.md, Tenth round)"),
+     "more FoldMatch iterations resolve it"),
     (r"^wind-", frozenset({F_R, S2F}),
      "large articulated motion (sleeves blown up), which CPD's one smooth "
      "displacement field over all points finds and attraction to the nearest points over "
-     "8-ring rigid pieces only partly makes (results.md, real garments)"),
+     "the coarse phase's rigid pieces only partly make"),
     (r"^sheet-sample-(00|07)$", frozenset({F_R}),
      "schedule selection: the sharp candidate's fit is "
-     "nearer the truth but 4–39 % farther from the scan, so the other is kept (method.md, "
-     "Tenth round)"),
+     "nearer the truth but farther from the scan, so the other is kept (method.md, "
+     "Schedule selection)"),
     (r"^(tshirt-biFolded|vto-tshirt-0200)", frozenset({F_R}),
      "folding / articulated motion, as the wind "
-     "frames: CPD's global field finds it (results.md, real garments)"),
+     "frames: CPD's global field finds it"),
     (r"^skirt-small-pts$", frozenset({F_R}),
-     "the template starts on the truth (the template as given: "
-     "f_R 0.0101): the fit barely moves it (0.010) where NRICP's stiffness holds it and ends "
-     "at 0.008, as in the early wind frames"),
+     "the template starts on the truth: the fit barely moves it, "
+     "where NRICP's stiffness holds it closer, as in the early wind frames"),
     (r"^skirt-penetrate", frozenset({F_R}),
      "the truth passes through itself (its own f_F 11 %): the "
      "default's rest-shape rigidity keeps the skirt from following it, where the paper "
-     "preset, without it, ends at f_R 0.0237 and NRGa at 0.0245"),
+     "preset and NRGa, without it, follow it closer"),
     (r"^skirt-small-(clean|noisy)$", frozenset({F_R, F_L}),
-     "pleated tube skirt: f_R 1–12 % above "
-     "NRICP-Amberg's; f_λ through f_H, a fit vertex off the scan (clean: 0.042 from it, the "
-     "truth's farthest 0.038)"),
+     "pleated tube skirt: f_R a little above "
+     "NRICP-Amberg's; f_λ through f_H, a fit vertex farther off the scan than the truth's "
+     "farthest"),
     (r"^sheet-sample-(00|07)$", frozenset({FLIPS}),
      "a corner folded over in the kept "
-     "candidate's fit (f_F 1.7 % / 4.2 %, the truth's 0): the fits that lose f_R by schedule "
-     "selection (above); the sharp candidate's fold 0 % / 3.5 %"),
+     "candidate's fit (the truth has none): the fits that lose f_R by schedule "
+     "selection (above)"),
     (r"^tshirt-flattened-mesh$", frozenset({F_R, S2F}),
      "tangential sliding on the flat "
-     "panels: 86 % of the squared error lies along the surface (the fitted vertices lie "
-     "0.0057 of the diagonal from the truth's nearest vertex on average, 0.0132 from their own "
-     "places); nearest-point attraction carries no tangential information on flat cloth, "
+     "panels: most of the squared error lies along the surface (the fitted vertices lie "
+     "nearer the truth's nearest vertex than their own places); nearest-point attraction "
+     "carries no tangential information on flat cloth, "
      "where CPD's one coherent motion field keeps the panels' parametrization"),
 ]
 
@@ -177,9 +173,9 @@ def render(rows: list[dict[str, Any]], best: variants.Best, source: str, stamp: 
     out += [report.table(header, body, ["l", "l"] + ["r"] * (len(groups) + 1)), ""]
     if truth:
         out += [f"The rows of the **{variants.EXACT}** score the ground truth itself as a fit "
-                "(SPEC §3's oracle): what the criteria allow. Where the truth does not meet a "
+                "(the oracle): what the criteria allow. Where the truth does not meet a "
                 "criterion, the best peer beats the exact answer on it (a lower f_λ or scan→fit "
-                "distance than the truth's own, SPEC §3's warning).", ""]
+                "distance than the truth's own).", ""]
 
     def truth_cell(case: str, key: str, digits: int) -> str:
         t = truth.get(case)
@@ -259,9 +255,9 @@ def stamp_line(from_json: str | None = None) -> str:
     now = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     code = harness.code_version()
     if from_json:
-        return (f"_Re-rendered {now} ({code}) by `.venv/bin/python bench/standing.py "
+        return (f"_Re-rendered {now} ({code}) by `.venv/bin/python -m bench.standing "
                 f"--from-json {pathlib.Path(from_json).name}` (the fits of an earlier run)._")
-    return (f"_Generated {now} ({code}) by `.venv/bin/python bench/standing.py` "
+    return (f"_Generated {now} ({code}) by `.venv/bin/python -m bench.standing` "
             "(the 91 harness cases, the library's current default and paper preset)._")
 
 
@@ -276,7 +272,7 @@ def main() -> int:
     ap.add_argument("--out", default=str(HERE / "out" / "standing.json"))
     ap.add_argument("--from-json", metavar="FILE", help="render an earlier run's rows")
     ap.add_argument("--peers", metavar="FILE", action="append", default=None,
-                    help="as bench/variants.py --peers (default bench/peer_figures.json)")
+                    help="as python -m bench.variants --peers (default bench/peer_figures.json)")
     ap.add_argument("--print", action="store_true", help="print the block, leave docs alone")
     ap.add_argument("--results", default=str(HERE.parent / "docs" / "results.md"))
     args = ap.parse_args()

@@ -1,13 +1,13 @@
 #!/usr/bin/env python
 """The parameter sweep behind the peers' settings in ``bench/peers.py``.
 
-Run ``.venv/bin/python bench/tune.py`` (≈45 min on 2 cores; ``--skip-bcpd`` ≈15 min). It fits
+Run ``.venv/bin/python -m bench.tune`` (≈45 min on 2 cores; ``--skip-bcpd`` ≈15 min). It fits
 three held-out generated cases — shapes and scans not used in the comparison (a sheet with
 other fold parameters, a skirt and a shirt with other fold phases, noisy scans with other
 seeds) — with every setting of a small grid per method, ranks the settings by the mean over
 the three cases of f_R + scan→fit p95 (ground-truth RMSE and surface fidelity, equally
-weighted, both in target diagonals; f_λ is never used to rank, SPEC §3), and writes
-``bench/out/tuning.json`` and the "tuning" block of docs/results.md. The chosen settings are
+weighted, both in target diagonals; f_λ is never used to rank), and writes
+``bench/out/tuning.json`` and the "tuning" block of docs/notes/comparison-full-run.md. The chosen settings are
 then copied by hand into ``bench/peers.py`` (they are constants there, so the comparison does
 not depend on having run this).
 
@@ -25,15 +25,13 @@ import sys
 import time
 import warnings
 
-HERE = pathlib.Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
-
-import cases as C
-import harness
 import numpy as np
-import peers
-import report
-from harness import log
+
+from bench import cases as C
+from bench import harness, peers, report
+from bench.harness import log
+
+HERE = pathlib.Path(__file__).resolve().parent
 
 
 def tuning_cases() -> list[C.Case]:
@@ -106,7 +104,7 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--skip-bcpd", action="store_true", help="BCPD's sweep takes ~25 min")
     ap.add_argument("--out", default=str(HERE / "out"))
-    ap.add_argument("--report", default=str(HERE.parent / "docs" / "results.md"))
+    ap.add_argument("--report", default=str(HERE.parent / "docs" / "notes" / "comparison-full-run.md"))
     ap.add_argument("--methods", default=None, help="only these (comma-separated)")
     args = ap.parse_args()
     out = pathlib.Path(args.out)

@@ -4,12 +4,12 @@ Each variant is a set of keyword arguments on top of the library defaults; each 
 every case of the chosen groups and scored by the harness's metrics. Prints f_R / f_λ per case
 and, per group, the medians of f_R, f_λ, f_H, f_E, f_F and scan→fit mean::
 
-    .venv/bin/python bench/variants.py --groups real,small \\
+    .venv/bin/python -m bench.variants --groups real,small \\
         --variant 'no rigid={"rigid_fraction": 0}' --variant 'default={}'
-    .venv/bin/python bench/variants.py --preset schedule --groups real,small,sheets,wind,paper
-    .venv/bin/python bench/variants.py --preset placement
-    .venv/bin/python bench/variants.py --preset margin --groups real,small,sheets,wind,paper
-    .venv/bin/python bench/variants.py --preset pull --groups real,small,sheets,wind,paper
+    .venv/bin/python -m bench.variants --preset schedule --groups real,small,sheets,wind,paper
+    .venv/bin/python -m bench.variants --preset placement
+    .venv/bin/python -m bench.variants --preset margin --groups real,small,sheets,wind,paper
+    .venv/bin/python -m bench.variants --preset pull --groups real,small,sheets,wind,paper
 
 Groups: ``real`` (22 pre-placed real-garment cases), ``small`` / ``paper`` (generated, rotated
 and offset), ``sheets`` (24 random sheets), ``wind`` (30 wind frames), ``dressed`` (6 scans of
@@ -31,23 +31,20 @@ from typing import Any
 
 import numpy as np
 
-HERE = pathlib.Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
+from bench import cases as cases_mod
+from bench import compare, harness, peers
 
-import cases as cases_mod  # noqa: E402
-import compare  # noqa: E402
-import harness  # noqa: E402
-import peers  # noqa: E402
+HERE = pathlib.Path(__file__).resolve().parent
 
 PRESETS: dict[str, list[tuple[str, dict[str, Any]]]] = {
-    # Does the rigid phase help when the template is already placed? (docs/method.md)
+    # Does the rigid phase help when the template is already placed? (docs/notes/method-history.md)
     "placement": [
         ("default (rigid 30 %, coarse 30 %)", {}),
         ("rigid 10 %, coarse 30 %", {"rigid_fraction": 0.1}),
         ("no rigid phase, coarse 30 %", {"rigid_fraction": 0.0}),
         ("no rigid phase, coarse 50 %", {"rigid_fraction": 0.0, "coarse_fraction": 0.5}),
     ],
-    # The schedule grid behind the default of 2026-11-22 (docs/method.md), one schedule per
+    # The schedule grid behind the default of 2026-11-22 (docs/notes/method-history.md), one schedule per
     # fit; every setting spelled out.
     "schedule": [
         (name, {"two_way": tw, "rigid_fraction": rf, "coarse_fraction": cf, "anneal": an,
@@ -65,7 +62,7 @@ PRESETS: dict[str, list[tuple[str, dict[str, Any]]]] = {
             ("two-way 2, coarse 50 %, anneal ×3, 3-ring", 2.0, 0.3, 0.5, 3.0, 0.6, 3),
         ]
     ],
-    # Schedule selection (docs/method.md): each schedule alone, and the default (both, keep
+    # Schedule selection (docs/notes/method-history.md): each schedule alone, and the default (both, keep
     # the fit closer to the scan); the last two as coarse-phase levels, for the record.
     "selection": [
         ("given schedule alone (two-way 2, coarse 50 %, annealed)", {"selection": "single"}),
@@ -76,14 +73,14 @@ PRESETS: dict[str, list[tuple[str, dict[str, Any]]]] = {
         ("default + 2 coarse levels (8, 4 rings)", {"coarse_levels": 2}),
         ("default + 3 coarse levels (16, 8, 4 rings)", {"coarse_levels": 3, "coarse_rings": 16}),
     ],
-    # Schedule selection's near-tie margin (docs/method.md, eighth round): the previous rule
+    # Schedule selection's near-tie margin (docs/notes/method-history.md, eighth round): the previous rule
     # (0, the closer fit alone) first, so the per-case block compares every other value with it.
     "margin": [
         (f"selection_margin {m}" + (" (default)" if m == 0.06 else "")
          + (" (previous default)" if m == 0.0 else ""), {"selection_margin": m})
         for m in (0.0, 0.03, 0.06, 0.1)
     ],
-    # The two-way pulls summed by coverage (docs/method.md, ninth round), at the rest-shape
+    # The two-way pulls summed by coverage (docs/notes/method-history.md, ninth round), at the rest-shape
     # rigidity they were measured with (0.5; the default is 0.65 since the same round): the
     # previous default (their mean, weight 3) first, so the per-case block compares every
     # other row with it.
@@ -94,7 +91,7 @@ PRESETS: dict[str, list[tuple[str, dict[str, Any]]]] = {
         for pull, w in [("mean", 3.0), ("mean", 4.5), ("coverage", 2.0), ("coverage", 3.0),
                         ("coverage", 4.5), ("coverage", 6.0)]
     ],
-    # Rest-shape rigidity (docs/method.md, seventh round; re-tuned in the ninth): the rule
+    # Rest-shape rigidity (docs/notes/method-history.md, seventh round; re-tuned in the ninth): the rule
     # before it (0) first, so the per-case block compares every other value with it.
     "rest": [
         (f"rest_rigidity {b}" + (" (default)" if b == 0.65 else ""), {"rest_rigidity": b})
@@ -113,7 +110,7 @@ def group_cases(group: str) -> list[cases_mod.Case]:
     """The cases of a group, exactly as bench/compare.py builds them (``dressed``: the
     dressed-body scans of bench/dressed_scans.py, whole scan, placed template)."""
     if group == "dressed":
-        import dressed_scans
+        from bench import dressed_scans
 
         return list(dressed_scans.dressed_cases())
     if group not in GROUPS:
@@ -132,12 +129,12 @@ def parse_variant(text: str) -> tuple[str, dict[str, Any]]:
     return name, json.loads(kw)
 
 
-#: The best-peer figures of every harness case (``--save-peers``: docs/results.md's per-case
+#: The best-peer figures of every harness case (``--save-peers``: docs/notes/comparison-full-run.md's per-case
 #: tables merged with a bench/compare.py run for the random sheets and the wind frames, which
-#: docs/results.md does not print case by case): the peers' code and the cases are
+#: docs/notes/comparison-full-run.md does not print case by case): the peers' code and the cases are
 #: deterministic, so the figures stand until either changes.
 PEER_FIGURES = HERE / "peer_figures.json"
-#: The same for the dressed-body cases (group ``dressed``), written by bench/dressed.py --peers.
+#: The same for the dressed-body cases (group ``dressed``), written by python -m bench.dressed --peers.
 PEER_FIGURES_DRESSED = HERE / "peer_figures_dressed.json"
 
 #: Every compared method but FoldMatch's own two configurations (NRGa counts as a peer).
@@ -154,7 +151,8 @@ def geo_mean(ratios: Any) -> float:
 #: flipped-face fraction (NaN without ground truth).
 Best = dict[str, dict[str, float]]
 
-#: The columns of docs/results.md's per-case tables read by :func:`best_peers_from_markdown`.
+#: The columns of docs/notes/comparison-full-run.md's per-case tables read by
+#: :func:`best_peers_from_markdown`.
 _MD_COLUMNS = {"f_R": "f_R", "f_lambda": "f_λ", "s2f_mean_rel": "scan→fit mean", "f_F": "f_F"}
 
 
@@ -178,7 +176,8 @@ def best_peers(results: pathlib.Path) -> Best:
 
 def best_peers_from_markdown(report: pathlib.Path) -> Best:
     """:data:`Best` read back from the per-case tables ("Every case, every metric") of a report
-    that bench/compare.py generated (docs/results.md), for a machine without its results.json:
+    that bench/compare.py generated (docs/notes/comparison-full-run.md), for a machine without
+    its results.json:
     the peers' code and the cases are deterministic, so their rows stand until either changes.
     Figures are as printed there (4 significant digits)."""
     labels = {peers.METHODS[p]["label"]: p for p in PEERS}
@@ -312,13 +311,14 @@ def summary(rows: list[dict[str, Any]]) -> None:
 def load_best(names: list[str] | None) -> tuple[Best, str]:
     """The best-peer figures of the files `names` (merged, a later file's cases replacing an
     earlier's; see ``--peers``), and a label naming them. None: ``bench/out/results.json`` if a
-    bench/compare.py run left one, else :data:`PEER_FIGURES`, else docs/results.md; and
+    bench/compare.py run left one, else :data:`PEER_FIGURES`, else docs/notes/comparison-full-run.md; and
     :data:`PEER_FIGURES_DRESSED` when present."""
     if names is None:
         json_run = HERE / "out" / "results.json"
-        fallback = PEER_FIGURES if PEER_FIGURES.is_file() else HERE.parent / "docs" / "results.md"
+        full_run = HERE.parent / "docs" / "notes" / "comparison-full-run.md"
+        fallback = PEER_FIGURES if PEER_FIGURES.is_file() else full_run
         names = [str(json_run if json_run.is_file() else fallback)]
-        if PEER_FIGURES_DRESSED.is_file():  # bench/dressed.py --peers (group ``dressed``)
+        if PEER_FIGURES_DRESSED.is_file():  # python -m bench.dressed --peers (group ``dressed``)
             names.append(str(PEER_FIGURES_DRESSED))
     best: Best = {}
     for name in names:
@@ -344,7 +344,7 @@ def fit_rows(groups: list[str], variants: list[tuple[str, dict[str, Any]]],
     `groups`: one row per case and variant (group, case, variant, seconds and :data:`METRICS`),
     each case's f_R / f_λ printed as a markdown row as it comes. With `truth`, also a row
     named :data:`EXACT` per case that has a ground truth: the truth itself scored as a fit
-    (SPEC §3's "oracle", seconds 0)."""
+    (the "oracle", seconds 0)."""
     import foldmatch_rs as fm
 
     rows = []
@@ -380,10 +380,11 @@ def main() -> int:
     ap.add_argument("--from-json", metavar="FILE", help="print the summary of an earlier run")
     ap.add_argument("--peers", metavar="FILE", action="append", default=None,
                     help="the peers to score against: a bench/compare.py results.json, or the "
-                         "report it generated (docs/results.md, its per-case tables); repeat "
+                         "report it generated (docs/notes/comparison-full-run.md, its per-case "
+                         "tables); repeat "
                          "to merge several (a later file's cases replace an earlier's); "
                          "default bench/out/results.json if present, else bench/peer_figures.json, "
-                         "else docs/results.md")
+                         "else docs/notes/comparison-full-run.md")
     ap.add_argument("--save-peers", metavar="FILE",
                     help="write the merged best-peer figures (JSON, per case) and exit; "
                          "bench/peer_figures.json is read by default when present")
@@ -393,7 +394,7 @@ def main() -> int:
         pathlib.Path(args.save_peers).write_text(json.dumps(
             {"about": "per case, the lowest f_R, f_lambda and s2f_mean_rel of the peers "
                       f"({', '.join(PEERS)}) and the truth's f_F; written by "
-                      "bench/variants.py --save-peers from " + source,
+                      "python -m bench.variants --save-peers from " + source,
              "cases": best}, indent=1, sort_keys=True) + "\n")
         return 0
 

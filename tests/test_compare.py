@@ -1,6 +1,6 @@
 """The comparison harness (bench/compare.py) on its CI case.
 
-Runs ``bench/compare.py --quick`` in a subprocess (a 17 × 17 sheet on 400 noisy points, every
+Runs ``python -m bench.compare --quick`` in a subprocess (a 17 × 17 sheet on 400 noisy points, every
 method that imports; peers missing from this environment are recorded as skipped) and checks
 the JSON it writes: a row for every method, every metric, the reference rows' defining values
 (oracle f_R = 0, identity f_H = 1), and that a peer whose import fails is skipped with its
@@ -19,7 +19,6 @@ import sys
 import pytest
 
 REPO = pathlib.Path(__file__).resolve().parent.parent
-COMPARE = REPO / "bench" / "compare.py"
 METHODS = ["foldmatch", "foldmatch_paper", "nrga", "cpd_pycpd", "cpd_rustcpd", "cpd_probreg", "bcpd_probreg",
            "nricp_amberg", "nricp_sumner"]
 METRICS = ["f_H", "f_S", "f_E", "f_F", "f_R", "f_lambda", "f_lambda_terms", "chamfer",
@@ -29,7 +28,7 @@ pytest.importorskip("trimesh")
 
 
 def run_quick(out: pathlib.Path, *extra: str, env: dict | None = None) -> dict:
-    cmd = [sys.executable, str(COMPARE), "--quick", "--out", str(out), *extra]
+    cmd = [sys.executable, "-m", "bench.compare", "--quick", "--out", str(out), *extra]
     proc = subprocess.run(cmd, check=False, capture_output=True, text=True, timeout=300,
                           env={**os.environ, **(env or {})}, cwd=REPO)
     assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]

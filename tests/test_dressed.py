@@ -6,17 +6,14 @@ noise, and the same scan for the same seed."""
 from __future__ import annotations
 
 import pathlib
-import sys
 import zlib
 
 import numpy as np
 import pytest
 
-REPO = pathlib.Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(REPO / "bench"))
+from bench import cases, dressed_scans
 
-import cases  # noqa: E402
-import dressed_scans  # noqa: E402
+REPO = pathlib.Path(__file__).resolve().parent.parent
 
 SIGMA = dressed_scans.SCANNER["noise"]  # metres; the ARCSim source is in metres
 

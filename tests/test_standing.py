@@ -6,13 +6,10 @@ from __future__ import annotations
 
 import math
 import pathlib
-import sys
+
+from bench import standing, variants
 
 REPO = pathlib.Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(REPO / "bench"))
-
-import standing  # noqa: E402
-import variants  # noqa: E402
 
 
 def row(case: str, group: str, variant: str, f_r: float, f_l: float, f_f: float = 0.0,
