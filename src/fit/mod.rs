@@ -1,0 +1,223 @@
+//! The fit driver: ξ iterations of the N-body step (§2) followed by the FoldMatch deformation
+//! model (§3) or the NRGa rigid-per-vertex update (SPEC §2.10–2.11).
+//!
+//! One iteration, for every template vertex k (all from the same step's state, so the result
+//! does not depend on the thread count):
+//! 1. Γᵏ_X ← the K nearest scan points of Y_k ([`crate::knn`]);
+//! 2. velocity and proposed position from Eq. 2–3 ([`crate::nbody`]);
+//! 3. FoldMatch: H_k from the ring's old and proposed positions (Eq. 4), regularized (Eq. 5),
+//!    ψ-modified stretch and wrinkle vector (Eq. 6–7), rotation by Procrustes (Eq. 8);
+//!    NRGa: Kabsch rotation of the k-NN neighborhood;
+//! 4. `Y_k ← R_k* Y_k + t_k*`; velocities re-synchronized with the applied motion.
+//!
+//! All per-vertex buffers are allocated once per fit ([`Workspace`]).
+
+mod attraction;
+mod model;
+mod params;
+mod phases;
+mod presets;
+mod result;
+mod schedule;
+mod setup;
+#[cfg(test)]
+mod tests;
+mod validate;
+
+pub use attraction::{DRESSED_TRUST_FACTOR, GARMENT_FRAME_RATIO};
+pub use model::{deformation_model, TemplateTopology, Workspace};
+pub use params::{
+    FitParams, Method, Prealign, RotationSource, Selection, ACCURATE_ITERATIONS, AUTO_COARSE_RINGS,
+    AUTO_COARSE_RINGS_MAX, COARSE_RINGS_REFERENCE_VERTICES, COARSE_SCAN_MAX_AUTO_STRIDE,
+    COARSE_SCAN_POINTS_PER_VERTEX, DEFAULT_KNN_SLACK, DEFAULT_K_MAX, DEFAULT_RHO,
+    DEFAULT_TWO_WAY_RIM, DEFAULT_TWO_WAY_TRUST, FAR_AWAY, FAST_TWO_WAY, MAX_SCAN_SAMPLE,
+    PAPER_K_MAX, PAPER_RHO, RIGID_SCAN_POINTS_PER_VERTEX, SCHEDULE_NAMES,
+};
+pub use result::{Diagnostics, FitResult, IterationRecord, Progress, StageTimes};
+pub use schedule::select_schedule;
+
+use crate::error::{FoldMatchError, Result};
+use crate::math::vec3;
+use schedule::{drive, selection_distance, ScheduleRun};
+use setup::Prepared;
+
+/// Fits the template to the target.
+///
+/// * `template_vertices` (M), `template_faces` (T) — the template mesh;
+/// * `target` (N) — the scan points; `target_faces` — its faces when it is a mesh (used for
+///   curvature only);
+/// * `observer` — called after every iteration; returning `false` stops the fit, which then
+///   returns what it has (with `diagnostics.stopped_by_callback`).
+///
+/// Under schedule selection ([`Selection::ScanDistance`], the default: the given and the sharp
+/// schedule; [`Selection::ScanDistanceWide`]: also the gentle one) the candidates are fitted
+/// side by side, in lockstep (each iteration of every run concurrently, then one progress
+/// report, so progress counts ξ iterations and a stop applies to all), sharing the setup; the
+/// fit closest to the scan is returned.
+pub fn fit(
+    template_vertices: &[[f64; 3]],
+    template_faces: &[[u32; 3]],
+    target: &[[f64; 3]],
+    target_faces: Option<&[[u32; 3]]>,
+    params: &FitParams,
+    observer: &mut (dyn FnMut(&Progress) -> bool + Send),
+) -> Result<FitResult> {
+    fit_weighted(
+        template_vertices,
+        template_faces,
+        target,
+        target_faces,
+        None,
+        params,
+        observer,
+    )
+}
+
+/// [`fit`] with a non-negative weight per scan point (`target_weights`, `None`: every weight
+/// 1). A point's weight scales its pull in Eq. 2's neighbourhood mean (a weighted mean), in
+/// the two-way attraction and in schedule selection's scan distance; a point of weight 0 is
+/// removed before anything else (the normalized frame, K and the curvature are those of the
+/// points that remain), so a 0/1 segmentation mask fits exactly as the masked scan would, and
+/// equal weights fit exactly as no weights. Weights of the wrong length, negative, not
+/// finite or all zero are refused ([`FoldMatchError::Parameter`] naming the first bad index).
+#[allow(clippy::too_many_arguments)]
+pub fn fit_weighted(
+    template_vertices: &[[f64; 3]],
+    template_faces: &[[u32; 3]],
+    target: &[[f64; 3]],
+    target_faces: Option<&[[u32; 3]]>,
+    target_weights: Option<&[f64]>,
+    params: &FitParams,
+    observer: &mut (dyn FnMut(&Progress) -> bool + Send),
+) -> Result<FitResult> {
+    params.validate()?;
+    if let Some(w) = target_weights {
+        validate_weights(w, target.len())?;
+    }
+    // Equal weights are no weights; zero weights remove their points.
+    let target_weights = target_weights.filter(|w| w.iter().any(|&x| x != w[0]));
+    let kept: Option<Vec<usize>> = target_weights
+        .filter(|w| w.contains(&0.0))
+        .map(|w| (0..w.len()).filter(|&j| w[j] > 0.0).collect());
+    let schedules = params.candidate_schedules();
+    let clock = std::time::Instant::now();
+    let prepared = Prepared::new(
+        template_vertices,
+        template_faces,
+        target,
+        target_faces,
+        target_weights,
+        kept.as_deref(),
+        &schedules,
+    )?;
+    let mut runs: Vec<ScheduleRun> = schedules
+        .into_iter()
+        .map(|p| ScheduleRun::new(&prepared, p))
+        .collect();
+    let setup = clock.elapsed().as_secs_f64();
+    let total = params.iterations;
+    // Side by side up to the comparison (by default the last iteration; a single run: all).
+    let compare_at = if runs.len() > 1 {
+        ((params.selection_at * total as f64).ceil() as usize).clamp(1, total)
+    } else {
+        total
+    };
+    drive(&prepared, &mut runs, 1..=compare_at, total, observer)?;
+    // The candidates are compared on their fitted vertices alone.
+    let mut selection = (runs.len() > 1).then(|| {
+        let vertices: Vec<Vec<[f64; 3]>> =
+            runs.iter().map(|r| r.user_vertices(&prepared)).collect();
+        let distances: Vec<f64> = vertices
+            .iter()
+            .map(|v| selection_distance(target, target_weights, prepared.garment.as_deref(), v))
+            .collect();
+        let rest_edges = crate::metrics::EdgeLengths::new(template_vertices, &prepared.faces);
+        let spreads: Vec<f64> = vertices.iter().map(|v| rest_edges.spread(v)).collect();
+        let best = select_schedule(&distances, &spreads, params.selection_margin);
+        (best, vertices, distances, spreads)
+    });
+    let best = selection.as_ref().map_or(0, |s| s.0);
+    let mut winner = runs.swap_remove(best);
+    // The chosen run alone from the comparison on (nothing to do when it was the end).
+    if compare_at < total && !winner.finished {
+        drive(
+            &prepared,
+            std::slice::from_mut(&mut winner),
+            compare_at + 1..=total,
+            total,
+            observer,
+        )?;
+    }
+    let iterations = clock.elapsed().as_secs_f64() - setup;
+    let vertices = match selection.as_mut() {
+        Some((_, compared, ..)) if compare_at == total => compared.swap_remove(best),
+        _ => winner.user_vertices(&prepared),
+    };
+    // Only the chosen run is finished (its wrinkle fields are a whole Eq. 4–8 pass).
+    let mut chosen = winner.finish(&prepared, vertices);
+    if let Some((_, _, distances, spreads)) = selection {
+        chosen.params = params.clone();
+        let d = &mut chosen.diagnostics;
+        d.schedule = SCHEDULE_NAMES[best].into();
+        d.candidate_scan_distances = distances;
+        d.candidate_edge_spreads = spreads;
+        for other in &runs {
+            d.knn_queries += other.diagnostics.knn_queries;
+            d.two_way_queries += other.diagnostics.two_way_queries;
+            d.stage_seconds.add(&other.ws.times);
+        }
+    }
+    let finish = clock.elapsed().as_secs_f64() - setup - iterations;
+    chosen.diagnostics.wall_seconds = [setup, iterations, finish];
+    Ok(chosen)
+}
+
+/// Checks scan weights: one per scan point, finite, non-negative, not all zero.
+pub fn validate_weights(weights: &[f64], points: usize) -> Result<()> {
+    let name = "target_weights";
+    if weights.len() != points {
+        return Err(FoldMatchError::parameter(
+            name,
+            format!("{} weights", weights.len()),
+            &format!("need one weight per scan point ({points})"),
+        ));
+    }
+    if let Some(j) = weights.iter().position(|w| !w.is_finite() || *w < 0.0) {
+        return Err(FoldMatchError::parameter(
+            &format!("{name}[{j}]"),
+            weights[j],
+            "weights must be finite and >= 0",
+        ));
+    }
+    if !weights.iter().any(|&w| w > 0.0) {
+        return Err(FoldMatchError::parameter(
+            name,
+            "all zero",
+            "at least one scan point needs a positive weight",
+        ));
+    }
+    Ok(())
+}
+
+/// Fits without an observer.
+pub fn fit_simple(
+    template_vertices: &[[f64; 3]],
+    template_faces: &[[u32; 3]],
+    target: &[[f64; 3]],
+    target_faces: Option<&[[u32; 3]]>,
+    params: &FitParams,
+) -> Result<FitResult> {
+    fit(
+        template_vertices,
+        template_faces,
+        target,
+        target_faces,
+        params,
+        &mut |_| true,
+    )
+}
+
+/// Magnitudes of a vector field.
+pub fn magnitudes(field: &[[f64; 3]]) -> Vec<f64> {
+    field.iter().map(|v| vec3(v).norm()).collect()
+}

@@ -1,0 +1,323 @@
+//! Schedule selection and one schedule's run: the candidates fitted side by side, the rule
+//! that chooses among them, and the iteration loop that drives the phases.
+
+use super::attraction::Attraction;
+use super::model::{deformation_model, TemplateTopology, Workspace};
+use super::params::{FitParams, Method};
+use super::phases::{self, Phase, PhaseSample};
+use super::result::{Diagnostics, FitResult, IterationRecord, Progress};
+use super::setup::Prepared;
+use crate::error::{FoldMatchError, Result};
+use crate::math::vec3;
+use crate::rings::n_rings;
+use rayon::prelude::*;
+
+/// Schedule selection's scan distance of the fit `fitted`: the mean distance from the scan
+/// points to their nearest fitted vertex, weighted by the scan weights, over the points the
+/// template explains (`garment`, user indices) where the scan holds more than the garment.
+pub(super) fn selection_distance(
+    target: &[[f64; 3]],
+    weights: Option<&[f64]>,
+    garment: Option<&[usize]>,
+    fitted: &[[f64; 3]],
+) -> f64 {
+    let chosen: Vec<[f64; 3]>;
+    let (points, w): (&[[f64; 3]], Option<Vec<f64>>) = match garment {
+        Some(g) => {
+            chosen = g.iter().map(|&j| target[j]).collect();
+            (&chosen, weights.map(|w| g.iter().map(|&j| w[j]).collect()))
+        }
+        None => (target, weights.map(<[f64]>::to_vec)),
+    };
+    let d = crate::metrics::nearest_distances(points, fitted);
+    match w {
+        Some(w) => d.iter().zip(&w).map(|(d, w)| d * w).sum::<f64>() / w.iter().sum::<f64>(),
+        None => d.iter().sum::<f64>() / d.len() as f64,
+    }
+}
+
+/// Schedule selection's rule (docs/method.md "Eighth round"): of the candidates whose mean
+/// scan→fit distance is at most `(1 + margin) ×` the smallest, the one with the least
+/// edge-length spread; ties keep the earlier candidate (the given schedule first). With
+/// `margin = 0` the closest fit wins (among exact ties, the least spread).
+///
+/// Why a margin: the candidates differ mainly in the two-way weight, and the two-way pull
+/// minimizes the very distance compared, so the stronger pull wins it by a few per cent even
+/// where its fit slid along the scan (measured on the random sheets: distances within ±3 %,
+/// ground-truth error 2× apart); cloth barely stretches, so among fits that lie about as
+/// close to the scan the one nearest to an isometry of the template is kept.
+pub fn select_schedule(distances: &[f64], spreads: &[f64], margin: f64) -> usize {
+    debug_assert_eq!(distances.len(), spreads.len());
+    let closest = distances.iter().copied().fold(f64::INFINITY, f64::min);
+    let bound = closest * (1.0 + margin);
+    (0..distances.len())
+        .filter(|&i| distances[i] <= bound)
+        .fold(None, |best: Option<usize>, i| match best {
+            Some(b) if spreads[b] <= spreads[i] => Some(b),
+            _ => Some(i),
+        })
+        .unwrap_or(0)
+}
+
+/// Steps every run in lockstep (concurrently when there are several) and reports each iteration
+/// once, with the first still-running schedule's figures; a `false` from the observer stops
+/// them all.
+pub(super) fn drive(
+    prepared: &Prepared,
+    runs: &mut [ScheduleRun],
+    steps: std::ops::RangeInclusive<usize>,
+    iterations: usize,
+    observer: &mut (dyn FnMut(&Progress) -> bool + Send),
+) -> Result<()> {
+    for it in steps {
+        let record = match runs {
+            [one] => one.step(prepared)?,
+            [a, b] => {
+                let (ra, rb) = rayon::join(|| a.step(prepared), || b.step(prepared));
+                ra?.or(rb?)
+            }
+            [a, b, c] => {
+                let (ra, (rb, rc)) = rayon::join(
+                    || a.step(prepared),
+                    || rayon::join(|| b.step(prepared), || c.step(prepared)),
+                );
+                ra?.or(rb?).or(rc?)
+            }
+            _ => unreachable!("one to three schedules"),
+        };
+        let Some(record) = record else {
+            break; // every run has converged
+        };
+        if !observer(&Progress {
+            iteration: it,
+            iterations,
+            record,
+        }) {
+            for run in runs.iter_mut().filter(|r| !r.finished) {
+                run.diagnostics.stopped_by_callback = true;
+                run.finished = true;
+            }
+            break;
+        }
+    }
+    Ok(())
+}
+
+/// One schedule's fit in progress: its state and every per-vertex buffer, allocated once.
+pub(super) struct ScheduleRun {
+    pub(super) params: FitParams,
+    pub(super) pos: Vec<[f64; 3]>,
+    pub(super) vel: Vec<[f64; 3]>,
+    pub(super) next: Vec<[f64; 3]>,
+    pub(super) disp: Vec<f64>,
+    pub(super) attraction: Attraction,
+    pub(super) ws: Workspace,
+    /// The phases' vertex samples and their buffers (one per distinct stride).
+    pub(super) samples: Vec<PhaseSample>,
+    /// Which of `samples` the rigid and the coarse phase use (`None`: every vertex).
+    pub(super) phase_sample: [Option<usize>; 2],
+    pub(super) rigid_iterations: usize,
+    pub(super) coarse_iterations: usize,
+    pub(super) iteration: usize,
+    pub(super) history: Vec<IterationRecord>,
+    pub(super) snapshots: Vec<(usize, Vec<[f64; 3]>)>,
+    pub(super) diagnostics: Diagnostics,
+    /// Converged, or stopped by the observer.
+    pub(super) finished: bool,
+}
+
+impl ScheduleRun {
+    pub(super) fn new(prepared: &Prepared, params: FitParams) -> Self {
+        let m = prepared.start.len();
+        let (rigid_iterations, coarse_iterations) = params.phase_iterations();
+        let mut samples: Vec<PhaseSample> = Vec::new();
+        let mut phase_sample = [None, None];
+        let [rigid_scan, coarse_scan] = prepared.scan_strides;
+        let wanted = [
+            (params.rigid_sample, rigid_scan, rigid_iterations),
+            (params.coarse_sample, coarse_scan, coarse_iterations),
+        ];
+        for (slot, (stride, scan_stride, iterations)) in phase_sample.iter_mut().zip(wanted) {
+            if (stride > 1 || scan_stride > 1) && iterations > 0 {
+                let same = samples
+                    .iter()
+                    .position(|s| (s.stride, s.scan_stride) == (stride, scan_stride));
+                *slot = Some(same.unwrap_or_else(|| {
+                    samples.push(PhaseSample::new(prepared, stride, scan_stride, &params));
+                    samples.len() - 1
+                }));
+            }
+        }
+        Self {
+            pos: prepared.start.clone(),
+            vel: vec![[0.0; 3]; m],
+            next: vec![[0.0; 3]; m],
+            disp: vec![0.0; m],
+            attraction: Attraction::new(
+                m,
+                prepared.scan_points(1),
+                &params,
+                prepared,
+                !prepared.rim.vertices.is_empty(),
+            ),
+            ws: Workspace::new(m),
+            samples,
+            phase_sample,
+            rigid_iterations,
+            coarse_iterations,
+            iteration: 0,
+            history: Vec::with_capacity(params.iterations),
+            snapshots: Vec::new(),
+            diagnostics: prepared.diagnostics.clone(),
+            finished: false,
+            params,
+        }
+    }
+
+    /// One iteration (§2 then §3); `None` when the run has already finished.
+    pub(super) fn step(&mut self, prepared: &Prepared) -> Result<Option<IterationRecord>> {
+        if self.finished || self.iteration >= self.params.iterations {
+            return Ok(None);
+        }
+        self.iteration += 1;
+        let it = self.iteration;
+        let params = &self.params;
+        let m = self.pos.len();
+        let t = &mut self.ws.times;
+        let phase = Phase::at(it, self.rigid_iterations, self.coarse_iterations);
+        let sampled = match phase {
+            Phase::Rigid => self.phase_sample[0],
+            Phase::Coarse => self.phase_sample[1],
+            Phase::Fine => None,
+        };
+        // The phase's points: a sample's copies of its vertices, or every vertex.
+        let (attraction, pos, vel, scan_stride) = match sampled.map(|i| &mut self.samples[i]) {
+            Some(sample) => {
+                for (i, &v) in sample.vertices.iter().enumerate() {
+                    sample.pos[i] = self.pos[v as usize];
+                    sample.vel[i] = self.vel[v as usize];
+                }
+                let stride = sample.scan_stride;
+                (
+                    &mut sample.attraction,
+                    &sample.pos[..],
+                    &mut sample.vel[..],
+                    stride,
+                )
+            }
+            None => (&mut self.attraction, &self.pos[..], &mut self.vel[..], 1),
+        };
+        let scan = prepared.scan_points(scan_stride);
+        let diagnostics = &mut self.diagnostics;
+        attraction.propose(scan, &prepared.rim, params, it, pos, vel, t, diagnostics);
+        if let Some(sample) = sampled.map(|i| &self.samples[i]) {
+            for (i, &v) in sample.vertices.iter().enumerate() {
+                self.vel[v as usize] = sample.vel[i];
+            }
+        }
+        let update_start = std::time::Instant::now();
+        let (old, new, next) = (&self.pos, &self.attraction.proposed, &mut self.next);
+        let sample = sampled.map(|i| &self.samples[i]);
+        let ws = &mut self.ws;
+        let degenerate = match phase {
+            Phase::Rigid => phases::rigid(prepared, params, old, new, sample, next),
+            Phase::Coarse => {
+                let levels = prepared.coarse_levels.len();
+                let level = (it - self.rigid_iterations - 1) * levels / self.coarse_iterations;
+                phases::coarse(prepared, params, level, old, new, sample, ws, next)
+            }
+            Phase::Fine => {
+                let before = self.rigid_iterations + self.coarse_iterations;
+                let fine = (it - before, params.iterations - before);
+                phases::fine(prepared, params, fine, old, new, ws, next)
+            }
+        };
+        self.ws.times.update += update_start.elapsed().as_secs_f64();
+        // Velocities follow the applied motion (SPEC §2.4); displacement figures.
+        let (dt, sync) = (params.nbody.time_step, params.velocity_sync);
+        let (pos, next) = (&self.pos, &self.next);
+        self.disp
+            .par_iter_mut()
+            .zip(self.vel.par_iter_mut())
+            .enumerate()
+            .for_each(|(v, (d, vl))| {
+                let delta = vec3(&next[v]) - vec3(&pos[v]);
+                *d = delta.norm();
+                if sync {
+                    *vl = (delta / dt).into();
+                }
+            });
+        if let Some(bad) = next.iter().position(|p| !p.iter().all(|x| x.is_finite())) {
+            return Err(FoldMatchError::Numerical(format!(
+                "vertex {bad} became non-finite at iteration {it}"
+            )));
+        }
+        std::mem::swap(&mut self.pos, &mut self.next);
+        // Sequential reduction: identical for any thread count.
+        let mean = self.disp.iter().sum::<f64>() / m as f64;
+        let max = self.disp.iter().copied().fold(0.0, f64::max);
+        let record = IterationRecord {
+            iteration: it,
+            mean_displacement: mean,
+            max_displacement: max,
+            degenerate_gradients: degenerate,
+        };
+        self.history.push(record);
+        let every = self.params.snapshot_every;
+        if every > 0 && it.is_multiple_of(every) {
+            let mut snap = self.pos.clone();
+            prepared.frame.inverse_in_place(&mut snap);
+            self.snapshots.push((it, snap));
+        }
+        if self.params.tolerance > 0.0 && mean < self.params.tolerance {
+            self.diagnostics.converged = true;
+            self.finished = true;
+        }
+        Ok(Some(record))
+    }
+
+    /// The current vertices in the user's frame.
+    pub(super) fn user_vertices(&self, prepared: &Prepared) -> Vec<[f64; 3]> {
+        let mut v = self.pos.clone();
+        prepared.frame.inverse_in_place(&mut v);
+        v
+    }
+
+    /// The result (`vertices`: [`ScheduleRun::user_vertices`]), with the wrinkle-vector fields
+    /// of the last step and of the whole motion.
+    pub(super) fn finish(mut self, prepared: &Prepared, vertices: Vec<[f64; 3]>) -> FitResult {
+        let params = &self.params;
+        let m = self.pos.len();
+        self.diagnostics.stage_seconds = self.ws.times;
+        // Per-step field of the last iteration, and the accumulated field of the total motion.
+        let wvf = if params.method == Method::FoldMatch && !self.history.is_empty() {
+            self.ws.fill_wrinkle_field(params);
+            self.ws.wvf.clone()
+        } else {
+            vec![[0.0; 3]; m]
+        };
+        let acc_rings;
+        let acc_topo = if params.method == Method::FoldMatch {
+            prepared.topology()
+        } else {
+            acc_rings = n_rings(&prepared.faces, m, params.rings);
+            TemplateTopology {
+                faces: &prepared.faces,
+                incidence: &prepared.incidence,
+                rings: &acc_rings,
+            }
+        };
+        deformation_model(&prepared.start, &self.pos, &acc_topo, params, &mut self.ws);
+        let wvf_accumulated = self.ws.wvf;
+        FitResult {
+            vertices,
+            wvf,
+            wvf_accumulated,
+            iterations: self.history.len(),
+            history: self.history,
+            snapshots: self.snapshots,
+            params: self.params,
+            diagnostics: self.diagnostics,
+        }
+    }
+}

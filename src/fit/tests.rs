@@ -1,0 +1,766 @@
+use super::phases::{annealed, rest_ring_placement};
+use super::*;
+use crate::math::{vec3, Vec3};
+use crate::rings::n_rings;
+use crate::rotation::ring_centroids;
+
+#[test]
+fn softening_anneals_linearly_over_its_fraction_of_the_iterations() {
+    let mut p = FitParams {
+        anneal: 3.0,
+        anneal_fraction: 0.5,
+        iterations: 10,
+        ..FitParams::default()
+    };
+    let eps = p.nbody.softening;
+    let at = |p: &FitParams, it| annealed(p, it).softening / eps;
+    assert!((at(&p, 1) - 3.0).abs() < 1e-15);
+    // Span 5 iterations: at iteration 3, 2/5 of the way from 3 down to 1.
+    assert!((at(&p, 3) - 2.2).abs() < 1e-15);
+    for it in 6..=10 {
+        assert_eq!(at(&p, it), 1.0, "iteration {it}");
+    }
+    // Same schedule, in fractions, whatever ξ is.
+    p.iterations = 100;
+    assert!((at(&p, 21) - 2.2).abs() < 1e-15);
+    for off in [
+        FitParams {
+            anneal: 1.0,
+            ..p.clone()
+        },
+        FitParams {
+            anneal_fraction: 0.0,
+            ..p.clone()
+        },
+        FitParams::paper(),
+    ] {
+        assert!((1..=100).all(|it| at(&off, it) == 1.0));
+    }
+}
+
+/// A sheet (vertices, faces) and a wavy copy of its vertices lifted by `lift` as the scan.
+type Case = (Vec<[f64; 3]>, Vec<[u32; 3]>, Vec<[f64; 3]>);
+
+fn wavy_grid_case(side: usize, lift: f64) -> Case {
+    let (v, f) = crate::synthetic::grid_sheet(side, side, 1.0, 1.0);
+    let target = v
+        .iter()
+        .map(|p| [p[0], p[1], 0.05 * (4.0 * p[0]).sin() + lift])
+        .collect();
+    (v, f, target)
+}
+
+/// Schedule selection's first figure for a fit: the mean distance from every scan point
+/// to its nearest fitted vertex.
+fn mean_scan_distance(x: &[[f64; 3]], r: &FitResult) -> f64 {
+    let d = crate::metrics::nearest_distances(x, &r.vertices);
+    d.iter().sum::<f64>() / d.len() as f64
+}
+
+/// Schedule selection's tie-break for each fit: its edge-length spread.
+fn edge_spreads(v: &[[f64; 3]], f: &[[u32; 3]], runs: &[FitResult]) -> Vec<f64> {
+    runs.iter()
+        .map(|r| crate::metrics::edge_length_spread(v, &r.vertices, f))
+        .collect()
+}
+
+/// A 13 × 13 sheet and its scan.
+fn grid_case() -> Case {
+    wavy_grid_case(13, 0.02)
+}
+
+/// An 8×8 grid (64 vertices, graph diameter 14) and a scan above it.
+fn small_grid_case() -> Case {
+    wavy_grid_case(8, 0.1)
+}
+
+/// The default with only a rigid phase, `iterations` long, one schedule.
+fn rigid_only(iterations: usize) -> FitParams {
+    FitParams {
+        iterations,
+        rigid_fraction: 1.0,
+        coarse_fraction: 0.0,
+        selection: Selection::Single,
+        ..FitParams::default()
+    }
+}
+
+fn dist(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    (vec3(a) - vec3(b)).norm()
+}
+
+/// The largest distance between corresponding points.
+fn max_apart(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
+    (0..a.len()).map(|i| dist(&a[i], &b[i])).fold(0.0, f64::max)
+}
+
+/// `moved` keeps every pairwise distance of `start`: one rigid motion.
+fn assert_rigidly_moved(start: &[[f64; 3]], moved: &[[f64; 3]]) {
+    for i in 0..start.len() {
+        for j in 0..i {
+            assert!((dist(&moved[i], &moved[j]) - dist(&start[i], &start[j])).abs() < 1e-12);
+        }
+    }
+}
+
+/// `params` fail validation with an error naming `field`.
+fn assert_refused(params: &FitParams, field: &str) {
+    let err = params.validate().unwrap_err().to_string();
+    assert!(err.contains(field), "{err}");
+}
+
+#[test]
+fn automatic_coarse_radius_grows_with_the_square_root_of_the_template_and_is_clamped() {
+    let auto = FitParams::default();
+    assert_eq!(auto.coarse_rings, 0);
+    // 8 rings up to the reference size, √M above it, at most 12.
+    for (m, want) in [
+        (10, 8),
+        (1_700, 8),
+        (1_921, 9),  // 8 √(1921 / 1700) = 8.50
+        (3_845, 12), // 12.03
+        (3_509, 11), // 11.49
+        (6_561, 12), // 15.7, clamped
+        (100_489, 12),
+    ] {
+        assert_eq!(auto.coarse_radius(m), want, "M = {m}");
+    }
+    // A given radius is used as given, whatever the size.
+    let given = FitParams {
+        coarse_rings: 5,
+        ..FitParams::default()
+    };
+    assert_eq!(given.coarse_radius(100_489), 5);
+    assert_refused(
+        &FitParams {
+            coarse_rings: 33,
+            ..FitParams::default()
+        },
+        "coarse_rings",
+    );
+    // The automatic radius is the given one for that size: the same fit, bit for bit, and
+    // the diagnostics report it (a 50 × 50 grid: 2,500 vertices, radius 10).
+    let (v, f) = crate::synthetic::grid_sheet(50, 50, 1.0, 1.0);
+    let x: Vec<[f64; 3]> = v
+        .iter()
+        .map(|p| [p[0], p[1], 0.1 * (3.0 * p[0]).sin() + 0.05])
+        .collect();
+    let base = FitParams {
+        iterations: 10,
+        selection: Selection::Single,
+        ..FitParams::default()
+    };
+    let auto_fit = fit_simple(&v, &f, &x, None, &base).unwrap();
+    let given = |coarse_rings| {
+        let params = FitParams {
+            coarse_rings,
+            ..base.clone()
+        };
+        fit_simple(&v, &f, &x, None, &params).unwrap().vertices
+    };
+    assert_eq!(auto_fit.diagnostics.coarse_rings, 10);
+    assert_eq!(auto_fit.vertices, given(10));
+    assert_ne!(auto_fit.vertices, given(8));
+}
+
+#[test]
+fn coarse_levels_shrink_the_radius_and_stop_at_one_ring() {
+    let (v, f, x) = grid_case();
+    let base = FitParams {
+        iterations: 12,
+        selection: Selection::Single,
+        coarse_rings: 1,
+        ..FitParams::default()
+    };
+    let one = fit_simple(&v, &f, &x, None, &base).unwrap();
+    // Radius max(1, 1 >> l) = 1 at every level: the same fit, bit for bit.
+    let three = fit_simple(
+        &v,
+        &f,
+        &x,
+        None,
+        &FitParams {
+            coarse_levels: 3,
+            ..base.clone()
+        },
+    );
+    assert_eq!(one.vertices, three.unwrap().vertices);
+    // From 4 rings, a second level (2 rings) changes the coarse phase.
+    let wide = FitParams {
+        coarse_rings: 4,
+        ..base.clone()
+    };
+    let a = fit_simple(&v, &f, &x, None, &wide).unwrap();
+    let b = fit_simple(
+        &v,
+        &f,
+        &x,
+        None,
+        &FitParams {
+            coarse_levels: 2,
+            ..wide
+        },
+    )
+    .unwrap();
+    assert_ne!(a.vertices, b.vertices);
+    for bad in [0, 5] {
+        assert_refused(
+            &FitParams {
+                coarse_levels: bad,
+                ..base.clone()
+            },
+            "coarse_levels",
+        );
+    }
+}
+
+#[test]
+fn rigid_sample_moves_the_template_rigidly_by_the_sample_fit() {
+    let (v, f, x) = small_grid_case();
+    let rigid_only = rigid_only(6);
+    let with = |rigid_sample| {
+        fit_simple(
+            &v,
+            &f,
+            &x,
+            None,
+            &FitParams {
+                rigid_sample,
+                ..rigid_only.clone()
+            },
+        )
+        .unwrap()
+        .vertices
+    };
+    // A quarter of the vertices drives the fit: the template still moves rigidly (every
+    // pairwise distance kept), but not as the fit driven by every vertex does.
+    let (quarter, full) = (with(4), with(1));
+    assert_rigidly_moved(&v, &quarter);
+    let apart = max_apart(&quarter, &full);
+    assert!(apart > 1e-9, "{apart}");
+    // 64 ≥ M: the sample is vertex 0 alone, whose Kabsch fit has no rotation, so every
+    // vertex moves by the same translation, the one the N-body step proposes for vertex 0.
+    let one = with(64);
+    let shift = vec3(&one[0]) - vec3(&v[0]);
+    assert!(shift.norm() > 1e-6);
+    for i in 0..v.len() {
+        assert!((vec3(&one[i]) - vec3(&v[i]) - shift).norm() < 1e-12);
+    }
+    for bad in [0, 65] {
+        assert_refused(
+            &FitParams {
+                rigid_sample: bad,
+                ..rigid_only.clone()
+            },
+            "rigid_sample",
+        );
+    }
+}
+
+#[test]
+fn rigid_scan_sample_strides_only_dense_scans() {
+    let default = FitParams::default();
+    // Paper-sized: 14,400 points under 3,307 rigid-phase vertices: every point pulls.
+    assert_eq!(default.rigid_scan_stride(13_225, 14_400), 1);
+    // The large case: 1M points under 25,123 vertices, 8 per vertex → every 4th.
+    assert_eq!(default.rigid_scan_stride(100_489, 1_000_000), 4);
+    let every_vertex = FitParams {
+        rigid_sample: 1,
+        ..default.clone()
+    };
+    assert_eq!(every_vertex.rigid_scan_stride(100_489, 1_000_000), 1);
+    let given = FitParams {
+        rigid_scan_sample: 3,
+        ..default.clone()
+    };
+    assert_eq!(given.rigid_scan_stride(100_489, 14_400), 3);
+    assert_refused(
+        &FitParams {
+            rigid_scan_sample: 65,
+            ..default
+        },
+        "rigid_scan_sample",
+    );
+
+    // An 8×8 template over a 40×40-point scan: 16 rigid-phase vertices, stride 12.
+    let (v, f, _) = small_grid_case();
+    let (_, _, x) = wavy_grid_case(40, 0.1);
+    let rigid_only = rigid_only(6);
+    assert_eq!(rigid_only.rigid_scan_stride(v.len(), x.len()), 12);
+    let with = |rigid_scan_sample| {
+        let params = FitParams {
+            rigid_scan_sample,
+            ..rigid_only.clone()
+        };
+        fit_simple(&v, &f, &x, None, &params).unwrap().vertices
+    };
+    let (auto, twelve, every) = (with(0), with(12), with(1));
+    assert_eq!(auto, twelve);
+    // Still one rigid motion, not the one every scan point drives, but close to it.
+    assert_rigidly_moved(&v, &auto);
+    let (apart, moved) = (max_apart(&auto, &every), max_apart(&every, &v));
+    assert!(apart > 1e-9 && apart < 0.2 * moved, "{apart} vs {moved}");
+}
+
+#[test]
+fn coarse_scan_sample_halves_only_scans_of_eight_points_a_vertex() {
+    let default = FitParams::default();
+    // Paper-sized (1.1 points a vertex) and the harness's densest (3.5): the whole scan.
+    assert_eq!(default.coarse_scan_stride(13_225, 14_400), 1);
+    assert_eq!(default.coarse_scan_stride(1_426, 5_000), 1);
+    // From 8 points a vertex every 2nd, and never more by itself.
+    assert_eq!(default.coarse_scan_stride(1_000, 7_999), 1);
+    assert_eq!(default.coarse_scan_stride(1_000, 8_000), 2);
+    assert_eq!(default.coarse_scan_stride(100_489, 1_000_000), 2);
+    assert_eq!(default.coarse_scan_stride(1_426, 60_000), 2);
+    // The rigid phase's automatic stride keeps its own rule.
+    assert_eq!(default.rigid_scan_stride(100_489, 1_000_000), 4);
+    for given in [1, 3, 64] {
+        let params = FitParams {
+            coarse_scan_sample: given,
+            ..default.clone()
+        };
+        assert_eq!(params.coarse_scan_stride(1_000, 1_000_000), given);
+    }
+    assert_refused(
+        &FitParams {
+            coarse_scan_sample: 65,
+            ..default.clone()
+        },
+        "coarse_scan_sample",
+    );
+
+    // A coarse-only fit of an 8×8 template on a 40×40-point scan (25 points a vertex):
+    // the automatic stride is the explicit 2, and it changes the fit by a fraction of the
+    // motion.
+    let (v, f, _) = small_grid_case();
+    let (_, _, x) = wavy_grid_case(40, 0.1);
+    let coarse_only = FitParams {
+        iterations: 6,
+        rigid_fraction: 0.0,
+        coarse_fraction: 1.0,
+        selection: Selection::Single,
+        ..default
+    };
+    assert_eq!(coarse_only.coarse_scan_stride(v.len(), x.len()), 2);
+    let with = |coarse_scan_sample| {
+        let params = FitParams {
+            coarse_scan_sample,
+            ..coarse_only.clone()
+        };
+        fit_simple(&v, &f, &x, None, &params).unwrap().vertices
+    };
+    let (auto, two, every) = (with(0), with(2), with(1));
+    assert_eq!(auto, two);
+    let (apart, moved) = (max_apart(&auto, &every), max_apart(&every, &v));
+    assert!(apart > 1e-9 && apart < 0.2 * moved, "{apart} vs {moved}");
+}
+
+#[test]
+fn coarse_sample_with_whole_mesh_rings_is_the_rigid_sample() {
+    // Coarse rings reaching the whole 8×8 grid (graph diameter 14 < 32): every vertex's
+    // sampled ring is the whole sample, so a coarse-only fit on every 4th vertex is the
+    // rigid-only fit on every 4th vertex, up to the order of the sums.
+    let (v, f, x) = small_grid_case();
+    let base = FitParams {
+        iterations: 6,
+        coarse_rings: 32,
+        selection: Selection::Single,
+        ..FitParams::default()
+    };
+    let run = |p: FitParams| fit_simple(&v, &f, &x, None, &p).unwrap().vertices;
+    let coarse = run(FitParams {
+        rigid_fraction: 0.0,
+        coarse_fraction: 1.0,
+        coarse_sample: 4,
+        ..base.clone()
+    });
+    let rigid = run(FitParams {
+        rigid_fraction: 1.0,
+        coarse_fraction: 0.0,
+        rigid_sample: 4,
+        ..base.clone()
+    });
+    let every = run(FitParams {
+        rigid_fraction: 0.0,
+        coarse_fraction: 1.0,
+        ..base.clone()
+    });
+    let gap = |a: &[[f64; 3]], b: &[[f64; 3]]| {
+        a.iter()
+            .zip(b)
+            .map(|(p, q)| (vec3(p) - vec3(q)).norm())
+            .fold(0.0, f64::max)
+    };
+    assert!(gap(&coarse, &rigid) < 1e-12, "{}", gap(&coarse, &rigid));
+    assert!(gap(&coarse, &every) > 1e-9, "the sample changed nothing");
+    for (bad, rings, levels) in [(0, 8, 1), (65, 8, 1), (2, 4, 2), (2, 2, 1)] {
+        assert_refused(
+            &FitParams {
+                coarse_sample: bad,
+                coarse_rings: rings,
+                coarse_levels: levels,
+                ..base.clone()
+            },
+            "coarse_sample",
+        );
+    }
+}
+
+#[test]
+fn fast_preset_is_one_schedule_between_the_given_and_the_sharp() {
+    let fast = FitParams::preset("fast").unwrap();
+    assert_eq!(fast, FitParams::fast());
+    let default = FitParams::default();
+    let sharp = default.sharp_schedule();
+    // The sharp schedule's phases and constant softening, a two-way weight between the two.
+    assert_eq!(
+        fast,
+        FitParams {
+            two_way: FAST_TWO_WAY,
+            ..sharp.clone()
+        }
+    );
+    assert!(sharp.two_way < fast.two_way && fast.two_way < default.two_way);
+    assert_eq!(fast.candidate_schedules(), vec![fast.clone()]);
+    // One run: no candidate figures, and a fit unlike either of the default's candidates.
+    let (v, f, x) = small_grid_case();
+    let run = |p: &FitParams| fit_simple(&v, &f, &x, None, p).unwrap();
+    let alone = run(&fast);
+    assert!(alone.diagnostics.candidate_scan_distances.is_empty());
+    let d = mean_scan_distance(&x, &alone);
+    let both = run(&default);
+    for other in &both.diagnostics.candidate_scan_distances {
+        assert!((other - d).abs() > 1e-9 * d, "{other} vs {d}");
+    }
+}
+
+#[test]
+fn accurate_preset_is_the_default_lengthened() {
+    let accurate = FitParams::preset("accurate").unwrap();
+    assert_eq!(accurate, FitParams::accurate());
+    assert_eq!(
+        FitParams {
+            iterations: 100,
+            ..accurate.clone()
+        },
+        FitParams::default()
+    );
+    // Every phase keeps its share of the iterations: 45 rigid, 75 coarse, 30 FoldMatch.
+    assert_eq!(accurate.iterations, ACCURATE_ITERATIONS);
+    assert_eq!(accurate.phase_iterations(), (45, 75));
+    assert_eq!(FitParams::default().phase_iterations(), (30, 50));
+}
+
+#[test]
+fn wide_selection_chooses_among_three_candidates() {
+    let (v, f, x) = grid_case();
+    let wide = FitParams {
+        iterations: 20,
+        selection: Selection::ScanDistanceWide,
+        rigid_sample: 1,
+        ..FitParams::default()
+    };
+    let candidates = wide.candidate_schedules();
+    assert_eq!(candidates.len(), SCHEDULE_NAMES.len());
+    // Given, sharp, gentle: the gentle one differs from the given only in its weight and
+    // its annealing's length.
+    assert_eq!(candidates[1], wide.sharp_schedule());
+    assert_eq!(candidates[2].two_way, wide.two_way / 1.5);
+    assert_eq!(candidates[2].anneal_fraction, 0.8);
+    assert_eq!(
+        FitParams {
+            two_way: wide.two_way,
+            anneal_fraction: wide.anneal_fraction,
+            ..candidates[2].clone()
+        },
+        candidates[0]
+    );
+    let chosen = fit_simple(&v, &f, &x, None, &wide).unwrap();
+    let alone: Vec<FitResult> = candidates
+        .iter()
+        .map(|p| fit_simple(&v, &f, &x, None, p).unwrap())
+        .collect();
+    let dist = |r: &FitResult| mean_scan_distance(&x, r);
+    let d: Vec<f64> = alone.iter().map(dist).collect();
+    assert_eq!(chosen.diagnostics.candidate_scan_distances, d);
+    let spreads = edge_spreads(&v, &f, &alone);
+    assert_eq!(chosen.diagnostics.candidate_edge_spreads, spreads);
+    let best = select_schedule(&d, &spreads, wide.selection_margin);
+    assert_eq!(chosen.vertices, alone[best].vertices);
+    assert_eq!(chosen.diagnostics.schedule, SCHEDULE_NAMES[best]);
+    // One schedule for NRGa and for a single selection.
+    for p in [
+        FitParams {
+            method: Method::Nrga,
+            ..wide.clone()
+        },
+        FitParams::tracking(),
+    ] {
+        assert_eq!(p.candidate_schedules().len(), 1);
+    }
+}
+
+#[test]
+fn the_scan_order_changes_the_fit_only_by_round_off() {
+    // The fit keeps the scan in Morton order; given in any other order, only the order of
+    // the sums differs. The scan is a mesh (the folded vertices with noise, which breaks
+    // the exact distance ties of a grid: those go to the lower index of the internal order),
+    // fitted with its faces re-indexed (the mesh curvature follows its points) and without.
+    let case = crate::synthetic::folded_sheet(&crate::synthetic::SheetSpec {
+        nx: 24,
+        ny: 24,
+        noise: 0.002,
+        ..Default::default()
+    });
+    let x = &case.scan;
+    let n = x.len();
+    // A scrambled order: position i holds point (i · 7919) mod n (7919 is prime to n).
+    let perm: Vec<usize> = (0..n).map(|i| i * 7919 % n).collect();
+    let mut inverse = vec![0u32; n];
+    for (i, &j) in perm.iter().enumerate() {
+        inverse[j] = i as u32;
+    }
+    let shuffled: Vec<[f64; 3]> = perm.iter().map(|&j| x[j]).collect();
+    let faces = &case.faces;
+    let shuffled_faces: Vec<[u32; 3]> = faces
+        .iter()
+        .map(|f| f.map(|j| inverse[j as usize]))
+        .collect();
+    let t = &case.template_vertices;
+    for params in [FitParams::default(), FitParams::paper()] {
+        let params = FitParams {
+            iterations: 40,
+            ..params
+        };
+        for mesh in [false, true] {
+            let (a, b) = if mesh {
+                (
+                    fit_simple(t, faces, x, Some(faces), &params).unwrap(),
+                    fit_simple(t, faces, &shuffled, Some(&shuffled_faces), &params).unwrap(),
+                )
+            } else {
+                (
+                    fit_simple(t, faces, x, None, &params).unwrap(),
+                    fit_simple(t, faces, &shuffled, None, &params).unwrap(),
+                )
+            };
+            let moved = a
+                .vertices
+                .iter()
+                .zip(t)
+                .map(|(p, q)| (vec3(p) - vec3(q)).norm())
+                .fold(0.0, f64::max);
+            let apart = a
+                .vertices
+                .iter()
+                .zip(&b.vertices)
+                .map(|(p, q)| (vec3(p) - vec3(q)).norm())
+                .fold(0.0, f64::max);
+            assert!(moved > 0.01 && apart < 1e-9 * moved, "{apart} of {moved}");
+        }
+    }
+}
+
+#[test]
+fn select_schedule_breaks_near_ties_by_the_edge_length_spread() {
+    // Outside the margin the closest fit wins, whatever its spread.
+    assert_eq!(select_schedule(&[1.0, 1.2], &[0.5, 0.1], 0.06), 0);
+    assert_eq!(select_schedule(&[1.2, 1.0], &[0.1, 0.5], 0.06), 1);
+    // Within it, the least spread.
+    assert_eq!(select_schedule(&[1.0, 1.05], &[0.5, 0.1], 0.06), 1);
+    assert_eq!(
+        select_schedule(&[1.05, 1.0, 1.03], &[0.3, 0.5, 0.2], 0.06),
+        2
+    );
+    // Margin 0: the closest alone (the earlier rule); equal spreads keep the earlier.
+    assert_eq!(select_schedule(&[1.0, 1.05], &[0.5, 0.1], 0.0), 0);
+    assert_eq!(select_schedule(&[1.0, 1.0], &[0.2, 0.2], 0.06), 0);
+    assert_eq!(select_schedule(&[1.0, 1.0], &[0.2, 0.1], 0.0), 1);
+    for bad in [-0.01, f64::NAN, f64::INFINITY] {
+        assert_refused(
+            &FitParams {
+                selection_margin: bad,
+                ..FitParams::default()
+            },
+            "selection_margin",
+        );
+    }
+}
+
+#[test]
+fn early_selection_compares_there_and_runs_the_chosen_schedule_alone() {
+    let (v, f, x) = grid_case();
+    let params = FitParams {
+        iterations: 20,
+        selection_at: 0.5,
+        ..FitParams::default()
+    };
+    let mut seen = Vec::new();
+    let early = fit(&v, &f, &x, None, &params, &mut |p| {
+        seen.push((p.iteration, p.iterations));
+        true
+    })
+    .unwrap();
+    assert_eq!(seen, (1..=20).map(|i| (i, 20)).collect::<Vec<_>>());
+    let given = FitParams {
+        selection: Selection::Single,
+        ..params.clone()
+    };
+    let schedules = [given, params.sharp_schedule()];
+    // Each candidate at iteration 10: its single run stopped there.
+    let at_10: Vec<FitResult> = schedules
+        .iter()
+        .map(|p| fit(&v, &f, &x, None, p, &mut |p| p.iteration < 10).unwrap())
+        .collect();
+    let d: Vec<f64> = at_10.iter().map(|r| mean_scan_distance(&x, r)).collect();
+    assert_eq!(early.diagnostics.candidate_scan_distances, d);
+    let spreads = edge_spreads(&v, &f, &at_10);
+    assert_eq!(early.diagnostics.candidate_edge_spreads, spreads);
+    let k = select_schedule(&d, &spreads, params.selection_margin);
+    assert_eq!(early.diagnostics.schedule, ["given", "sharp"][k]);
+    // The chosen schedule then ran on alone: its single run's fit, bit for bit.
+    let alone = fit_simple(&v, &f, &x, None, &schedules[k]).unwrap();
+    assert_eq!(early.iterations, 20);
+    assert_eq!(early.vertices, alone.vertices);
+    assert_eq!(early.wvf_accumulated, alone.wvf_accumulated);
+    for bad in [0.0, -0.1, 1.5, f64::NAN] {
+        assert_refused(
+            &FitParams {
+                selection_at: bad,
+                ..FitParams::default()
+            },
+            "selection_at",
+        );
+    }
+}
+
+#[test]
+fn selection_chooses_between_the_given_and_the_sharp_schedule() {
+    let (v, f, x) = grid_case();
+    let params = FitParams {
+        iterations: 20,
+        ..FitParams::default()
+    };
+    let chosen = fit_simple(&v, &f, &x, None, &params).unwrap();
+    let given = FitParams {
+        selection: Selection::Single,
+        ..params.clone()
+    };
+    let runs = [
+        fit_simple(&v, &f, &x, None, &given).unwrap(),
+        fit_simple(&v, &f, &x, None, &params.sharp_schedule()).unwrap(),
+    ];
+    let dist = |r: &FitResult| mean_scan_distance(&x, r);
+    let d = chosen.diagnostics.candidate_scan_distances.clone();
+    assert_eq!(d, vec![dist(&runs[0]), dist(&runs[1])]);
+    let spreads = edge_spreads(&v, &f, &runs);
+    assert_eq!(chosen.diagnostics.candidate_edge_spreads, spreads);
+    let k = select_schedule(&d, &spreads, params.selection_margin);
+    assert_eq!(chosen.vertices, runs[k].vertices);
+    assert_eq!(chosen.diagnostics.schedule, ["given", "sharp"][k]);
+    assert_eq!(chosen.params, params);
+    // The runs advance in lockstep: progress counts ξ, with the given schedule's figures.
+    let mut seen = Vec::new();
+    fit(&v, &f, &x, None, &params, &mut |p| {
+        seen.push((p.iteration, p.iterations, p.record));
+        true
+    })
+    .unwrap();
+    assert_eq!(
+        seen,
+        (1..=20)
+            .map(|i| (i, 20, runs[0].history[i - 1]))
+            .collect::<Vec<_>>()
+    );
+    // A stop applies to both runs: each candidate equals its single run stopped there.
+    let stopped = |p: &FitParams| fit(&v, &f, &x, None, p, &mut |p| p.iteration < 7).unwrap();
+    let both = stopped(&params);
+    assert!(both.diagnostics.stopped_by_callback && both.iterations == 7);
+    let alone = [stopped(&given), stopped(&params.sharp_schedule())];
+    assert_eq!(
+        both.diagnostics.candidate_scan_distances,
+        vec![dist(&alone[0]), dist(&alone[1])]
+    );
+    // The sharp schedule differs from the given one only in its schedule fields.
+    let sharp = params.sharp_schedule();
+    assert_eq!(
+        (sharp.two_way, sharp.coarse_fraction, sharp.anneal),
+        (1.0, 0.3, 1.0)
+    );
+    assert_eq!(sharp.selection, Selection::Single);
+    assert_eq!(
+        FitParams {
+            two_way: params.two_way,
+            coarse_fraction: params.coarse_fraction,
+            anneal: params.anneal,
+            anneal_fraction: params.anneal_fraction,
+            selection: params.selection,
+            ..sharp
+        },
+        params
+    );
+}
+
+#[test]
+fn rest_ring_placement_recovers_a_rigid_motion_of_the_rest_shape() {
+    // Proposed = R · rest + t on every ring: each vertex goes to R · rest[v] + t exactly.
+    let (rest, f) = crate::synthetic::grid_sheet(6, 5, 1.0, 0.8);
+    let rest: Vec<[f64; 3]> = rest
+        .iter()
+        .map(|p| [p[0], p[1], 0.3 * p[0] * p[1]])
+        .collect();
+    let rings = n_rings(&f, rest.len(), 2);
+    let r = nalgebra::Rotation3::from_scaled_axis(Vec3::new(0.3, -0.5, 0.9)).into_inner();
+    let t = Vec3::new(0.2, -1.0, 0.4);
+    let moved = |p: &[f64; 3]| r * vec3(p) + t;
+    let proposed: Vec<[f64; 3]> = rest.iter().map(|p| moved(p).into()).collect();
+    for fast in [true, false] {
+        for v in 0..rest.len() {
+            let ring = rings.of(v);
+            let (c_rest, c) = ring_centroids(ring, &rest, &proposed);
+            let placed = rest_ring_placement(ring, v, &rest, &c_rest, &proposed, &c, fast);
+            assert!((placed - moved(&rest[v])).norm() < 1e-12, "vertex {v}");
+        }
+    }
+}
+
+#[test]
+fn rest_rigidity_keeps_the_template_edge_lengths_over_a_scan_hole() {
+    // A flat sheet onto a wavy scan with a hole: the rest-shape term keeps the edge lengths
+    // closer to the template's; 0 is the update without it, and out-of-range values fail.
+    let (v, f, x) = wavy_grid_case(17, 0.03);
+    let x: Vec<[f64; 3]> = x
+        .into_iter()
+        .filter(|p| (p[0] - 0.6).hypot(p[1] - 0.4) > 0.2)
+        .collect();
+    let spread = |params: &FitParams| {
+        let r = fit_simple(&v, &f, &x, None, params).unwrap();
+        crate::metrics::edge_length_spread(&v, &r.vertices, &f)
+    };
+    let with_rigidity = FitParams {
+        iterations: 40,
+        coarse_fraction: 0.2,
+        selection: Selection::Single,
+        ..FitParams::default()
+    };
+    assert_eq!(with_rigidity.rest_rigidity, 0.65);
+    let with = spread(&with_rigidity);
+    let without = spread(&FitParams {
+        rest_rigidity: 0.0,
+        ..with_rigidity.clone()
+    });
+    assert!(
+        with < 0.8 * without,
+        "edge-length spread {with} vs {without}"
+    );
+    for bad in [-0.1, 1.5, f64::NAN] {
+        assert_refused(
+            &FitParams {
+                rest_rigidity: bad,
+                ..FitParams::default()
+            },
+            "rest_rigidity",
+        );
+    }
+}
