@@ -3,8 +3,11 @@ SHELL := /bin/bash
 VENV ?= .venv
 PY := $(VENV)/bin/python
 CARGO_PROFILE ?= ci
+# The glibc policy of `make wheel`: manylinux_2_17 (manylinux2014) installs on glibc >= 2.17
+# (RHEL/CentOS 7 and later, Debian 8+, Ubuntu 14.04+).
+WHEEL_POLICY ?= manylinux_2_17
 
-.PHONY: all venv build cli demo test rust-test lint stubtest py-test clean
+.PHONY: all venv build cli demo test rust-test lint stubtest py-test wheel wheel-test clean
 
 all: test
 
@@ -45,8 +48,20 @@ stubtest: build
 py-test: build
 	$(PY) -m pytest -q tests
 
+## A wheel for `pip install dist/foldmatch_rs-*.whl` on machines without Rust: abi3 (one wheel for
+## CPython >= 3.9), release profile, linked by zig (the `ziglang` package) against glibc
+## $(WHEEL_POLICY)'s symbols, so it installs on Linux older than the machine that built it.
+wheel: venv
+	rm -f dist/foldmatch_rs-*.whl
+	VIRTUAL_ENV=$(abspath $(VENV)) PATH=$(abspath $(VENV))/bin:$$PATH \
+	  $(VENV)/bin/maturin build --release --locked --zig --compatibility $(WHEEL_POLICY) -o dist
+
+## Install that wheel into a fresh venv with no Rust on PATH; fit and run the CLI from it.
+wheel-test: wheel
+	$(PY) tests/wheel_smoke.py --platform $(WHEEL_POLICY) dist/foldmatch_rs-*.whl
+
 ## Everything CI runs.
-test: lint rust-test stubtest py-test
+test: lint rust-test stubtest py-test wheel-test
 
 clean:
-	rm -rf $(VENV) target demo-out
+	rm -rf $(VENV) target demo-out dist

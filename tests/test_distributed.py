@@ -415,7 +415,7 @@ def test_without_dask_scheduler_says_what_to_install(data):
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, cwd=data)
     assert out.returncode == 1
-    assert "pip install 'foldmatch-rs[dask]'" in out.stderr
+    assert "pip install 'dask[distributed]" in out.stderr
     assert not (data / "out").exists()
 
 

@@ -1,5 +1,5 @@
 """Fit a batch of scans, or track 4D sequences, on a Dask cluster (``pip install
-'foldmatch-rs[dask]'``).
+'dask[distributed]>=2023.1'`` next to the package; docs/cluster.md).
 
 Each scan (each frame of a sequence) is one Dask task that reads, fits and writes its output
 (staged) on the worker, with the Rust code of ``foldmatch batch`` / ``foldmatch sequence``; the
@@ -40,7 +40,7 @@ try:
     from distributed import Client, Future, KilledWorker, LocalCluster, as_completed
 except ImportError as _missing:  # pragma: no cover - depends on the installed extras
     raise ImportError(
-        "foldmatch_rs.distributed needs Dask's distributed scheduler: pip install 'foldmatch-rs[dask]'"
+        "foldmatch_rs.distributed needs Dask's distributed scheduler: pip install 'dask[distributed]>=2023.1'"
     ) from _missing
 
 from . import _foldmatch_rs as _core

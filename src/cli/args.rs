@@ -177,8 +177,8 @@ pub struct BatchCmd {
     #[arg(long, value_name = "NAME")]
     pub scan_weights_property: Option<String>,
     /// Run the fits on a Dask cluster: `local` (worker processes on this machine) or the
-    /// address of a running scheduler (tcp://host:8786). Only from the Python package with its
-    /// `dask` extra (`python -m foldmatch_rs`, `pip install 'foldmatch-rs[dask]'`); see
+    /// address of a running scheduler (tcp://host:8786). Only from the Python package with Dask
+    /// beside it (`python -m foldmatch_rs`, `pip install 'dask[distributed]'`); see
     /// docs/cluster.md.
     #[arg(long, value_name = "ADDRESS")]
     pub scheduler: Option<String>,
@@ -218,8 +218,8 @@ pub struct SequenceCmd {
     #[arg(long, value_name = "NAME")]
     pub scan_weights_property: Option<String>,
     /// Run the fits on a Dask cluster: `local` (worker processes on this machine) or the
-    /// address of a running scheduler (tcp://host:8786). Only from the Python package with its
-    /// `dask` extra (`python -m foldmatch_rs`, `pip install 'foldmatch-rs[dask]'`); see
+    /// address of a running scheduler (tcp://host:8786). Only from the Python package with Dask
+    /// beside it (`python -m foldmatch_rs`, `pip install 'dask[distributed]'`); see
     /// docs/cluster.md.
     #[arg(long, value_name = "ADDRESS")]
     pub scheduler: Option<String>,

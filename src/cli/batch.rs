@@ -522,7 +522,7 @@ pub fn batch(cmd: &BatchCmd, ctx: &Context) -> i32 {
 fn needs_python(ui: &Ui, command: &str, address: &str) -> i32 {
     ui.error(format_args!(
         "--scheduler {address}: running on a Dask cluster needs the Python package \
-         (pip install 'foldmatch-rs[dask]', then `python -m foldmatch_rs {command} ... \
+         and Dask (pip install 'dask[distributed]', then `python -m foldmatch_rs {command} ... \
          --scheduler {address}`); see docs/cluster.md"
     ));
     exit_code::FATAL
