@@ -50,9 +50,10 @@ pub(super) struct ScanPoints {
 }
 
 impl ScanPoints {
-    /// Every `stride`-th point (in the fit's Morton order, so spread evenly), with its own
-    /// tree and `⌈K / stride⌉` neighbours per template point: about the same neighbourhood
-    /// radius as K points of the whole scan ([`FitParams::rigid_scan_sample`]).
+    /// Every `stride`-th point (in the fit's Morton order, so spread evenly), with its own tree and
+    /// `⌈K / stride⌉` neighbours per template point: about the same neighbourhood radius as K
+    /// points of the whole scan
+    /// ([`rigid_scan_sample`](crate::fit::Acceleration::rigid_scan_sample)).
     pub(super) fn sample(&self, stride: usize) -> Self {
         let points: Vec<[f64; 3]> = self.points.iter().step_by(stride).copied().collect();
         let kappa = self.kappa.iter().step_by(stride).copied().collect();
@@ -90,8 +91,8 @@ pub(super) struct Attraction {
     pub(super) edge_length: f64,
     /// The trust radius's multiple c ([`Prepared::trust`]).
     pub(super) trust: f64,
-    /// Every point's outward direction on the rim ([`FitParams::two_way_rim`]; empty when
-    /// off, or on a vertex sample).
+    /// Every point's outward direction on the rim
+    /// ([`two_way_rim`](crate::fit::Schedule::two_way_rim); empty when off, or on a vertex sample).
     pub(super) outward: Vec<[f64; 3]>,
 }
 
@@ -137,8 +138,8 @@ impl Attraction {
         }
     }
 
-    /// The two-way trust radius ([`FitParams::two_way_trust`]) of the template whose
-    /// neighbour lists are `nn_d2` (nearest first), with `nearest` as scratch.
+    /// The two-way trust radius ([`two_way_trust`](crate::fit::Schedule::two_way_trust)) of the
+    /// template whose neighbour lists are `nn_d2` (nearest first), with `nearest` as scratch.
     pub(super) fn trust_radius(
         nearest: &mut [f64],
         edge_length: f64,
@@ -243,23 +244,22 @@ impl Attraction {
 
 /// A scan whose bounding-box diagonal exceeds the template's by more than this factor holds
 /// more than the garment (a dressed body, a scene): its normalized frame and K are then those
-/// of the points the template explains ([`explained_points`]).
+/// of the points the template explains.
 pub const GARMENT_FRAME_RATIO: f64 = 1.5;
 
 /// The trust radius on a scan that holds more than the garment, as a fraction of
-/// [`FitParams::two_way_trust`]'s: skin and hair adjoin the garment (below a hem, out of a
-/// sleeve), where a garment alone has nothing, so the radius that is neutral on garment scans
-/// (c = 4) lets them in; ¾ of it (c = 3) keeps them out (docs/method.md "Scans of dressed
-/// people").
+/// [`two_way_trust`](crate::fit::Schedule::two_way_trust)'s: skin and hair adjoin the garment
+/// (below a hem, out of a sleeve), where a garment alone has nothing, so the radius that is neutral
+/// on garment scans (c = 4) lets them in; ¾ of it (c = 3) keeps them out (docs/method.md "Scans of
+/// dressed people").
 pub const DRESSED_TRUST_FACTOR: f64 = 0.75;
 
-/// The scan points that the template as given explains, where the scan is much larger than
-/// the template ([`GARMENT_FRAME_RATIO`]; `None` otherwise, or when the two-way trust radius is
-/// off): those within the two-way trust radius ([`FitParams::two_way_trust`]) of the
-/// template's nearest vertex. The paper's constants (ε, G, Δt, ρ) are set for a frame in
-/// which the garment's scan has unit diagonal; a dressed body's skin and hair would stretch
-/// that frame two- to threefold and soften every force (docs/method.md "Scans of dressed
-/// people").
+/// The scan points that the template as given explains, where the scan is much larger than the
+/// template ([`GARMENT_FRAME_RATIO`]; `None` otherwise, or when the two-way trust radius is off):
+/// those within the two-way trust radius ([`two_way_trust`](crate::fit::Schedule::two_way_trust))
+/// of the template's nearest vertex. The paper's constants (ε, G, Δt, ρ) are set for a frame in
+/// which the garment's scan has unit diagonal; a dressed body's skin and hair would stretch that
+/// frame two- to threefold and soften every force (docs/method.md "Scans of dressed people").
 pub(super) fn explained_points(
     scan: &[[f64; 3]],
     template: &[[f64; 3]],

@@ -1,5 +1,6 @@
 //! The fit driver: ξ iterations of the N-body step (§2) followed by the FoldMatch deformation
-//! model (§3) or the NRGa rigid-per-vertex update (SPEC §2.10–2.11).
+//! model (§3) or the NRGa rigid-per-vertex update (docs/method.md,
+//! "NRGa mode").
 //!
 //! One iteration, for every template vertex k (all from the same step's state, so the result
 //! does not depend on the thread count):
@@ -27,11 +28,12 @@ mod validate;
 pub use attraction::{DRESSED_TRUST_FACTOR, GARMENT_FRAME_RATIO};
 pub use model::{deformation_model, TemplateTopology, Workspace};
 pub use params::{
-    FitParams, Method, Prealign, RotationSource, Selection, ACCURATE_ITERATIONS, AUTO_COARSE_RINGS,
-    AUTO_COARSE_RINGS_MAX, COARSE_RINGS_REFERENCE_VERTICES, COARSE_SCAN_MAX_AUTO_STRIDE,
-    COARSE_SCAN_POINTS_PER_VERTEX, DEFAULT_KNN_SLACK, DEFAULT_K_MAX, DEFAULT_RHO,
-    DEFAULT_TWO_WAY_RIM, DEFAULT_TWO_WAY_TRUST, FAR_AWAY, FAST_TWO_WAY, MAX_SCAN_SAMPLE,
-    PAPER_K_MAX, PAPER_RHO, RIGID_SCAN_POINTS_PER_VERTEX, SCHEDULE_NAMES,
+    Acceleration, FitParams, Method, ModelConstants, Prealign, Readings, RotationSource, Schedule,
+    Selection, ACCURATE_ITERATIONS, AUTO_COARSE_RINGS, AUTO_COARSE_RINGS_MAX,
+    COARSE_RINGS_REFERENCE_VERTICES, COARSE_SCAN_MAX_AUTO_STRIDE, COARSE_SCAN_POINTS_PER_VERTEX,
+    DEFAULT_KNN_SLACK, DEFAULT_K_MAX, DEFAULT_RHO, DEFAULT_TWO_WAY_RIM, DEFAULT_TWO_WAY_TRUST,
+    FAR_AWAY, FAST_TWO_WAY, MAX_SCAN_SAMPLE, PAPER_K_MAX, PAPER_RHO, RIGID_SCAN_POINTS_PER_VERTEX,
+    SCHEDULE_NAMES,
 };
 pub use result::{Diagnostics, FitResult, IterationRecord, Progress, StageTimes};
 pub use schedule::select_schedule;

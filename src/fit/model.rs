@@ -28,8 +28,9 @@ pub struct Workspace {
     wvf_stale: bool,
     /// Solved rotation R_k* of every vertex.
     pub rotation: Vec<Mat3>,
-    /// Per-point moments of the coarse phase's Kabsch fits ([`ring_fit_from_moments`](crate::rotation::ring_fit_from_moments)), and
-    /// their sums over every vertex's coarse ring ([`RingDeltas::sums`](crate::rings::RingDeltas::sums)).
+    /// Per-point moments of the coarse phase's Kabsch fits
+    /// ([`ring_fit_from_moments`](crate::rotation::ring_fit_from_moments)), and their sums over
+    /// every vertex's coarse ring ([`RingDeltas::sums`](crate::rings::RingDeltas::sums)).
     pub(super) moments: Vec<PointMoments>,
     pub(super) ring_sums: Vec<PointMoments>,
     /// Seconds spent per stage so far.

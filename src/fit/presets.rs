@@ -8,9 +8,9 @@ use crate::nbody::TwoWayPull;
 use crate::regularize::Regularization;
 
 impl FitParams {
-    /// The paper's method as printed, with only the converging readings of SPEC §2: one-way
-    /// attraction, no rigid or coarse phase, constant softening, Eq. 5 as the affine-invariant
-    /// mean, ρ = 0.2 % and K ≤ 64 (the `"paper"` preset).
+    /// The paper's method as printed, with only the converging readings (docs/method.md, "Ablation
+    /// of the readings"): one-way attraction, no rigid or coarse phase, constant softening, Eq. 5
+    /// as the affine-invariant mean, ρ = 0.2 % and K ≤ 64 (the `"paper"` preset).
     pub fn paper() -> Self {
         let mut p = Self::default();
         p.model.rho = PAPER_RHO;
@@ -45,10 +45,10 @@ impl FitParams {
         p
     }
 
-    /// The alternative schedule of [`Selection::ScanDistance`]: these parameters with the
-    /// first-round schedule of docs/method.md — two-way weight 1, coarse phase 30 %, constant
-    /// softening — which fits gently curved, misplaced cloth (the random sheets) best, where
-    /// the annealed default fits large articulated motion best.
+    /// The alternative schedule of [`Selection::ScanDistance`]: these parameters with a sharper
+    /// schedule — two-way weight 1, coarse phase 30 %, constant softening — which fits gently
+    /// curved, misplaced cloth (the random sheets) best, where the annealed default fits large
+    /// articulated motion best.
     pub fn sharp_schedule(&self) -> Self {
         let mut p = self.clone();
         p.schedule.two_way = self.schedule.two_way.min(1.0);
@@ -91,26 +91,23 @@ impl FitParams {
 
     /// The default with [`ACCURATE_ITERATIONS`] iterations instead of 100, every phase
     /// lengthened in proportion (the `"accurate"` preset): closer to the truth and to the scan
-    /// on the harness at about 1.3× the time (the later iterations re-use more k-NN
-    /// candidates); 200 iterations gain f_λ but lose f_R (docs/method.md "Eleventh round").
-    /// Until 2026-12-02 this preset was the default with a third candidate schedule
-    /// ([`Selection::ScanDistanceWide`], still an option) and the rigid phase on every vertex,
-    /// which had become no closer to the truth than the default for twice its time.
+    /// at about 1.3× the time (the later iterations re-use more k-NN candidates); more
+    /// iterations still fit the scan closer but drift from the truth (docs/method.md, "Beyond
+    /// the paper: the default configuration").
     pub fn accurate() -> Self {
-        let mut p = Self::default();
-        p.iterations = ACCURATE_ITERATIONS;
-        p
+        Self {
+            iterations: ACCURATE_ITERATIONS,
+            ..Self::default()
+        }
     }
 
     /// One schedule instead of schedule selection's two (the `"fast"` preset), between the
     /// given and the sharp one: the default's [`FitParams::sharp_schedule`] (a 30 % coarse
     /// phase, constant softening) with two-way weight [`FAST_TWO_WAY`]. About 0.6× the
-    /// default's instructions (0.58× at the paper's size: the second run and the comparison
-    /// are spared), at a higher error: on the harness f_R ÷ best peer 0.879 against the
-    /// default's 0.761, f_λ ÷ best 0.969 against 0.964; held out f_R 4 % (15,000-point scans)
-    /// to 22 % (5,000) above the default's. Either of the default's candidates alone is worse
-    /// (the given one 0.985 / 0.999, the sharp one 0.892 / 1.054; docs/method.md "Eighteenth
-    /// round"). For previews and large batches where time comes first.
+    /// default's work (the second run and the comparison are spared), at a higher error than
+    /// the default's, and a lower one than either of the default's candidates alone
+    /// (docs/method.md, "Beyond the paper: the default configuration"). For previews and large
+    /// batches where time comes first.
     pub fn fast() -> Self {
         let mut p = Self::default().sharp_schedule();
         p.schedule.two_way = FAST_TWO_WAY;

@@ -36,15 +36,14 @@ pub(super) fn selection_distance(
     }
 }
 
-/// Schedule selection's rule (docs/method.md "Eighth round"): of the candidates whose mean
-/// scan→fit distance is at most `(1 + margin) ×` the smallest, the one with the least
-/// edge-length spread; ties keep the earlier candidate (the given schedule first). With
-/// `margin = 0` the closest fit wins (among exact ties, the least spread).
+/// Schedule selection's rule (docs/method.md, "Beyond the paper: the default configuration"): of
+/// the candidates whose mean scan→fit distance is at most `(1 + margin) ×` the smallest, the one
+/// with the least edge-length spread; ties keep the earlier candidate (the given schedule first).
+/// With `margin = 0` the closest fit wins (among exact ties, the least spread).
 ///
 /// Why a margin: the candidates differ mainly in the two-way weight, and the two-way pull
 /// minimizes the very distance compared, so the stronger pull wins it by a few per cent even
-/// where its fit slid along the scan (measured on the random sheets: distances within ±3 %,
-/// ground-truth error 2× apart); cloth barely stretches, so among fits that lie about as
+/// where its fit slid along the scan; cloth barely stretches, so among fits that lie about as
 /// close to the scan the one nearest to an isometry of the template is kept.
 pub fn select_schedule(distances: &[f64], spreads: &[f64], margin: f64) -> usize {
     debug_assert_eq!(distances.len(), spreads.len());
@@ -241,7 +240,8 @@ impl ScheduleRun {
             }
         };
         self.ws.times.update += update_start.elapsed().as_secs_f64();
-        // Velocities follow the applied motion (SPEC §2.4); displacement figures.
+        // Velocities follow the applied motion (docs/method.md, "Integration, Eq. 3");
+        // displacement figures.
         let (dt, sync) = (params.model.nbody.time_step, params.readings.velocity_sync);
         let (pos, next) = (&self.pos, &self.next);
         self.disp

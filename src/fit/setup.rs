@@ -15,8 +15,8 @@ use crate::rings::{adjacency, n_rings_of, Neighborhoods, RingDeltas};
 use crate::rotation::ring_centroids;
 use rayon::prelude::*;
 
-/// What every schedule of a fit reads and none writes: the inputs validated and in the
-/// normalized frame (SPEC §1), the scan's k-d tree and curvature, the template's topology.
+/// What every schedule of a fit reads and none writes: the inputs validated and in the normalized
+/// frame (docs/method.md, "Frame"), the scan's k-d tree and curvature, the template's topology.
 /// Built once per [`fit`], shared by both runs of schedule selection.
 pub(super) struct Prepared {
     pub(super) faces: Vec<[u32; 3]>,
@@ -29,7 +29,7 @@ pub(super) struct Prepared {
     /// Γᵏ_Y: n-rings (FoldMatch) or k-NN neighborhoods (NRGa).
     pub(super) rings: Neighborhoods,
     /// The centroid of every vertex's ring of `start` (the rest shape), for
-    /// [`FitParams::rest_rigidity`]; empty when no schedule uses it.
+    /// [`rest_rigidity`](crate::fit::Schedule::rest_rigidity); empty when no schedule uses it.
     pub(super) rest_centroids: Vec<Vec3>,
     /// The coarse phase's neighborhoods, one per level (empty when no schedule has one).
     pub(super) coarse_levels: Vec<Neighborhoods>,
@@ -40,16 +40,18 @@ pub(super) struct Prepared {
     pub(super) coarse_sampled: Vec<Neighborhoods>,
     /// Every vertex index (the rigid phase's "ring"; empty when no schedule has one).
     pub(super) all_vertices: Vec<u32>,
-    /// The phases' scan samples ([`FitParams::rigid_scan_sample`],
-    /// [`FitParams::coarse_scan_sample`]), one per stride > 1 in use.
+    /// The phases' scan samples
+    /// ([`rigid_scan_sample`](crate::fit::Acceleration::rigid_scan_sample),
+    /// [`coarse_scan_sample`](crate::fit::Acceleration::coarse_scan_sample)), one per stride > 1 in
+    /// use.
     pub(super) scan_samples: Vec<ScanPoints>,
     /// The strides of the rigid and the coarse phase's scan samples (1: the whole scan).
     pub(super) scan_strides: [usize; 2],
     /// The template's mean edge length in the normalized frame (the floor of the two-way
-    /// trust radius, [`FitParams::two_way_trust`]).
+    /// trust radius, [`two_way_trust`](crate::fit::Schedule::two_way_trust)).
     pub(super) edge_length: f64,
-    /// The template's boundary vertices and their one-rings (for [`FitParams::two_way_rim`];
-    /// empty when no schedule uses it).
+    /// The template's boundary vertices and their one-rings (for
+    /// [`two_way_rim`](crate::fit::Schedule::two_way_rim); empty when no schedule uses it).
     pub(super) rim: Rim,
     /// The scan points (user indices) that schedule selection's scan distance averages over:
     /// those the template explains where the scan holds more than the garment
@@ -88,8 +90,8 @@ impl Prepared {
         let weights: Option<Vec<f64>> =
             weights.map(|w| kept.map_or_else(|| w.to_vec(), |k| k.iter().map(|&j| w[j]).collect()));
 
-        // Normalized frame (SPEC §1), of the points that remain, or of those the template
-        // explains where the scan holds far more than the garment (a dressed body).
+        // Normalized frame (docs/method.md, "Frame"), of the points that remain, or of those the
+        // template explains where the scan holds far more than the garment (a dressed body).
         let garment = explained_points(fitted, template_vertices, template_faces, params);
         let garment_points: Option<Vec<[f64; 3]>> = garment
             .as_ref()
@@ -313,8 +315,9 @@ impl Prepared {
         })
     }
 
-    /// The two-way trust radius's multiple c of a schedule: [`FitParams::two_way_trust`], or
-    /// [`DRESSED_TRUST_FACTOR`] of it on a scan that holds more than the garment.
+    /// The two-way trust radius's multiple c of a schedule:
+    /// [`two_way_trust`](crate::fit::Schedule::two_way_trust), or [`DRESSED_TRUST_FACTOR`] of it on
+    /// a scan that holds more than the garment.
     pub(super) fn trust(&self, params: &FitParams) -> f64 {
         match self.garment {
             Some(_) => DRESSED_TRUST_FACTOR * params.schedule.two_way_trust,

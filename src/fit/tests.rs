@@ -81,8 +81,10 @@ fn small_grid_case() -> Case {
 /// The default with only a rigid phase, `iterations` long, one schedule.
 fn rigid_only(iterations: usize) -> FitParams {
     {
-        let mut p = FitParams::default();
-        p.iterations = iterations;
+        let mut p = FitParams {
+            iterations,
+            ..FitParams::default()
+        };
         p.schedule.rigid_fraction = 1.0;
         p.schedule.coarse_fraction = 0.0;
         p.schedule.selection = Selection::Single;
@@ -153,8 +155,10 @@ fn automatic_coarse_radius_grows_with_the_square_root_of_the_template_and_is_cla
         .map(|p| [p[0], p[1], 0.1 * (3.0 * p[0]).sin() + 0.05])
         .collect();
     let base = {
-        let mut p = FitParams::default();
-        p.iterations = 10;
+        let mut p = FitParams {
+            iterations: 10,
+            ..FitParams::default()
+        };
         p.schedule.selection = Selection::Single;
         p
     };
@@ -176,8 +180,10 @@ fn automatic_coarse_radius_grows_with_the_square_root_of_the_template_and_is_cla
 fn coarse_levels_shrink_the_radius_and_stop_at_one_ring() {
     let (v, f, x) = grid_case();
     let base = {
-        let mut p = FitParams::default();
-        p.iterations = 12;
+        let mut p = FitParams {
+            iterations: 12,
+            ..FitParams::default()
+        };
         p.schedule.selection = Selection::Single;
         p.schedule.coarse_rings = 1;
         p
@@ -307,7 +313,7 @@ fn rigid_scan_sample_strides_only_dense_scans() {
 #[test]
 fn coarse_scan_sample_halves_only_scans_of_eight_points_a_vertex() {
     let default = FitParams::default();
-    // Paper-sized (1.1 points a vertex) and the harness's densest (3.5): the whole scan.
+    // Paper-sized (1.1 points a vertex) and a dense scan (3.5): the whole scan.
     assert_eq!(default.coarse_scan_stride(13_225, 14_400), 1);
     assert_eq!(default.coarse_scan_stride(1_426, 5_000), 1);
     // From 8 points a vertex every 2nd, and never more by itself.
@@ -369,8 +375,10 @@ fn coarse_sample_with_whole_mesh_rings_is_the_rigid_sample() {
     // rigid-only fit on every 4th vertex, up to the order of the sums.
     let (v, f, x) = small_grid_case();
     let base = {
-        let mut p = FitParams::default();
-        p.iterations = 6;
+        let mut p = FitParams {
+            iterations: 6,
+            ..FitParams::default()
+        };
         p.schedule.coarse_rings = 32;
         p.schedule.selection = Selection::Single;
         p
@@ -469,8 +477,10 @@ fn accurate_preset_is_the_default_lengthened() {
 fn wide_selection_chooses_among_three_candidates() {
     let (v, f, x) = grid_case();
     let wide = {
-        let mut p = FitParams::default();
-        p.iterations = 20;
+        let mut p = FitParams {
+            iterations: 20,
+            ..FitParams::default()
+        };
         p.schedule.selection = Selection::ScanDistanceWide;
         p.acceleration.rigid_sample = 1;
         p
@@ -610,8 +620,10 @@ fn select_schedule_breaks_near_ties_by_the_edge_length_spread() {
 fn early_selection_compares_there_and_runs_the_chosen_schedule_alone() {
     let (v, f, x) = grid_case();
     let params = {
-        let mut p = FitParams::default();
-        p.iterations = 20;
+        let mut p = FitParams {
+            iterations: 20,
+            ..FitParams::default()
+        };
         p.schedule.selection_at = 0.5;
         p
     };
@@ -659,10 +671,9 @@ fn early_selection_compares_there_and_runs_the_chosen_schedule_alone() {
 #[test]
 fn selection_chooses_between_the_given_and_the_sharp_schedule() {
     let (v, f, x) = grid_case();
-    let params = {
-        let mut p = FitParams::default();
-        p.iterations = 20;
-        p
+    let params = FitParams {
+        iterations: 20,
+        ..FitParams::default()
     };
     let chosen = fit_simple(&v, &f, &x, None, &params).unwrap();
     let given = {
@@ -767,8 +778,10 @@ fn rest_rigidity_keeps_the_template_edge_lengths_over_a_scan_hole() {
         crate::metrics::edge_length_spread(&v, &r.vertices, &f)
     };
     let with_rigidity = {
-        let mut p = FitParams::default();
-        p.iterations = 40;
+        let mut p = FitParams {
+            iterations: 40,
+            ..FitParams::default()
+        };
         p.schedule.coarse_fraction = 0.2;
         p.schedule.selection = Selection::Single;
         p
