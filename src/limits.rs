@@ -174,12 +174,13 @@ mod tests {
             "parameter iterations = 1000000000:",
         );
         let mut p = FitParams::default();
-        p.nbody.gravity = 1e300;
+        p.model.nbody.gravity = 1e300;
         check(p, "parameter gravity = 1e300: must be in (0, 1e6]");
         check(
-            FitParams {
-                rho: f64::NAN,
-                ..FitParams::default()
+            {
+                let mut p = FitParams::default();
+                p.model.rho = f64::NAN;
+                p
             },
             "parameter rho = NaN:",
         );

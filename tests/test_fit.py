@@ -250,21 +250,6 @@ def test_errors_are_typed_subclasses():
     assert issubclass(fm.InternalError, fm.FoldMatchError)
 
 
-def test_knn_cache_changes_nothing(case):
-    """The k-NN candidate cache is exact (without the slack of the rigid and coarse phases):
-    the same fit as querying the tree every time, with the rigid phase on every vertex and on
-    the default sample."""
-    args = (case["template_vertices"], case["faces"], case["scan"])
-    for rigid_sample in (1, 4):
-        cached = fm.fit(*args, iterations=40, rigid_sample=rigid_sample, knn_slack=0.0)
-        fresh = fm.fit(*args, iterations=40, rigid_sample=rigid_sample, knn_cache=False)
-        np.testing.assert_allclose(cached.vertices, fresh.vertices, rtol=0, atol=1e-12)
-        # Both caches (target neighborhoods and the two-way attraction's reverse queries) did
-        # re-use queries: the comparison above is not vacuous.
-        for key in ("knn_queries", "two_way_queries"):
-            assert cached.diagnostics[key] < 0.75 * fresh.diagnostics[key], (key, rigid_sample)
-
-
 def test_knn_slack_spares_queries_in_the_early_phases_only():
     """knn_slack (default 0.1) makes the rigid and coarse phases' neighbourhoods
     (1 + σ)-approximate: fewer fresh k-d tree queries there, the same fit quality, and with
@@ -402,21 +387,6 @@ def test_gil_is_released_during_the_fit(case):
     during = [x for x in ticks if start < x < end]
     # With the GIL held for the whole fit the ticker could not run at all in between.
     assert len(during) > 0.2 * (end - start) / 0.002, (len(during), end - start)
-
-
-def test_matrix_series_changes_nothing_beyond_round_off(case):
-    """The fast matrix functions (series for Eq. 5, quaternion polar factors, closed-form
-    eigenvalues for Eq. 4) agree with the kept eigen-decomposition path."""
-    args = (case["template_vertices"], case["faces"], case["scan"])
-    for preset in ("default", "paper"):
-        fast = fm.fit(*args, iterations=30, preset=preset, knn_slack=0.0)
-        exact = fm.fit(*args, iterations=30, preset=preset, matrix_series=False, knn_cache=False)
-        scale = np.abs(exact.vertices).max()
-        assert np.abs(fast.vertices - exact.vertices).max() <= 1e-9 * scale
-        np.testing.assert_allclose(fast.wvf_accumulated, exact.wvf_accumulated, atol=1e-9)
-        # The last step's field, which the fast path computes once, after the iterations.
-        np.testing.assert_allclose(fast.wvf, exact.wvf, atol=1e-9)
-        assert np.abs(fast.wvf).max() > 0.5
 
 
 def test_selection_keeps_the_closer_schedule_or_on_a_near_tie_the_less_stretched(case):

@@ -240,9 +240,7 @@ def fit(
     rigid_scan_sample: Optional[int] = None,
     coarse_scan_sample: Optional[int] = None,
     coarse_sample: Optional[int] = None,
-    knn_cache: Optional[bool] = None,
     knn_slack: Optional[float] = None,
-    matrix_series: Optional[bool] = None,
     rest_rigidity: Optional[float] = None,
     anneal: Optional[float] = None,
     anneal_fraction: Optional[float] = None,
@@ -372,21 +370,12 @@ def fit(
         Coarse phase on a sample: only every ``coarse_sample``-th vertex feels the forces, and
         every vertex moves by the Kabsch fit of its coarse ring's sampled members (1: every
         vertex; 1..=64; more needs coarse rings of radius ≥ 3 at every level).
-    knn_cache : bool
-        Re-use earlier k-NN candidates, and the two-way attraction's nearest-vertex queries,
-        where that is provably exact (True; with ``knn_slack=0`` the same results as False;
-        ``diagnostics["knn_queries"]`` and ``["two_way_queries"]`` count the fresh k-d tree
-        queries).
     knn_slack : float
         σ in [0, 1] of the rigid and coarse phases' approximate target neighborhoods: there a
         vertex's cached k-NN candidates are re-used while every neighbour returned is within
         ``(1 + σ)`` × the true K-th nearest distance, which spares the fresh k-d tree queries
         of vertices still far off the scan; the FoldMatch iterations stay exact (0.1, measured
-        to leave the harness's accuracy unchanged; 0: exact throughout, as is
-        ``knn_cache=False``; docs/performance.md, "Thirteenth round").
-    matrix_series : bool
-        Evaluate Eq. 5's logarithms/exponentials of near-identity matrices by truncated series
-        (True; agrees with the eigen-decomposition path to round-off).
+        to leave the harness's accuracy unchanged; 0: exact throughout; docs/performance.md).
     rest_rigidity : float
         As-rigid-as-possible blending of the FoldMatch iterations, β₀ in [0, 1]: in the j-th of
         the J iterations after the rigid and coarse phases each vertex goes to ``(1 - β)`` × its
@@ -468,7 +457,7 @@ def fit(
         coarse_sample=coarse_sample,
         rest_rigidity=rest_rigidity, anneal=anneal, anneal_fraction=anneal_fraction,
         selection=selection, selection_margin=selection_margin, selection_at=selection_at,
-        knn_cache=knn_cache, knn_slack=knn_slack, matrix_series=matrix_series,
+        knn_slack=knn_slack,
     )
     weights = _weights(target_weights, len(x))
     raw = _core.fit_raw(tv, tf, x, xf, _params_json(params), callback, threads, preset, weights)

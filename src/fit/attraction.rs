@@ -50,9 +50,10 @@ pub(super) struct ScanPoints {
 }
 
 impl ScanPoints {
-    /// Every `stride`-th point (in the fit's Morton order, so spread evenly), with its own
-    /// tree and `⌈K / stride⌉` neighbours per template point: about the same neighbourhood
-    /// radius as K points of the whole scan ([`FitParams::rigid_scan_sample`]).
+    /// Every `stride`-th point (in the fit's Morton order, so spread evenly), with its own tree and
+    /// `⌈K / stride⌉` neighbours per template point: about the same neighbourhood radius as K
+    /// points of the whole scan
+    /// ([`rigid_scan_sample`](crate::fit::Acceleration::rigid_scan_sample)).
     pub(super) fn sample(&self, stride: usize) -> Self {
         let points: Vec<[f64; 3]> = self.points.iter().step_by(stride).copied().collect();
         let kappa = self.kappa.iter().step_by(stride).copied().collect();
@@ -90,8 +91,8 @@ pub(super) struct Attraction {
     pub(super) edge_length: f64,
     /// The trust radius's multiple c ([`Prepared::trust`]).
     pub(super) trust: f64,
-    /// Every point's outward direction on the rim ([`FitParams::two_way_rim`]; empty when
-    /// off, or on a vertex sample).
+    /// Every point's outward direction on the rim
+    /// ([`two_way_rim`](crate::fit::Schedule::two_way_rim); empty when off, or on a vertex sample).
     pub(super) outward: Vec<[f64; 3]>,
 }
 
@@ -106,16 +107,20 @@ impl Attraction {
         rim: bool,
     ) -> Self {
         let (n, k) = (scan.points.len(), scan.k);
-        let reverse = (params.two_way > 0.0 && params.method == Method::FoldMatch).then(|| {
-            (
-                nbody::ReverseAttraction::new(m, n, params.knn_cache),
-                vec![[0.0; 3]; m],
-            )
-        });
+        let reverse =
+            (params.schedule.two_way > 0.0 && params.method == Method::FoldMatch).then(|| {
+                (
+                    nbody::ReverseAttraction::new(m, n, params.internal.knn_cache),
+                    vec![[0.0; 3]; m],
+                )
+            });
         Self {
             nn_idx: vec![0u32; m * k],
             nn_d2: vec![0.0; m * k],
-            nn_cache: params.knn_cache.then(|| NeighborCache::new(m, k, n)),
+            nn_cache: params
+                .internal
+                .knn_cache
+                .then(|| NeighborCache::new(m, k, n)),
             reverse,
             proposed: vec![[0.0; 3]; m],
             nearest: if prepared.trust(params) > 0.0 {
@@ -125,7 +130,7 @@ impl Attraction {
             },
             edge_length: prepared.edge_length,
             trust: prepared.trust(params),
-            outward: if rim && params.two_way_rim > 0.0 && params.two_way > 0.0 {
+            outward: if rim && params.schedule.two_way_rim > 0.0 && params.schedule.two_way > 0.0 {
                 vec![[0.0; 3]; m]
             } else {
                 Vec::new()
@@ -133,8 +138,8 @@ impl Attraction {
         }
     }
 
-    /// The two-way trust radius ([`FitParams::two_way_trust`]) of the template whose
-    /// neighbour lists are `nn_d2` (nearest first), with `nearest` as scratch.
+    /// The two-way trust radius ([`two_way_trust`](crate::fit::Schedule::two_way_trust)) of the
+    /// template whose neighbour lists are `nn_d2` (nearest first), with `nearest` as scratch.
     pub(super) fn trust_radius(
         nearest: &mut [f64],
         edge_length: f64,
@@ -189,7 +194,7 @@ impl Attraction {
         if !self.outward.is_empty() {
             rim.outward(pos, &mut self.outward);
         }
-        let rim_margin = params.two_way_rim * self.edge_length;
+        let rim_margin = params.schedule.two_way_rim * self.edge_length;
         let forward_rim = (!self.outward.is_empty()).then(|| (&self.outward[..], rim_margin));
         let trust_radius = match self.reverse {
             Some(_) => {
@@ -206,8 +211,8 @@ impl Attraction {
                     exact: slack == 0.0,
                 };
                 let two_way = nbody::TwoWay {
-                    weight: params.two_way,
-                    pull: params.two_way_pull,
+                    weight: params.schedule.two_way,
+                    pull: params.schedule.two_way_pull,
                     trust_radius,
                     rim: forward_rim,
                     weights,
@@ -239,23 +244,22 @@ impl Attraction {
 
 /// A scan whose bounding-box diagonal exceeds the template's by more than this factor holds
 /// more than the garment (a dressed body, a scene): its normalized frame and K are then those
-/// of the points the template explains ([`explained_points`]).
+/// of the points the template explains.
 pub const GARMENT_FRAME_RATIO: f64 = 1.5;
 
 /// The trust radius on a scan that holds more than the garment, as a fraction of
-/// [`FitParams::two_way_trust`]'s: skin and hair adjoin the garment (below a hem, out of a
-/// sleeve), where a garment alone has nothing, so the radius that is neutral on garment scans
-/// (c = 4) lets them in; ¾ of it (c = 3) keeps them out (docs/method.md "Scans of dressed
-/// people").
+/// [`two_way_trust`](crate::fit::Schedule::two_way_trust)'s: skin and hair adjoin the garment
+/// (below a hem, out of a sleeve), where a garment alone has nothing, so the radius that is neutral
+/// on garment scans (c = 4) lets them in; ¾ of it (c = 3) keeps them out (docs/method.md "Scans of
+/// dressed people").
 pub const DRESSED_TRUST_FACTOR: f64 = 0.75;
 
-/// The scan points that the template as given explains, where the scan is much larger than
-/// the template ([`GARMENT_FRAME_RATIO`]; `None` otherwise, or when the two-way trust radius is
-/// off): those within the two-way trust radius ([`FitParams::two_way_trust`]) of the
-/// template's nearest vertex. The paper's constants (ε, G, Δt, ρ) are set for a frame in
-/// which the garment's scan has unit diagonal; a dressed body's skin and hair would stretch
-/// that frame two- to threefold and soften every force (docs/method.md "Scans of dressed
-/// people").
+/// The scan points that the template as given explains, where the scan is much larger than the
+/// template ([`GARMENT_FRAME_RATIO`]; `None` otherwise, or when the two-way trust radius is off):
+/// those within the two-way trust radius ([`two_way_trust`](crate::fit::Schedule::two_way_trust))
+/// of the template's nearest vertex. The paper's constants (ε, G, Δt, ρ) are set for a frame in
+/// which the garment's scan has unit diagonal; a dressed body's skin and hair would stretch that
+/// frame two- to threefold and soften every force (docs/method.md "Scans of dressed people").
 pub(super) fn explained_points(
     scan: &[[f64; 3]],
     template: &[[f64; 3]],
@@ -263,7 +267,7 @@ pub(super) fn explained_points(
     params: &FitParams,
 ) -> Option<Vec<u32>> {
     let diag = |p: &[[f64; 3]]| Frame::of_target(p).scale;
-    if params.two_way_trust <= 0.0 || diag(scan) <= GARMENT_FRAME_RATIO * diag(template) {
+    if params.schedule.two_way_trust <= 0.0 || diag(scan) <= GARMENT_FRAME_RATIO * diag(template) {
         return None;
     }
     let scan_index = PointIndex::new(scan);
@@ -273,8 +277,9 @@ pub(super) fn explained_points(
         .collect();
     let mid = nearest.len() / 2;
     let median = nearest.select_nth_unstable_by(mid, f64::total_cmp).1.sqrt();
-    let radius =
-        DRESSED_TRUST_FACTOR * params.two_way_trust * median.max(mean_edge_length(template, faces));
+    let radius = DRESSED_TRUST_FACTOR
+        * params.schedule.two_way_trust
+        * median.max(mean_edge_length(template, faces));
     let template_index = PointIndex::new(template);
     let explained: Vec<u32> = (0..scan.len() as u32)
         .into_par_iter()

@@ -1,5 +1,6 @@
 //! The fit driver: ξ iterations of the N-body step (§2) followed by the FoldMatch deformation
-//! model (§3) or the NRGa rigid-per-vertex update (SPEC §2.10–2.11).
+//! model (§3) or the NRGa rigid-per-vertex update (docs/method.md,
+//! "NRGa mode").
 //!
 //! One iteration, for every template vertex k (all from the same step's state, so the result
 //! does not depend on the thread count):
@@ -27,11 +28,12 @@ mod validate;
 pub use attraction::{DRESSED_TRUST_FACTOR, GARMENT_FRAME_RATIO};
 pub use model::{deformation_model, TemplateTopology, Workspace};
 pub use params::{
-    FitParams, Method, Prealign, RotationSource, Selection, ACCURATE_ITERATIONS, AUTO_COARSE_RINGS,
-    AUTO_COARSE_RINGS_MAX, COARSE_RINGS_REFERENCE_VERTICES, COARSE_SCAN_MAX_AUTO_STRIDE,
-    COARSE_SCAN_POINTS_PER_VERTEX, DEFAULT_KNN_SLACK, DEFAULT_K_MAX, DEFAULT_RHO,
-    DEFAULT_TWO_WAY_RIM, DEFAULT_TWO_WAY_TRUST, FAR_AWAY, FAST_TWO_WAY, MAX_SCAN_SAMPLE,
-    PAPER_K_MAX, PAPER_RHO, RIGID_SCAN_POINTS_PER_VERTEX, SCHEDULE_NAMES,
+    Acceleration, FitParams, Method, ModelConstants, Prealign, Readings, RotationSource, Schedule,
+    Selection, ACCURATE_ITERATIONS, AUTO_COARSE_RINGS, AUTO_COARSE_RINGS_MAX,
+    COARSE_RINGS_REFERENCE_VERTICES, COARSE_SCAN_MAX_AUTO_STRIDE, COARSE_SCAN_POINTS_PER_VERTEX,
+    DEFAULT_KNN_SLACK, DEFAULT_K_MAX, DEFAULT_RHO, DEFAULT_TWO_WAY_RIM, DEFAULT_TWO_WAY_TRUST,
+    FAR_AWAY, FAST_TWO_WAY, MAX_SCAN_SAMPLE, PAPER_K_MAX, PAPER_RHO, RIGID_SCAN_POINTS_PER_VERTEX,
+    SCHEDULE_NAMES,
 };
 pub use result::{Diagnostics, FitResult, IterationRecord, Progress, StageTimes};
 pub use schedule::select_schedule;
@@ -118,7 +120,7 @@ pub fn fit_weighted(
     let total = params.iterations;
     // Side by side up to the comparison (by default the last iteration; a single run: all).
     let compare_at = if runs.len() > 1 {
-        ((params.selection_at * total as f64).ceil() as usize).clamp(1, total)
+        ((params.schedule.selection_at * total as f64).ceil() as usize).clamp(1, total)
     } else {
         total
     };
@@ -133,7 +135,7 @@ pub fn fit_weighted(
             .collect();
         let rest_edges = crate::metrics::EdgeLengths::new(template_vertices, &prepared.faces);
         let spreads: Vec<f64> = vertices.iter().map(|v| rest_edges.spread(v)).collect();
-        let best = select_schedule(&distances, &spreads, params.selection_margin);
+        let best = select_schedule(&distances, &spreads, params.schedule.selection_margin);
         (best, vertices, distances, spreads)
     });
     let best = selection.as_ref().map_or(0, |s| s.0);

@@ -21,7 +21,8 @@ pub enum Method {
 #[serde(rename_all = "snake_case")]
 pub enum RotationSource {
     /// The regularized gradient `R̄ Ū` (default). Û commutes with Ū, so R* = R̄ and ψ moves no
-    /// vertex: it shapes only the wrinkle-vector field (SPEC §2.9).
+    /// vertex: it shapes only the wrinkle-vector field (docs/method.md, "Rotation and translation,
+    /// Eq. 8").
     Regularized,
     /// The raw Eq. 4 gradient, in which ψ does act on the rotation.
     Raw,
@@ -31,26 +32,27 @@ pub enum RotationSource {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Prealign {
-    /// Fit as given; a template whose centroid is more than [`FAR_AWAY`] target diagonals
-    /// from the scan's centroid is rejected with [`FoldMatchError::FarAway`](crate::error::FoldMatchError::FarAway).
+    /// Fit as given; a template whose centroid is more than [`FAR_AWAY`] target diagonals from the
+    /// scan's centroid is rejected with
+    /// [`FoldMatchError::FarAway`](crate::error::FoldMatchError::FarAway).
     None,
     /// Translate the template so its centroid lies on the scan's centroid first.
     Centroid,
 }
 
-/// Schedule selection (issue "Fidelity", docs/method.md).
+/// Schedule selection (docs/method.md, "Beyond the paper: the default configuration").
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Selection {
     /// Run the schedule the parameters describe.
     Single,
     /// Also run the *sharp* schedule ([`FitParams::sharp_schedule`]: two-way 1, coarse 30 %,
-    /// constant softening) and return the fit closer to the scan (the mean distance from every
-    /// scan point to its nearest fitted vertex), a near-tie — within
-    /// [`FitParams::selection_margin`] of the closest — going to the fit whose edge lengths
-    /// spread least from the template's ([`crate::metrics::edge_length_spread`]; see
-    /// [`select_schedule`](super::select_schedule)). FoldMatch only; twice the work, the two runs side by side
-    /// (concurrently, sharing the setup).
+    /// constant softening) and return the fit closer to the scan (the mean distance from every scan
+    /// point to its nearest fitted vertex), a near-tie — within
+    /// [`selection_margin`](crate::fit::Schedule::selection_margin) of the closest — going to the
+    /// fit whose edge lengths spread least from the template's
+    /// ([`crate::metrics::edge_length_spread`]; see [`select_schedule`](super::select_schedule)).
+    /// FoldMatch only; twice the work, the two runs side by side (concurrently, sharing the setup).
     ScanDistance,
     /// Like [`Selection::ScanDistance`] with a third candidate, the *gentle* schedule
     /// ([`FitParams::gentle_schedule`]: the given one with ⅔ of the two-way weight and a
@@ -62,84 +64,84 @@ pub enum Selection {
 pub const SCHEDULE_NAMES: [&str; 3] = ["given", "sharp", "gentle"];
 
 /// Scan points per rigid-phase vertex below which the automatic
-/// [`FitParams::rigid_scan_sample`] does not sample the scan.
+/// [`rigid_scan_sample`](crate::fit::Acceleration::rigid_scan_sample) does not sample the scan.
 pub const RIGID_SCAN_POINTS_PER_VERTEX: usize = 8;
 
-/// The largest scan-sample stride ([`FitParams::rigid_scan_sample`],
-/// [`FitParams::coarse_scan_sample`]), given or automatic.
+/// The largest scan-sample stride
+/// ([`rigid_scan_sample`](crate::fit::Acceleration::rigid_scan_sample),
+/// [`coarse_scan_sample`](crate::fit::Acceleration::coarse_scan_sample)), given or automatic.
 pub const MAX_SCAN_SAMPLE: usize = 64;
 
-/// Scan points per coarse-phase vertex that the automatic [`FitParams::coarse_scan_sample`]
-/// leaves at least: it samples only scans with twice as many points as that per vertex.
+/// Scan points per coarse-phase vertex that the automatic
+/// [`coarse_scan_sample`](crate::fit::Acceleration::coarse_scan_sample) leaves at least: it samples
+/// only scans with twice as many points as that per vertex.
 pub const COARSE_SCAN_POINTS_PER_VERTEX: usize = 4;
 
-/// The largest stride the automatic [`FitParams::coarse_scan_sample`] takes. Measured on 19
-/// held-out dense scans (`bench/heldout_density.py --points 60000`, 9–42 points per vertex):
-/// stride 2 f_R ×1.002 in geometric mean (worst ×1.036), 4 ×1.006 (worst ×1.068), the
-/// uncapped stride (up to 42) ×1.017 with one wind frame ×1.40 (docs/method.md,
-/// "Fourteenth round").
+/// The largest stride the automatic
+/// [`coarse_scan_sample`](crate::fit::Acceleration::coarse_scan_sample) takes: the coarse phase
+/// moves every vertex by the Kabsch fit of its own ring, so its forces must stay dense enough per
+/// ring; larger strides cost accuracy on dense scans (docs/method.md, "Beyond the paper: the
+/// default configuration").
 pub const COARSE_SCAN_MAX_AUTO_STRIDE: usize = 2;
 
-/// The automatic coarse ring radius ([`FitParams::coarse_rings`] = 0) at
+/// The automatic coarse ring radius ([`coarse_rings`](crate::fit::Schedule::coarse_rings) = 0) at
 /// [`COARSE_RINGS_REFERENCE_VERTICES`] template vertices and below.
 pub const AUTO_COARSE_RINGS: usize = 8;
 
 /// The template size at which the automatic coarse radius is [`AUTO_COARSE_RINGS`] (a 41 × 41
-/// sheet, the size most harness cases were tuned at); above it the radius grows as the square
-/// root of the vertex count, so each rigid piece keeps about the same share of the surface.
+/// sheet); above it the radius grows as the square root of the vertex count, so each rigid
+/// piece keeps about the same share of the surface.
 pub const COARSE_RINGS_REFERENCE_VERTICES: f64 = 1_700.0;
 
 /// The largest automatic coarse radius: an 8-ring holds ~130 vertices of a grid, a 12-ring
-/// ~290, and the ring rows and their sums grow with it (the paper-sized fit +8 % wall time).
-/// Held out, caps of 10 or 11 fit 4–6 % farther from the truth than 12, and 12 rings fitted
-/// the 81 × 81 sheets closer than 16 on 6 of 8 (docs/method.md "Seventeenth round").
+/// ~290, and the cost of the ring rows and their sums grows with it; beyond 12 rings the
+/// pieces no longer fit closer (docs/method.md, "Beyond the paper: the default
+/// configuration").
 pub const AUTO_COARSE_RINGS_MAX: usize = 12;
 
 /// Two-way weight of the `"fast"` preset's one schedule ([`FitParams::fast`]): between the
-/// sharp schedule's 1 and the default's 4.5 (measured 1.5, 2, 3 and 4.5 with a 30 % coarse
-/// phase and constant softening: 3 had the lowest f_λ and the best worst group).
+/// sharp schedule's 1 and the default's 4.5, the weight that fits best with a 30 % coarse
+/// phase and constant softening.
 pub const FAST_TWO_WAY: f64 = 3.0;
 
-/// The default [`FitParams::two_way_trust`].
+/// The default [`two_way_trust`](crate::fit::Schedule::two_way_trust).
 pub const DEFAULT_TWO_WAY_TRUST: f64 = 4.0;
 
-/// The default [`FitParams::two_way_rim`].
+/// The default [`two_way_rim`](crate::fit::Schedule::two_way_rim).
 pub const DEFAULT_TWO_WAY_RIM: f64 = 1.0;
 
 /// Iterations of the `"accurate"` preset ([`FitParams::accurate`]).
 pub const ACCURATE_ITERATIONS: usize = 150;
 
-/// The default [`FitParams::knn_slack`]: on the 91 harness cases σ = 0.1 leaves the fit's
-/// accuracy unchanged (f_R × 1.000, f_λ × 0.998 in geometric mean against σ = 0; 0.2: × 0.997
-/// / × 1.006; 0.3: × 1.017 / × 1.016) and spares a fifth of the fresh k-NN queries of the
-/// million-point case (docs/performance.md, "Thirteenth round").
+/// The default [`knn_slack`](crate::fit::Acceleration::knn_slack): σ = 0.1 leaves the fit's
+/// accuracy as with exact neighborhoods and spares many fresh k-NN queries of template points still
+/// far off the scan; larger σ start to cost accuracy (docs/method.md, "Target neighborhoods Γᵏ_X").
 pub const DEFAULT_KNN_SLACK: f64 = 0.1;
 
-/// Default ρ: K = 14 at the paper's 14,400 scan points, where 0.2 % gave 28; scans under
-/// 8,000 points stay at `k_min` = 8 either way. On the paper-sized harness cases the smaller
-/// neighbourhoods gave f_R ×0.960 and f_λ ×0.925 (5 of 6 closer to the truth), neutral
-/// elsewhere (all 91 cases: f_R ×0.998, f_λ ×0.992), and a paper-sized fit in about a quarter
-/// less time. Held out (`bench/heldout_density.py`: the real garments at 15,000 points, 8
-/// unseen random sheets): f_R ×1.026, f_λ ×0.958, neutral on the garments; smooth sheets
-/// under noise prefer 0.2 % (docs/method.md "Thirteenth round").
+/// Default ρ: K = 14 at the paper's 14,400 scan points, where 0.2 % gives 28; scans under
+/// 8,000 points stay at `k_min` = 8 either way. The smaller neighborhoods fit paper-sized
+/// scans closer and faster; smooth sheets under noise prefer 0.2 % (docs/method.md, "Target
+/// neighborhoods Γᵏ_X").
 pub const DEFAULT_RHO: f64 = 0.001;
 
-/// The paper's ρ = 0.2 % (SPEC §2), kept by [`FitParams::paper`].
+/// The paper's ρ = 0.2 % (§4, the upper end of "typically 0.02 – 0.2 %"), kept by
+/// [`FitParams::paper`].
 pub const PAPER_RHO: f64 = 0.002;
 
-/// Default upper clamp of K: reached from 32,000 scan points on (at ρ = 0.1 %). On the
-/// 1M-point case (K 64 → 32) f_R 0.0228 → 0.0229, f_λ 0.0203 → 0.0196, flipped faces 0.86 % →
-/// 0.53 %, and the fit 46.6 → 37.5 s (docs/method.md, "Thirteenth round").
+/// Default upper clamp of K: reached from 32,000 scan points on (at ρ = 0.1 %), where a
+/// larger K only averages more of the same surface and costs time (docs/method.md, "Target
+/// neighborhoods Γᵏ_X").
 pub const DEFAULT_K_MAX: usize = 32;
 
-/// SPEC §2's upper clamp of K, kept by [`FitParams::paper`].
+/// The upper clamp of K of the paper's reading (docs/method.md, "Target neighborhoods Γᵏ_X"),
+/// kept by [`FitParams::paper`].
 pub const PAPER_K_MAX: usize = 64;
 
 /// Distance (in target bounding-box diagonals) beyond which an unaligned template is refused.
 pub const FAR_AWAY: f64 = 1.0;
 
-/// Every parameter of a fit. `Default` gives the paper's constants (§4) with the converging
-/// readings of SPEC §2.
+/// Every parameter of a fit, in groups (each flattened, so the JSON form is one flat object).
+/// `Default` gives the paper's constants (§4) with the converging readings of docs/method.md.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct FitParams {
@@ -147,6 +149,39 @@ pub struct FitParams {
     pub method: Method,
     /// ξ, the number of iterations.
     pub iterations: usize,
+    /// Stop early when the mean displacement of an iteration (normalized units) is below this
+    /// (0 disables).
+    pub tolerance: f64,
+    /// Handling of a template placed far from the scan.
+    pub prealign: Prealign,
+    /// Keep the vertex positions every this many iterations (0 keeps none).
+    pub snapshot_every: usize,
+    /// The model's constants: the paper's §4 values (n, ρ and the clamps of K, ψ, γ) and the
+    /// ([`ModelConstants`]).
+    #[serde(flatten)]
+    pub model: ModelConstants,
+    /// Paper readings: the switches choosing between readings of the paper where it admits more
+    /// ([`Readings`]).
+    #[serde(flatten)]
+    pub readings: Readings,
+    /// The schedule of a fit beyond the paper: its phases (rigid, coarse, fine), the two-way
+    /// ([`Schedule`]).
+    #[serde(flatten)]
+    pub schedule: Schedule,
+    /// Acceleration: samples and approximate neighborhoods that make a fit faster and change its
+    /// ([`Acceleration`]).
+    #[serde(flatten)]
+    pub acceleration: Acceleration,
+    /// Round-off-only speed switches (not serialized; see [`Internal`]).
+    #[serde(skip)]
+    pub(crate) internal: Internal,
+}
+
+/// The model's constants: the paper's §4 values (n, ρ and the clamps of K, ψ, γ) and the
+/// N-body constants of Eq. 2–3 with their readings ([`NBodyParams`]).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct ModelConstants {
     /// n of the n-ring template neighborhoods Γᵏ_Y.
     pub rings: usize,
     /// ρ, the target neighborhood size as a fraction of the scan's point count:
@@ -155,7 +190,8 @@ pub struct FitParams {
     pub rho: f64,
     /// Lower clamp of K.
     pub k_min: usize,
-    /// Upper clamp of K. Default [`DEFAULT_K_MAX`] (32); the `"paper"` preset keeps SPEC §2's 64.
+    /// Upper clamp of K. Default [`DEFAULT_K_MAX`] (32); the `"paper"` preset keeps
+    /// [`PAPER_K_MAX`].
     pub k_max: usize,
     /// N-body constants and readings.
     #[serde(flatten)]
@@ -164,24 +200,32 @@ pub struct FitParams {
     pub psi: f64,
     /// γ, weight of the normal completion of Eq. 4 (0 disables it).
     pub normal_completion: f64,
+}
+
+/// Paper readings: the switches choosing between readings of the paper where it admits more
+/// than one (docs/method.md, "Ablation of the readings").
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct Readings {
     /// Mean used by Eq. 5.
     pub regularization: Regularization,
     /// Gradient used by Eq. 8.
     pub rotation_source: RotationSource,
-    /// Set velocities to the applied motion after each update (SPEC §2.4); `false` keeps the
-    /// integrated velocity (literal reading).
+    /// Set velocities to the applied motion after each update (docs/method.md, "Integration, Eq.
+    /// 3"); `false` keeps the integrated velocity (literal reading).
     pub velocity_sync: bool,
-    /// Work in the normalized frame (SPEC §1).
+    /// Work in the normalized frame (docs/method.md, "Frame").
     pub normalize: bool,
-    /// Stop early when the mean displacement of an iteration (normalized units) is below this
-    /// (0 disables).
-    pub tolerance: f64,
     /// Use the curvature term of Eq. 2 (`false` sets κ = 0, i.e. α = 1).
     pub use_curvature: bool,
-    /// Handling of a template placed far from the scan.
-    pub prealign: Prealign,
-    /// Keep the vertex positions every this many iterations (0 keeps none).
-    pub snapshot_every: usize,
+}
+
+/// The schedule of a fit beyond the paper: its phases (rigid, coarse, fine), the two-way
+/// attraction, the rest-shape rigidity, the softening annealing and schedule selection
+/// (docs/method.md, "Beyond the paper: the default configuration").
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct Schedule {
     /// Two-way attraction: weight of the pull of every scan point on its nearest template
     /// vertex, added to Eq. 2 (0: the paper's one-way attraction).
     pub two_way: f64,
@@ -218,13 +262,57 @@ pub struct FitParams {
     /// [`AUTO_COARSE_RINGS`] up to [`COARSE_RINGS_REFERENCE_VERTICES`] vertices, then growing
     /// as √M up to [`AUTO_COARSE_RINGS_MAX`]. A fixed radius covers a smaller share of a finer
     /// mesh, and the coarse phase's rigid pieces then no longer turn a sleeve or a panel as a
-    /// unit (docs/method.md "Seventeenth round": held out, f_R ×0.88 against a fixed 8).
+    /// unit (docs/method.md, "Beyond the paper: the default configuration").
     pub coarse_rings: usize,
+    /// Levels of the coarse phase: its iterations are split evenly into this many levels, level
+    /// `l` using neighborhoods of radius `max(1, r / 2^l)`, r the coarse radius
+    /// ([`FitParams::coarse_radius`]) (1: one radius throughout),
+    /// so the pieces that move rigidly shrink as the fit proceeds, like the decreasing
+    /// stiffness of non-rigid ICP.
+    pub coarse_levels: usize,
+    /// Rest-shape rigidity β₀ of the FoldMatch iterations (as-rigid-as-possible blending): in
+    /// the j-th of the J iterations after the rigid and coarse phases every vertex goes to
+    /// `(1 − β) ·` its Eq. 8 update `+ β ·` the placement of its template n-ring, as given
+    /// (the rest shape), by the Kabsch rigid fit of that ring onto the proposed positions,
+    /// with `β = β₀ (1 − j / J)` (stiff first, the paper's update alone at the end, like
+    /// non-rigid ICP's decreasing stiffness). Eq. 8 moves the *current* ring, so edge lengths
+    /// drift where the scan does not pin them (tangential sliding, holes); the rest-shape term
+    /// remembers the template's metric, as ARAP's local step does. 0: the paper's update
+    /// alone. FoldMatch only (docs/method.md, "Beyond the paper: the default configuration").
+    pub rest_rigidity: f64,
+    /// Softening annealing: ε starts at `anneal × ε` and decreases linearly to ε over the
+    /// first `anneal_fraction` of the ξ iterations (1: constant ε, the paper's reading).
+    pub anneal: f64,
+    /// Fraction of the iterations over which the softening anneals.
+    pub anneal_fraction: f64,
+    /// Run one schedule, or two and keep the fit closer to the scan ([`Selection`]).
+    pub selection: Selection,
+    /// Schedule selection's near-tie margin: candidates whose mean scan→fit distance is within
+    /// `(1 + selection_margin) ×` the closest one's are tied, and the tie goes to the least
+    /// edge-length spread ([`select_schedule`](super::select_schedule)). 0: the closest fit alone. The given
+    /// schedule's stronger two-way pull minimizes exactly the distance compared, so it wins it by a
+    /// few per cent even where its fit slid along the scan (docs/method.md, "Beyond the paper: the
+    /// default configuration").
+    pub selection_margin: f64,
+    /// When schedule selection compares its candidates, as a fraction of the ξ iterations: at
+    /// iteration `⌈selection_at · ξ⌉` the candidates' fits are compared by the same rule
+    /// ([`select_schedule`](super::select_schedule)) and only the chosen one runs on; the others'
+    /// remaining iterations are spared. A case whose choice there is the one made at the end gets
+    /// the same fit, bit for bit (the chosen run never sees the others). 1: at the end.
+    pub selection_at: f64,
+}
+
+/// Acceleration: samples and approximate neighborhoods that make a fit faster and change its
+/// result a little (beyond round-off).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct Acceleration {
     /// Rigid phase on a sample: the N-body forces (and the two-way attraction's pulls) are
     /// computed for every `rigid_sample`-th template vertex only, and the one Kabsch fit of
     /// those vertices moves the whole template (1: every vertex). The rigid phase only needs
-    /// the one rigid motion, so 4 (the default) costs no accuracy on the harness and cuts
-    /// the phase's k-NN, two-way and force work by about 4× (docs/method.md).
+    /// the one rigid motion, so 4 (the default) costs no accuracy and cuts the phase's k-NN,
+    /// two-way and force work by about 4× (docs/method.md, "Beyond the paper: the default
+    /// configuration").
     pub rigid_sample: usize,
     /// Rigid phase on a scan sample: the rigid phase sees every `rigid_scan_sample`-th scan
     /// point only (in the fit's space-filling-curve order, so the sample is spread evenly),
@@ -237,26 +325,34 @@ pub struct FitParams {
     /// as many points, e.g. 4 for a 1M-point scan under a 100K-vertex template); 1: the whole
     /// scan.
     pub rigid_scan_sample: usize,
-    /// Coarse phase on a scan sample, as [`FitParams::rigid_scan_sample`] for the rigid
-    /// phase: the coarse phase sees every `coarse_scan_sample`-th scan point, with `⌈K / s⌉`
-    /// target neighbours; each vertex there moves by the Kabsch fit of its coarse ring, which
-    /// the sampled forces estimate. 0 (the default): automatic, the largest stride leaving
-    /// [`COARSE_SCAN_POINTS_PER_VERTEX`] scan points per vertex of the coarse phase's sample,
-    /// at most [`COARSE_SCAN_MAX_AUTO_STRIDE`] (so 2 where the scan has at least 8 points per
-    /// vertex, as a 1M-point scan under a 100K-vertex template, else 1 — the whole scan; every
-    /// harness case is at 1); 1: the whole scan. Measured on dense scans: the million-point
-    /// case 32.4 s → 24.4 s at f_R ×0.999.
+    /// Coarse phase on a scan sample, as
+    /// [`rigid_scan_sample`](crate::fit::Acceleration::rigid_scan_sample) for the rigid phase: the
+    /// coarse phase sees every `coarse_scan_sample`-th scan point, with `⌈K / s⌉` target
+    /// neighbours; each vertex there moves by the Kabsch fit of its coarse ring, which the sampled
+    /// forces estimate. 0 (the default): automatic, the largest stride leaving
+    /// [`COARSE_SCAN_POINTS_PER_VERTEX`] scan points per vertex of the coarse phase's sample, at
+    /// most [`COARSE_SCAN_MAX_AUTO_STRIDE`] (so 2 where the scan has at least 8 points per vertex,
+    /// as a 1M-point scan under a 100K-vertex template, else 1 — the whole scan); 1: the whole
+    /// scan.
     pub coarse_scan_sample: usize,
     /// Coarse phase on a sample: the forces are computed for every `coarse_sample`-th vertex
     /// only, and every vertex moves by the Kabsch fit of the sampled members of its coarse
     /// ring (1: every vertex; more needs coarse rings of radius ≥ 3 at every level).
     pub coarse_sample: usize,
-    /// Levels of the coarse phase: its iterations are split evenly into this many levels, level
-    /// `l` using neighborhoods of radius `max(1, r / 2^l)`, r the coarse radius
-    /// ([`FitParams::coarse_radius`]) (1: one radius throughout),
-    /// so the pieces that move rigidly shrink as the fit proceeds, like the decreasing
-    /// stiffness of non-rigid ICP.
-    pub coarse_levels: usize,
+    /// σ of the rigid and coarse phases' approximate target neighborhoods: there the k-NN
+    /// cache ([`crate::knn::NeighborCache::set_slack`]) re-uses a vertex's candidates while
+    /// every returned neighbour is within `(1 + σ) ×` the true K-th nearest distance, sparing
+    /// the fresh queries of template points still far off the scan (their candidates all lie
+    /// at about their height, so the exact test fails at nearly every move). The FoldMatch
+    /// iterations stay exact. 0: exact throughout. Default [`DEFAULT_KNN_SLACK`]
+    /// (docs/method.md, "Target neighborhoods Γᵏ_X").
+    pub knn_slack: f64,
+}
+
+/// Speed switches that change a fit by round-off only: not user settings (not serialized),
+/// kept for the equivalence tests of the fast paths against the exact ones.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Internal {
     /// Fast 3×3 matrix functions, each agreeing with the eigen-decomposition to round-off:
     /// truncated series for the logarithms and exponentials of Eq. 5 near the identity, the
     /// unit-quaternion (Horn / QCP) solution for polar factors and nearest rotations (Eq. 5's
@@ -264,51 +360,13 @@ pub struct FitParams {
     /// rigidity and of NRGa), closed-form eigenvalues and a direct inverse for well-conditioned
     /// Eq. 4 systems. `false` always uses the Jacobi eigen-decomposition (the exact reference
     /// path).
-    pub matrix_series: bool,
+    pub(crate) matrix_series: bool,
     /// Re-use earlier k-NN candidates when that is provably exact (see
     /// [`crate::knn::NeighborCache`]), and read the two-way attraction's nearest template
     /// vertices off the inverted k-NN lists where certified ([`crate::knn::ReverseNearest`]);
     /// `false` queries a k-d tree for every vertex and every scan point every iteration.
     /// Results are the same either way.
-    pub knn_cache: bool,
-    /// σ of the rigid and coarse phases' approximate target neighborhoods: there the k-NN
-    /// cache ([`crate::knn::NeighborCache::set_slack`]) re-uses a vertex's candidates while
-    /// every returned neighbour is within `(1 + σ) ×` the true K-th nearest distance, sparing
-    /// the fresh queries of template points still far off the scan (their candidates all lie
-    /// at about their height, so the exact test fails at nearly every move). The FoldMatch
-    /// iterations stay exact. 0: exact throughout; without `knn_cache` every query is exact.
-    /// Default [`DEFAULT_KNN_SLACK`]; docs/performance.md, "Thirteenth round".
-    pub knn_slack: f64,
-    /// Rest-shape rigidity β₀ of the FoldMatch iterations (as-rigid-as-possible blending): in
-    /// the j-th of the J iterations after the rigid and coarse phases every vertex goes to
-    /// `(1 − β) ·` its Eq. 8 update `+ β ·` the placement of its template n-ring, as given
-    /// (the rest shape), by the Kabsch rigid fit of that ring onto the proposed positions,
-    /// with `β = β₀ (1 − j / J)` (stiff first, the paper's update alone at the end, like
-    /// non-rigid ICP's decreasing stiffness). Eq. 8 moves the *current* ring, so edge lengths
-    /// drift where the scan does not pin them (tangential sliding, holes); the rest-shape term
-    /// remembers the template's metric, as ARAP's local step does. 0: the paper's update
-    /// alone. FoldMatch only; docs/method.md "Seventh round".
-    pub rest_rigidity: f64,
-    /// Softening annealing: ε starts at `anneal × ε` and decreases linearly to ε over the
-    /// first `anneal_fraction` of the ξ iterations (1: constant ε, the paper's reading).
-    pub anneal: f64,
-    /// Fraction of the iterations over which the softening anneals.
-    pub anneal_fraction: f64,
-    /// Run one schedule, or two and keep the fit closer to the scan ([`Selection`]).
-    pub selection: Selection,
-    /// Schedule selection's near-tie margin: candidates whose mean scan→fit distance is within
-    /// `(1 + selection_margin) ×` the closest one's are tied, and the tie goes to the least
-    /// edge-length spread ([`select_schedule`](super::select_schedule)). 0: the closest fit alone (the rule before
-    /// 2026-12-01). The given schedule's three-fold two-way pull minimizes exactly the
-    /// distance compared, so it wins it by a few per cent even where its fit slid along the
-    /// scan (docs/method.md "Eighth round").
-    pub selection_margin: f64,
-    /// When schedule selection compares its candidates, as a fraction of the ξ iterations: at
-    /// iteration `⌈selection_at · ξ⌉` the candidates' fits are compared by the same rule
-    /// ([`select_schedule`](super::select_schedule)) and only the chosen one runs on; the others' remaining iterations
-    /// are spared. A case whose choice there is the one made at the end gets the same fit,
-    /// bit for bit (the chosen run never sees the others). 1: at the end.
-    pub selection_at: f64,
+    pub(crate) knn_cache: bool,
 }
 
 impl Default for FitParams {
@@ -316,6 +374,21 @@ impl Default for FitParams {
         Self {
             method: Method::FoldMatch,
             iterations: 100,
+            tolerance: 0.0,
+            prealign: Prealign::None,
+            snapshot_every: 0,
+            model: ModelConstants::default(),
+            readings: Readings::default(),
+            schedule: Schedule::default(),
+            acceleration: Acceleration::default(),
+            internal: Internal::default(),
+        }
+    }
+}
+
+impl Default for ModelConstants {
+    fn default() -> Self {
+        Self {
             rings: 2,
             rho: DEFAULT_RHO,
             k_min: 8,
@@ -323,14 +396,25 @@ impl Default for FitParams {
             nbody: NBodyParams::default(),
             psi: 0.05,
             normal_completion: 0.3,
+        }
+    }
+}
+
+impl Default for Readings {
+    fn default() -> Self {
+        Self {
             regularization: Regularization::LogEuclidean,
             rotation_source: RotationSource::Regularized,
             velocity_sync: true,
             normalize: true,
-            tolerance: 0.0,
             use_curvature: true,
-            prealign: Prealign::None,
-            snapshot_every: 0,
+        }
+    }
+}
+
+impl Default for Schedule {
+    fn default() -> Self {
+        Self {
             two_way: 4.5,
             two_way_trust: DEFAULT_TWO_WAY_TRUST,
             two_way_rim: DEFAULT_TWO_WAY_RIM,
@@ -339,13 +423,6 @@ impl Default for FitParams {
             coarse_fraction: 0.5,
             coarse_rings: 0,
             coarse_levels: 1,
-            rigid_sample: 4,
-            rigid_scan_sample: 0,
-            coarse_scan_sample: 0,
-            coarse_sample: 1,
-            knn_cache: true,
-            knn_slack: DEFAULT_KNN_SLACK,
-            matrix_series: true,
             rest_rigidity: 0.65,
             anneal: 3.0,
             anneal_fraction: 0.6,
@@ -356,14 +433,36 @@ impl Default for FitParams {
     }
 }
 
+impl Default for Acceleration {
+    fn default() -> Self {
+        Self {
+            rigid_sample: 4,
+            rigid_scan_sample: 0,
+            coarse_scan_sample: 0,
+            coarse_sample: 1,
+            knn_slack: DEFAULT_KNN_SLACK,
+        }
+    }
+}
+
+impl Default for Internal {
+    fn default() -> Self {
+        Self {
+            matrix_series: true,
+            knn_cache: true,
+        }
+    }
+}
+
 impl FitParams {
-    /// The stride of the rigid phase's scan sample ([`FitParams::rigid_scan_sample`]) for a
-    /// template of `m` vertices and a scan of `n` points.
+    /// The stride of the rigid phase's scan sample
+    /// ([`rigid_scan_sample`](crate::fit::Acceleration::rigid_scan_sample)) for a template of `m`
+    /// vertices and a scan of `n` points.
     pub fn rigid_scan_stride(&self, m: usize, n: usize) -> usize {
         let (per_vertex, most) = (RIGID_SCAN_POINTS_PER_VERTEX, MAX_SCAN_SAMPLE);
         scan_stride(
-            self.rigid_scan_sample,
-            self.rigid_sample,
+            self.acceleration.rigid_scan_sample,
+            self.acceleration.rigid_sample,
             per_vertex,
             most,
             m,
@@ -371,12 +470,13 @@ impl FitParams {
         )
     }
 
-    /// The stride of the coarse phase's scan sample ([`FitParams::coarse_scan_sample`]).
+    /// The stride of the coarse phase's scan sample
+    /// ([`coarse_scan_sample`](crate::fit::Acceleration::coarse_scan_sample)).
     pub fn coarse_scan_stride(&self, m: usize, n: usize) -> usize {
         let (per_vertex, most) = (COARSE_SCAN_POINTS_PER_VERTEX, COARSE_SCAN_MAX_AUTO_STRIDE);
         scan_stride(
-            self.coarse_scan_sample,
-            self.coarse_sample,
+            self.acceleration.coarse_scan_sample,
+            self.acceleration.coarse_sample,
             per_vertex,
             most,
             m,
@@ -384,12 +484,13 @@ impl FitParams {
         )
     }
 
-    /// The coarse phase's ring radius for a template of `m` vertices: [`FitParams::coarse_rings`]
-    /// when given, else `clamp(round(8 √(m / 1,700)), 8, 12)` ([`AUTO_COARSE_RINGS`],
-    /// [`COARSE_RINGS_REFERENCE_VERTICES`], [`AUTO_COARSE_RINGS_MAX`]).
+    /// The coarse phase's ring radius for a template of `m` vertices:
+    /// [`coarse_rings`](crate::fit::Schedule::coarse_rings) when given, else `clamp(round(8 √(m /
+    /// 1,700)), 8, 12)` ([`AUTO_COARSE_RINGS`], [`COARSE_RINGS_REFERENCE_VERTICES`],
+    /// [`AUTO_COARSE_RINGS_MAX`]).
     pub fn coarse_radius(&self, m: usize) -> usize {
-        if self.coarse_rings > 0 {
-            return self.coarse_rings;
+        if self.schedule.coarse_rings > 0 {
+            return self.schedule.coarse_rings;
         }
         let scaled = AUTO_COARSE_RINGS as f64 * (m as f64 / COARSE_RINGS_REFERENCE_VERTICES).sqrt();
         (scaled.round() as usize).clamp(AUTO_COARSE_RINGS, AUTO_COARSE_RINGS_MAX)
@@ -400,17 +501,18 @@ impl FitParams {
         if self.method == Method::Nrga {
             return (0, 0);
         }
-        let rigid = (self.rigid_fraction * self.iterations as f64).round() as usize;
-        let coarse = (self.coarse_fraction * self.iterations as f64).round() as usize;
+        let rigid = (self.schedule.rigid_fraction * self.iterations as f64).round() as usize;
+        let coarse = (self.schedule.coarse_fraction * self.iterations as f64).round() as usize;
         (rigid, coarse.min(self.iterations.saturating_sub(rigid)))
     }
 
-    /// The k-NN slack σ in force at iteration `it` (1-based): [`FitParams::knn_slack`] in the
-    /// rigid and coarse phases, 0 in the FoldMatch (or NRGa) iterations.
+    /// The k-NN slack σ in force at iteration `it` (1-based):
+    /// [`knn_slack`](crate::fit::Acceleration::knn_slack) in the rigid and coarse phases, 0 in the
+    /// FoldMatch (or NRGa) iterations.
     pub fn knn_slack_at(&self, it: usize) -> f64 {
         let (rigid, coarse) = self.phase_iterations();
         if it <= rigid + coarse {
-            self.knn_slack
+            self.acceleration.knn_slack
         } else {
             0.0
         }

@@ -14,10 +14,11 @@ use crate::rotation::{
 };
 use rayon::prelude::*;
 
-/// The phases of a FoldMatch schedule, in order: the first [`FitParams::rigid_fraction`] of
-/// the ξ iterations moves the template rigidly, the next [`FitParams::coarse_fraction`]
-/// piecewise rigidly, and the rest by the deformation model (Eq. 4–8). NRGa runs its own
-/// update in every iteration, as the fine phase.
+/// The phases of a FoldMatch schedule, in order: the first
+/// [`rigid_fraction`](crate::fit::Schedule::rigid_fraction) of the ξ iterations moves the template
+/// rigidly, the next [`coarse_fraction`](crate::fit::Schedule::coarse_fraction) piecewise rigidly,
+/// and the rest by the deformation model (Eq. 4–8). NRGa runs its own update in every iteration, as
+/// the fine phase.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) enum Phase {
     /// One Kabsch fit of every vertex's (or a sample's) old → proposed positions moves the
@@ -62,7 +63,14 @@ pub(super) fn rigid(
         None => (&prepared.all_vertices[..], old, new),
     };
     let (c_old, c_new) = ring_centroids(all, fit_old, fit_new);
-    let r = kabsch(all, fit_old, fit_new, &c_old, &c_new, params.matrix_series);
+    let r = kabsch(
+        all,
+        fit_old,
+        fit_new,
+        &c_old,
+        &c_new,
+        params.internal.matrix_series,
+    );
     next.par_iter_mut().enumerate().for_each(|(v, out)| {
         *out = transform_vertex(&r, &vec3(&old[v]), &c_old, &c_new).into();
     });
@@ -104,16 +112,16 @@ pub(super) fn coarse(
             new,
         ),
     };
-    let fast = params.matrix_series;
+    let fast = params.internal.matrix_series;
     let moments = fast.then_some((&mut ws.moments, deltas, &mut ws.ring_sums));
     kabsch_update(rings, ring_old, ring_new, old, fast, moments, next);
     0
 }
 
-/// The fine phase's update in its `j`-th of `J` iterations (`fine = (j, J)`): FoldMatch moves
-/// every vertex by its Eq. 8 rotation of its n-ring's motion `old → new`, blended with the
-/// rest-shape placement of that ring ([`FitParams::rest_rigidity`]); NRGa by the Kabsch fit of
-/// its k-NN neighborhood. Returns the number of rank-deficient gradients.
+/// The fine phase's update in its `j`-th of `J` iterations (`fine = (j, J)`): FoldMatch moves every
+/// vertex by its Eq. 8 rotation of its n-ring's motion `old → new`, blended with the rest-shape
+/// placement of that ring ([`rest_rigidity`](crate::fit::Schedule::rest_rigidity)); NRGa by the
+/// Kabsch fit of its k-NN neighborhood. Returns the number of rank-deficient gradients.
 pub(super) fn fine(
     prepared: &Prepared,
     params: &FitParams,
@@ -123,7 +131,7 @@ pub(super) fn fine(
     ws: &mut Workspace,
     next: &mut [[f64; 3]],
 ) -> usize {
-    let fast = params.matrix_series;
+    let fast = params.internal.matrix_series;
     if params.method == Method::Nrga {
         kabsch_update(&prepared.rings, old, new, old, fast, None, next);
         return 0;
@@ -150,9 +158,11 @@ pub(super) fn fine(
     d
 }
 
-/// A phase run on a sample of the template ([`FitParams::rigid_sample`],
-/// [`FitParams::coarse_sample`]) or of the scan ([`FitParams::rigid_scan_sample`]): every s-th
-/// vertex, its copied positions and velocities, and its own [`Attraction`].
+/// A phase run on a sample of the template
+/// ([`rigid_sample`](crate::fit::Acceleration::rigid_sample),
+/// [`coarse_sample`](crate::fit::Acceleration::coarse_sample)) or of the scan
+/// ([`rigid_scan_sample`](crate::fit::Acceleration::rigid_scan_sample)): every s-th vertex, its
+/// copied positions and velocities, and its own [`Attraction`].
 pub(super) struct PhaseSample {
     pub(super) stride: usize,
     pub(super) scan_stride: usize,
@@ -252,15 +262,15 @@ pub(super) fn kabsch_update(
 }
 
 /// The rest-shape rigidity β of the `fine`-th of the `total` FoldMatch iterations (1-based):
-/// [`FitParams::rest_rigidity`] decreasing linearly to 0 at the last one.
+/// [`rest_rigidity`](crate::fit::Schedule::rest_rigidity) decreasing linearly to 0 at the last one.
 pub(super) fn rest_rigidity_at(params: &FitParams, fine: usize, total: usize) -> f64 {
-    params.rest_rigidity * (1.0 - fine as f64 / total.max(1) as f64)
+    params.schedule.rest_rigidity * (1.0 - fine as f64 / total.max(1) as f64)
 }
 
-/// Where the rest-shape rigidity ([`FitParams::rest_rigidity`]) puts vertex `v`: its template
-/// ring `rest[ring]` (centroid `c_rest`), moved by the Kabsch rigid fit of that ring onto the
-/// proposed positions `proposed[ring]` (centroid `c_proposed`), evaluated at `rest[v]` —
-/// ARAP's local step with the proposal as the data.
+/// Where the rest-shape rigidity ([`rest_rigidity`](crate::fit::Schedule::rest_rigidity)) puts
+/// vertex `v`: its template ring `rest[ring]` (centroid `c_rest`), moved by the Kabsch rigid fit of
+/// that ring onto the proposed positions `proposed[ring]` (centroid `c_proposed`), evaluated at
+/// `rest[v]` — ARAP's local step with the proposal as the data.
 pub(super) fn rest_ring_placement(
     ring: &[u32],
     v: usize,
@@ -277,11 +287,11 @@ pub(super) fn rest_ring_placement(
 /// The N-body constants of iteration `it` (1-based): the softening annealed from
 /// `anneal × ε` down to ε over the first `anneal_fraction × ξ` iterations.
 pub(super) fn annealed(params: &FitParams, it: usize) -> NBodyParams {
-    let mut p = params.nbody;
-    let span = params.anneal_fraction * params.iterations as f64;
-    if params.anneal > 1.0 && span > 0.0 {
+    let mut p = params.model.nbody;
+    let span = params.schedule.anneal_fraction * params.iterations as f64;
+    if params.schedule.anneal > 1.0 && span > 0.0 {
         let remaining = 1.0 - ((it - 1) as f64 / span).min(1.0);
-        p.softening *= 1.0 + (params.anneal - 1.0) * remaining;
+        p.softening *= 1.0 + (params.schedule.anneal - 1.0) * remaining;
     }
     p
 }

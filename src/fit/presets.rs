@@ -8,23 +8,22 @@ use crate::nbody::TwoWayPull;
 use crate::regularize::Regularization;
 
 impl FitParams {
-    /// The paper's method as printed, with only the converging readings of SPEC §2: one-way
-    /// attraction, no rigid or coarse phase, constant softening, Eq. 5 as the affine-invariant
-    /// mean, ρ = 0.2 % and K ≤ 64 (the `"paper"` preset).
+    /// The paper's method as printed, with only the converging readings (docs/method.md, "Ablation
+    /// of the readings"): one-way attraction, no rigid or coarse phase, constant softening, Eq. 5
+    /// as the affine-invariant mean, ρ = 0.2 % and K ≤ 64 (the `"paper"` preset).
     pub fn paper() -> Self {
-        Self {
-            rho: PAPER_RHO,
-            k_max: PAPER_K_MAX,
-            two_way: 0.0,
-            rigid_fraction: 0.0,
-            coarse_fraction: 0.0,
-            rest_rigidity: 0.0,
-            anneal: 1.0,
-            anneal_fraction: 0.0,
-            selection: Selection::Single,
-            regularization: Regularization::AffineInvariant,
-            ..Self::default()
-        }
+        let mut p = Self::default();
+        p.model.rho = PAPER_RHO;
+        p.model.k_max = PAPER_K_MAX;
+        p.schedule.two_way = 0.0;
+        p.schedule.rigid_fraction = 0.0;
+        p.schedule.coarse_fraction = 0.0;
+        p.schedule.rest_rigidity = 0.0;
+        p.schedule.anneal = 1.0;
+        p.schedule.anneal_fraction = 0.0;
+        p.schedule.selection = Selection::Single;
+        p.readings.regularization = Regularization::AffineInvariant;
+        p
     }
 
     /// The default without softening annealing, for a fit that starts close to its scan
@@ -35,31 +34,29 @@ impl FitParams {
     /// (a warm-started frame's template is the previous fit, not a rest shape, and the option
     /// was not measured on sequences).
     pub fn tracking() -> Self {
-        Self {
-            two_way: 2.0,
-            two_way_pull: TwoWayPull::Mean,
-            rigid_sample: 1,
-            rest_rigidity: 0.0,
-            anneal: 1.0,
-            anneal_fraction: 0.0,
-            selection: Selection::Single,
-            ..Self::default()
-        }
+        let mut p = Self::default();
+        p.schedule.two_way = 2.0;
+        p.schedule.two_way_pull = TwoWayPull::Mean;
+        p.acceleration.rigid_sample = 1;
+        p.schedule.rest_rigidity = 0.0;
+        p.schedule.anneal = 1.0;
+        p.schedule.anneal_fraction = 0.0;
+        p.schedule.selection = Selection::Single;
+        p
     }
 
-    /// The alternative schedule of [`Selection::ScanDistance`]: these parameters with the
-    /// first-round schedule of docs/method.md — two-way weight 1, coarse phase 30 %, constant
-    /// softening — which fits gently curved, misplaced cloth (the random sheets) best, where
-    /// the annealed default fits large articulated motion best.
+    /// The alternative schedule of [`Selection::ScanDistance`]: these parameters with a sharper
+    /// schedule — two-way weight 1, coarse phase 30 %, constant softening — which fits gently
+    /// curved, misplaced cloth (the random sheets) best, where the annealed default fits large
+    /// articulated motion best.
     pub fn sharp_schedule(&self) -> Self {
-        Self {
-            two_way: self.two_way.min(1.0),
-            coarse_fraction: self.coarse_fraction.min(0.3),
-            anneal: 1.0,
-            anneal_fraction: 0.0,
-            selection: Selection::Single,
-            ..self.clone()
-        }
+        let mut p = self.clone();
+        p.schedule.two_way = self.schedule.two_way.min(1.0);
+        p.schedule.coarse_fraction = self.schedule.coarse_fraction.min(0.3);
+        p.schedule.anneal = 1.0;
+        p.schedule.anneal_fraction = 0.0;
+        p.schedule.selection = Selection::Single;
+        p
     }
 
     /// The third candidate of [`Selection::ScanDistanceWide`]: these parameters with ⅔ of the
@@ -67,22 +64,22 @@ impl FitParams {
     /// (60 % in the default): long-range pulls for longer, a gentler pull on scan regions the
     /// template does not cover yet (docs/method.md).
     pub fn gentle_schedule(&self) -> Self {
-        Self {
-            two_way: self.two_way / 1.5,
-            anneal_fraction: self.anneal_fraction.max(0.8),
-            selection: Selection::Single,
-            ..self.clone()
-        }
+        let mut p = self.clone();
+        p.schedule.two_way = self.schedule.two_way / 1.5;
+        p.schedule.anneal_fraction = self.schedule.anneal_fraction.max(0.8);
+        p.schedule.selection = Selection::Single;
+        p
     }
 
     /// The schedules a fit runs: the given one alone ([`Selection::Single`], or NRGa), or the
     /// candidates of schedule selection, named by [`SCHEDULE_NAMES`](super::SCHEDULE_NAMES).
     pub fn candidate_schedules(&self) -> Vec<Self> {
-        let given = Self {
-            selection: Selection::Single,
-            ..self.clone()
+        let given = {
+            let mut p = self.clone();
+            p.schedule.selection = Selection::Single;
+            p
         };
-        match self.selection {
+        match self.schedule.selection {
             _ if self.method != Method::FoldMatch => vec![given],
             Selection::Single => vec![given],
             Selection::ScanDistance => vec![given, self.sharp_schedule()],
@@ -94,11 +91,9 @@ impl FitParams {
 
     /// The default with [`ACCURATE_ITERATIONS`] iterations instead of 100, every phase
     /// lengthened in proportion (the `"accurate"` preset): closer to the truth and to the scan
-    /// on the harness at about 1.3× the time (the later iterations re-use more k-NN
-    /// candidates); 200 iterations gain f_λ but lose f_R (docs/method.md "Eleventh round").
-    /// Until 2026-12-02 this preset was the default with a third candidate schedule
-    /// ([`Selection::ScanDistanceWide`], still an option) and the rigid phase on every vertex,
-    /// which had become no closer to the truth than the default for twice its time.
+    /// at about 1.3× the time (the later iterations re-use more k-NN candidates); more
+    /// iterations still fit the scan closer but drift from the truth (docs/method.md, "Beyond
+    /// the paper: the default configuration").
     pub fn accurate() -> Self {
         Self {
             iterations: ACCURATE_ITERATIONS,
@@ -109,17 +104,14 @@ impl FitParams {
     /// One schedule instead of schedule selection's two (the `"fast"` preset), between the
     /// given and the sharp one: the default's [`FitParams::sharp_schedule`] (a 30 % coarse
     /// phase, constant softening) with two-way weight [`FAST_TWO_WAY`]. About 0.6× the
-    /// default's instructions (0.58× at the paper's size: the second run and the comparison
-    /// are spared), at a higher error: on the harness f_R ÷ best peer 0.879 against the
-    /// default's 0.761, f_λ ÷ best 0.969 against 0.964; held out f_R 4 % (15,000-point scans)
-    /// to 22 % (5,000) above the default's. Either of the default's candidates alone is worse
-    /// (the given one 0.985 / 0.999, the sharp one 0.892 / 1.054; docs/method.md "Eighteenth
-    /// round"). For previews and large batches where time comes first.
+    /// default's work (the second run and the comparison are spared), at a higher error than
+    /// the default's, and a lower one than either of the default's candidates alone
+    /// (docs/method.md, "Beyond the paper: the default configuration"). For previews and large
+    /// batches where time comes first.
     pub fn fast() -> Self {
-        Self {
-            two_way: FAST_TWO_WAY,
-            ..Self::default().sharp_schedule()
-        }
+        let mut p = Self::default().sharp_schedule();
+        p.schedule.two_way = FAST_TWO_WAY;
+        p
     }
 
     /// A named preset: `"default"` (the most accurate configuration for its cost, see

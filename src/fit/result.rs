@@ -92,7 +92,8 @@ pub struct Diagnostics {
     pub duplicate_faces: Vec<usize>,
     /// Template vertices in no face (they follow their own particle; no gradient).
     pub isolated_vertices: usize,
-    /// `(ω₀Δt)²` of the near-field spring (SPEC §2.4; stable well below 1).
+    /// `(ω₀Δt)²` of the near-field spring ([`crate::nbody::NBodyParams::omega0_dt_squared`]; stable
+    /// well below 1).
     pub omega0_dt_squared: f64,
     /// The curvature source: "mesh", "point_cloud" or "off".
     pub curvature: String,
@@ -124,7 +125,8 @@ pub struct Diagnostics {
     /// fit, in [`SCHEDULE_NAMES`](super::SCHEDULE_NAMES) order; empty otherwise.
     pub candidate_scan_distances: Vec<f64>,
     /// Under schedule selection: each candidate's edge-length spread
-    /// ([`crate::metrics::edge_length_spread`]), in [`SCHEDULE_NAMES`](super::SCHEDULE_NAMES) order; empty otherwise.
+    /// ([`crate::metrics::edge_length_spread`]), in [`SCHEDULE_NAMES`](super::SCHEDULE_NAMES)
+    /// order; empty otherwise.
     pub candidate_edge_spreads: Vec<f64>,
 }
 

@@ -36,15 +36,14 @@ pub(super) fn selection_distance(
     }
 }
 
-/// Schedule selection's rule (docs/method.md "Eighth round"): of the candidates whose mean
-/// scan→fit distance is at most `(1 + margin) ×` the smallest, the one with the least
-/// edge-length spread; ties keep the earlier candidate (the given schedule first). With
-/// `margin = 0` the closest fit wins (among exact ties, the least spread).
+/// Schedule selection's rule (docs/method.md, "Beyond the paper: the default configuration"): of
+/// the candidates whose mean scan→fit distance is at most `(1 + margin) ×` the smallest, the one
+/// with the least edge-length spread; ties keep the earlier candidate (the given schedule first).
+/// With `margin = 0` the closest fit wins (among exact ties, the least spread).
 ///
 /// Why a margin: the candidates differ mainly in the two-way weight, and the two-way pull
 /// minimizes the very distance compared, so the stronger pull wins it by a few per cent even
-/// where its fit slid along the scan (measured on the random sheets: distances within ±3 %,
-/// ground-truth error 2× apart); cloth barely stretches, so among fits that lie about as
+/// where its fit slid along the scan; cloth barely stretches, so among fits that lie about as
 /// close to the scan the one nearest to an isometry of the template is kept.
 pub fn select_schedule(distances: &[f64], spreads: &[f64], margin: f64) -> usize {
     debug_assert_eq!(distances.len(), spreads.len());
@@ -134,8 +133,16 @@ impl ScheduleRun {
         let mut phase_sample = [None, None];
         let [rigid_scan, coarse_scan] = prepared.scan_strides;
         let wanted = [
-            (params.rigid_sample, rigid_scan, rigid_iterations),
-            (params.coarse_sample, coarse_scan, coarse_iterations),
+            (
+                params.acceleration.rigid_sample,
+                rigid_scan,
+                rigid_iterations,
+            ),
+            (
+                params.acceleration.coarse_sample,
+                coarse_scan,
+                coarse_iterations,
+            ),
         ];
         for (slot, (stride, scan_stride, iterations)) in phase_sample.iter_mut().zip(wanted) {
             if (stride > 1 || scan_stride > 1) && iterations > 0 {
@@ -233,8 +240,9 @@ impl ScheduleRun {
             }
         };
         self.ws.times.update += update_start.elapsed().as_secs_f64();
-        // Velocities follow the applied motion (SPEC §2.4); displacement figures.
-        let (dt, sync) = (params.nbody.time_step, params.velocity_sync);
+        // Velocities follow the applied motion (docs/method.md, "Integration, Eq. 3");
+        // displacement figures.
+        let (dt, sync) = (params.model.nbody.time_step, params.readings.velocity_sync);
         let (pos, next) = (&self.pos, &self.next);
         self.disp
             .par_iter_mut()
@@ -300,7 +308,7 @@ impl ScheduleRun {
         let acc_topo = if params.method == Method::FoldMatch {
             prepared.topology()
         } else {
-            acc_rings = n_rings(&prepared.faces, m, params.rings);
+            acc_rings = n_rings(&prepared.faces, m, params.model.rings);
             TemplateTopology {
                 faces: &prepared.faces,
                 incidence: &prepared.incidence,

@@ -15,8 +15,8 @@ use crate::rings::{adjacency, n_rings_of, Neighborhoods, RingDeltas};
 use crate::rotation::ring_centroids;
 use rayon::prelude::*;
 
-/// What every schedule of a fit reads and none writes: the inputs validated and in the
-/// normalized frame (SPEC §1), the scan's k-d tree and curvature, the template's topology.
+/// What every schedule of a fit reads and none writes: the inputs validated and in the normalized
+/// frame (docs/method.md, "Frame"), the scan's k-d tree and curvature, the template's topology.
 /// Built once per [`fit`], shared by both runs of schedule selection.
 pub(super) struct Prepared {
     pub(super) faces: Vec<[u32; 3]>,
@@ -29,7 +29,7 @@ pub(super) struct Prepared {
     /// Γᵏ_Y: n-rings (FoldMatch) or k-NN neighborhoods (NRGa).
     pub(super) rings: Neighborhoods,
     /// The centroid of every vertex's ring of `start` (the rest shape), for
-    /// [`FitParams::rest_rigidity`]; empty when no schedule uses it.
+    /// [`rest_rigidity`](crate::fit::Schedule::rest_rigidity); empty when no schedule uses it.
     pub(super) rest_centroids: Vec<Vec3>,
     /// The coarse phase's neighborhoods, one per level (empty when no schedule has one).
     pub(super) coarse_levels: Vec<Neighborhoods>,
@@ -40,16 +40,18 @@ pub(super) struct Prepared {
     pub(super) coarse_sampled: Vec<Neighborhoods>,
     /// Every vertex index (the rigid phase's "ring"; empty when no schedule has one).
     pub(super) all_vertices: Vec<u32>,
-    /// The phases' scan samples ([`FitParams::rigid_scan_sample`],
-    /// [`FitParams::coarse_scan_sample`]), one per stride > 1 in use.
+    /// The phases' scan samples
+    /// ([`rigid_scan_sample`](crate::fit::Acceleration::rigid_scan_sample),
+    /// [`coarse_scan_sample`](crate::fit::Acceleration::coarse_scan_sample)), one per stride > 1 in
+    /// use.
     pub(super) scan_samples: Vec<ScanPoints>,
     /// The strides of the rigid and the coarse phase's scan samples (1: the whole scan).
     pub(super) scan_strides: [usize; 2],
     /// The template's mean edge length in the normalized frame (the floor of the two-way
-    /// trust radius, [`FitParams::two_way_trust`]).
+    /// trust radius, [`two_way_trust`](crate::fit::Schedule::two_way_trust)).
     pub(super) edge_length: f64,
-    /// The template's boundary vertices and their one-rings (for [`FitParams::two_way_rim`];
-    /// empty when no schedule uses it).
+    /// The template's boundary vertices and their one-rings (for
+    /// [`two_way_rim`](crate::fit::Schedule::two_way_rim); empty when no schedule uses it).
     pub(super) rim: Rim,
     /// The scan points (user indices) that schedule selection's scan distance averages over:
     /// those the template explains where the scan holds more than the garment
@@ -88,14 +90,14 @@ impl Prepared {
         let weights: Option<Vec<f64>> =
             weights.map(|w| kept.map_or_else(|| w.to_vec(), |k| k.iter().map(|&j| w[j]).collect()));
 
-        // Normalized frame (SPEC §1), of the points that remain, or of those the template
-        // explains where the scan holds far more than the garment (a dressed body).
+        // Normalized frame (docs/method.md, "Frame"), of the points that remain, or of those the
+        // template explains where the scan holds far more than the garment (a dressed body).
         let garment = explained_points(fitted, template_vertices, template_faces, params);
         let garment_points: Option<Vec<[f64; 3]>> = garment
             .as_ref()
             .map(|g| g.iter().map(|&j| fitted[j as usize]).collect());
         let frame_points = garment_points.as_deref().unwrap_or(fitted);
-        let frame = if params.normalize {
+        let frame = if params.readings.normalize {
             Frame::of_target(frame_points)
         } else {
             Frame::identity()
@@ -107,7 +109,7 @@ impl Prepared {
             / fitted.len() as f64
             - vec3(&frame.center))
             / frame.scale;
-        let scan_diag = if params.normalize {
+        let scan_diag = if params.readings.normalize {
             1.0
         } else {
             Frame::of_target(fitted).scale
@@ -131,7 +133,7 @@ impl Prepared {
         // on the scan's order): k-d tree, K, curvature (a mesh's, of the given order).
         // A mesh's curvature is of the whole mesh; only the remaining points are fitted.
         let mesh_kappa = target_faces
-            .filter(|f| params.use_curvature && !f.is_empty())
+            .filter(|f| params.readings.use_curvature && !f.is_empty())
             .map(|tf| gaussian_curvature_mesh(&all_scan, tf))
             .map(|kappa| match kept {
                 Some(k) => k.iter().map(|&j| kappa[j]).collect(),
@@ -146,9 +148,14 @@ impl Prepared {
         let weights: Option<Vec<f64>> =
             weights.map(|w| order.iter().map(|&j| w[j as usize]).collect());
         let index = PointIndex::new(&scan);
-        let k = neighborhood_size(params.rho, frame_points.len(), params.k_min, params.k_max);
+        let k = neighborhood_size(
+            params.model.rho,
+            frame_points.len(),
+            params.model.k_min,
+            params.model.k_max,
+        );
         let (kappa, curvature_source) = match mesh_kappa {
-            _ if !params.use_curvature => (vec![0.0; scan.len()], "off"),
+            _ if !params.readings.use_curvature => (vec![0.0; scan.len()], "off"),
             Some(kappa) => (order.iter().map(|&j| kappa[j as usize]).collect(), "mesh"),
             None => (gaussian_curvature_points(&scan, &index), "point_cloud"),
         };
@@ -162,7 +169,7 @@ impl Prepared {
         // NRGa's neighbourhoods are k-nearest, and it has no coarse phase).
         let one_rings = std::cell::LazyCell::new(|| adjacency(&faces, m));
         let rings = match params.method {
-            Method::FoldMatch => n_rings_of(&one_rings, params.rings),
+            Method::FoldMatch => n_rings_of(&one_rings, params.model.rings),
             Method::Nrga => knn_neighborhoods(&start, params),
         };
         let phases: Vec<(usize, usize)> =
@@ -205,7 +212,7 @@ impl Prepared {
             0
         };
         let coarse_levels = if coarse_radius > 0 {
-            (0..params.coarse_levels)
+            (0..params.schedule.coarse_levels)
                 .map(|l| n_rings_of(&one_rings, (coarse_radius >> l).max(1)))
                 .collect()
         } else {
@@ -213,7 +220,7 @@ impl Prepared {
         };
         let rest_centroids = if schedules
             .iter()
-            .any(|p| p.method == Method::FoldMatch && p.rest_rigidity > 0.0)
+            .any(|p| p.method == Method::FoldMatch && p.schedule.rest_rigidity > 0.0)
         {
             (0..m)
                 .into_par_iter()
@@ -230,7 +237,7 @@ impl Prepared {
                 .map(|rings| RingDeltas::new(rings, &one_rings))
                 .collect()
         };
-        let stride = params.coarse_sample;
+        let stride = params.acceleration.coarse_sample;
         let coarse_sampled = if stride > 1 {
             coarse_levels
                 .iter()
@@ -257,7 +264,7 @@ impl Prepared {
         let rim = if garment.is_some()
             && schedules
                 .iter()
-                .any(|p| p.two_way_rim > 0.0 && p.two_way > 0.0)
+                .any(|p| p.schedule.two_way_rim > 0.0 && p.schedule.two_way > 0.0)
         {
             let vertices = crate::mesh::boundary_vertices(&faces, m);
             let rings = Neighborhoods::from_rows(
@@ -277,7 +284,7 @@ impl Prepared {
             degenerate_faces: cleaned.degenerate,
             duplicate_faces: cleaned.duplicate,
             isolated_vertices: isolated,
-            omega0_dt_squared: params.nbody.omega0_dt_squared(k),
+            omega0_dt_squared: params.model.nbody.omega0_dt_squared(k),
             curvature: curvature_source.into(),
             frame: Some(frame),
             schedule: "given".into(),
@@ -308,12 +315,13 @@ impl Prepared {
         })
     }
 
-    /// The two-way trust radius's multiple c of a schedule: [`FitParams::two_way_trust`], or
-    /// [`DRESSED_TRUST_FACTOR`] of it on a scan that holds more than the garment.
+    /// The two-way trust radius's multiple c of a schedule:
+    /// [`two_way_trust`](crate::fit::Schedule::two_way_trust), or [`DRESSED_TRUST_FACTOR`] of it on
+    /// a scan that holds more than the garment.
     pub(super) fn trust(&self, params: &FitParams) -> f64 {
         match self.garment {
-            Some(_) => DRESSED_TRUST_FACTOR * params.two_way_trust,
-            None => params.two_way_trust,
+            Some(_) => DRESSED_TRUST_FACTOR * params.schedule.two_way_trust,
+            None => params.schedule.two_way_trust,
         }
     }
 
@@ -353,7 +361,7 @@ pub(super) fn mean_edge_length(vertices: &[[f64; 3]], faces: &[[u32; 3]]) -> f64
 /// included), `K_Y = clamp(⌊ρM⌋, k_min, k_max)`, on the initial template.
 pub(super) fn knn_neighborhoods(start: &[[f64; 3]], params: &FitParams) -> Neighborhoods {
     let m = start.len();
-    let k = neighborhood_size(params.rho, m, params.k_min, params.k_max);
+    let k = neighborhood_size(params.model.rho, m, params.model.k_min, params.model.k_max);
     let index = PointIndex::new(start);
     let mut idx = vec![0u32; m * k];
     let mut d2 = vec![0.0; m * k];
