@@ -7,8 +7,8 @@ use super::{squared_distance, PointIndex};
 /// Largest candidate set a [`NeighborCache`] keeps per query point.
 pub const MAX_CACHED: usize = 192;
 
-/// Exact re-use of earlier k-NN queries for points that moved little (SPEC §7, issue
-/// "Performance").
+/// Exact re-use of earlier k-NN queries for points that moved little (docs/method.md "Target
+/// neighborhoods Γᵏ_X").
 ///
 /// Each point keeps the `c = min(2K, N, 192)` nearest candidates found at its *anchor* position,
 /// with the anchor distance `d_c` of the c-th. After the point moved by δ from its anchor, every

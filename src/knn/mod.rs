@@ -1,7 +1,7 @@
-//! Target neighborhoods Γᵏ_X (paper §2, SPEC §2.1): the K nearest scan points of every template
-//! vertex, from a k-d tree over the scan built once per fit ([`BoxTree`]; kiddo's trees, whose
-//! split-plane pruning is slow for queries off the scan's surface, serve the metrics' nearest
-//! queries in `metrics.rs`).
+//! Target neighborhoods Γᵏ_X (paper §2; docs/method.md "Target neighborhoods Γᵏ_X"): the K nearest
+//! scan points of every template vertex, from a k-d tree over the scan built once per fit
+//! ([`BoxTree`]; kiddo's trees, whose split-plane pruning is slow for queries off the scan's
+//! surface, serve the metrics' nearest queries in `metrics.rs`).
 
 mod box_tree;
 mod cache;
@@ -24,7 +24,8 @@ pub struct PointIndex {
     points: Vec<[f64; 3]>,
 }
 
-/// The neighborhood size `K = clamp(⌊ρN⌋, k_min, k_max)`, never more than `n` (SPEC §2.1).
+/// The neighborhood size `K = clamp(⌊ρN⌋, k_min, k_max)`, never more than `n` (docs/method.md
+/// "Target neighborhoods Γᵏ_X").
 pub fn neighborhood_size(rho: f64, n: usize, k_min: usize, k_max: usize) -> usize {
     let k = (rho * n as f64).floor() as usize;
     k.clamp(k_min, k_max.max(k_min)).min(n).max(1)

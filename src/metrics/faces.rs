@@ -12,8 +12,8 @@ use super::{MetricsParams, MIN_PAR_LEN};
 ///
 /// 0 for any similarity of the template (a rigid motion with a uniform scale), so it measures
 /// how far the fit is from an isometry up to scale, whatever the units; schedule selection
-/// breaks near-ties in scan distance with it (cloth barely stretches, docs/method.md "Eighth
-/// round"). A fitted edge collapsed to zero length counts as the ratio `1e-12`. No edge: 0.
+/// breaks near-ties in scan distance with it (cloth barely stretches; docs/method.md, schedule
+/// selection). A fitted edge collapsed to zero length counts as the ratio `1e-12`. No edge: 0.
 /// For several fits of one template, build [`EdgeLengths`] once.
 pub fn edge_length_spread(template: &[[f64; 3]], fitted: &[[f64; 3]], faces: &[[u32; 3]]) -> f64 {
     EdgeLengths::new(template, faces).spread(fitted)

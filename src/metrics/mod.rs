@@ -1,4 +1,4 @@
-//! Fit quality metrics (SPEC §3, paper §4 "Evaluation Metric").
+//! Fit quality metrics (paper §4 "Evaluation Metric").
 //!
 //! Notation: `Y` the original template vertices, `Ŷ` the fitted vertices (same count and faces
 //! as `Y`), `X` the target point set, `G` optional ground-truth positions of the template
@@ -9,12 +9,12 @@
 //! |---|---|
 //! | [`Metrics::f_h`] | `D_H(X, Ŷ) / D_H(X, Y)`, `D_H` the symmetric Hausdorff distance between *point sets* (all template vertices, referenced by a face or not) |
 //! | [`Metrics::f_s`] | fraction of evaluated faces with `area(Ŷ)/area(Y) < τ_S` (collapsed) |
-//! | [`Metrics::f_e`] | fraction of evaluated faces with `area(Ŷ)/area(Y) > τ_E` (expanded; the paper prints this ratio upside down, SPEC §3 fixes it) |
+//! | [`Metrics::f_e`] | fraction of evaluated faces with `area(Ŷ)/area(Y) > τ_E` (expanded; the paper prints this ratio upside down; read as the expansion its name says) |
 //! | [`Metrics::f_f`] | fraction of evaluated faces with `n·n̂ < 0` (flipped) |
 //! | [`Metrics::f_r`] | `RMSE(Ŷ, G) / diag(bbox(X))`, only with ground truth |
 //! | [`Metrics::f_lambda`] | mean of the available terms, named in [`Metrics::f_lambda_terms`] |
 //!
-//! Plus the distances SPEC §3 asks for beside them (Chamfer, scan-to-fit mean and 95th
+//! Plus the distances reported beside them (Chamfer, scan-to-fit mean and 95th
 //! percentile, fit-to-scan mean, the two Hausdorff distances) and face counts.
 //!
 //! # Edge cases (the choices made here)
