@@ -1,5 +1,5 @@
 //! Gaussian curvature κ_j of the target at every scan point (paper §2, the curvature term
-//! α_kj of Eq. 2; SPEC §2.2). Precomputed once per fit, in the normalized frame.
+//! α_kj of Eq. 2; docs/method.md "Curvature κ"). Precomputed once per fit, in the normalized frame.
 //!
 //! * Mesh targets: the angle deficit over the mixed Voronoi area (Meyer, Desbrun, Schröder and
 //!   Barr, *Discrete differential-geometry operators for triangulated 2-manifolds*, 2003):

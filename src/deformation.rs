@@ -1,4 +1,4 @@
-//! Deformation gradients H_k (paper Eq. 4, SPEC §2.6).
+//! Deformation gradients H_k (paper Eq. 4; docs/method.md "Deformation gradient, Eq. 4").
 //!
 //! With δY_j = Y_j − Y_k (the printed numerator `Y_j^{t+Δt} − Y_j^{t+Δt}` is a typo for the
 //! same difference at t+Δt) and β = 1/|Γᵏ_Y|:

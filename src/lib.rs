@@ -3,8 +3,7 @@
 //! Fits a garment template mesh onto a 3D scan (point cloud or mesh) so that folds, creases and
 //! wrinkles of the scan are captured by a mesh of fixed topology. Implements *FoldMatch:
 //! accurate and high fidelity garment fitting onto 3D scans* (the NRG N-body motion model, §2,
-//! and the FoldMatch deformation model, §3), with the readings fixed by the project's
-//! `SPEC.md` and documented in `docs/method.md`.
+//! and the FoldMatch deformation model, §3), with the readings documented in `docs/method.md`.
 //!
 //! The pipeline, one module per stage, in the order a fit runs them:
 //!

@@ -270,7 +270,7 @@ pub const QUATERNION_MIN_RELATIVE_GAP: Real = 1e-3;
 /// iteration it needs no full rank: a flat neighbourhood's rank-2 covariance has a
 /// well-separated λ₁. Equal to the eigen-decomposition path to round-off (tested to 1e-12),
 /// in about half the instructions of the scaled Newton polar iteration it replaced
-/// (docs/performance.md, eleventh round) and under half of the eigen-decomposition's.
+/// (docs/performance.md) and under half of the eigen-decomposition's.
 pub fn rotation_quaternion(m: &Mat3) -> Option<Mat3> {
     let (m00, m01, m02) = (m[(0, 0)], m[(0, 1)], m[(0, 2)]);
     let (m10, m11, m12) = (m[(1, 0)], m[(1, 1)], m[(1, 2)]);

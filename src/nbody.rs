@@ -1,7 +1,7 @@
-//! The NRG motion model (paper §2): scan points attract template points as an N-body system.
-//! The force of Eq. 2 with its curvature term, and the damped integration of Eq. 3, in the
-//! converging readings of SPEC §2.3–2.4; each literal reading of the paper stays reachable
-//! through [`ForceNumerator`], [`ForceSum`] and [`DampingMode`].
+//! The NRG motion model (paper §2): scan points attract template points as an N-body system. The
+//! force of Eq. 2 with its curvature term, and the damped integration of Eq. 3, in the converging
+//! readings of docs/method.md "Force, Eq. 2" and "Integration, Eq. 3"; each literal reading of the
+//! paper stays reachable through [`ForceNumerator`], [`ForceSum`] and [`DampingMode`].
 
 use crate::knn::{ReverseNearest, TargetNeighbours};
 use crate::math::{vec3, Vec3};
@@ -12,7 +12,7 @@ use serde::{Deserialize, Serialize};
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum ForceNumerator {
-    /// `α_kj (Y_k − X_j)`: translation-invariant (default, SPEC §2.3).
+    /// `α_kj (Y_k − X_j)`: translation-invariant (default; docs/method.md "Force, Eq. 2").
     Centered,
     /// `Y_k α_kj − X_j`, as printed: depends on the origin.
     Literal,
@@ -22,7 +22,8 @@ pub enum ForceNumerator {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum ForceSum {
-    /// Mean over the K neighbours, i.e. m(X_j) = 1/K (default; SPEC §2.4: the sum overshoots).
+    /// Mean over the K neighbours, i.e. m(X_j) = 1/K (default; the sum overshoots, docs/method.md
+    /// "Integration, Eq. 3").
     Mean,
     /// Plain sum, as printed.
     Sum,
@@ -44,13 +45,13 @@ pub enum DampingMode {
 #[serde(rename_all = "snake_case")]
 pub enum TwoWayPull {
     /// Their mean: a template point chosen by many scan points is pulled no harder than one
-    /// chosen by a few (the rule before 2026-12-01).
+    /// chosen by a few (the literal reading).
     Mean,
-    /// Their sum × M / N (template points over scan points): every scan point pulls with the
-    /// same weight, so where the template covers the scan evenly (N / M points choosing each
-    /// template point) this is the mean, and a template point standing for more than its
-    /// share of the scan — at the edge of a scan region no other template point is near — is
-    /// pulled harder, in proportion (default; docs/method.md "Ninth round").
+    /// Their sum × M / N (template points over scan points): every scan point pulls with the same
+    /// weight, so where the template covers the scan evenly (N / M points choosing each template
+    /// point) this is the mean, and a template point standing for more than its share of the scan —
+    /// at the edge of a scan region no other template point is near — is pulled harder, in
+    /// proportion (default; docs/method.md, the two-way pulls summed by coverage).
     Coverage,
 }
 
@@ -70,7 +71,7 @@ pub struct NBodyParams {
     pub template_mass: f64,
     /// Scan particle mass m(X).
     pub target_mass: f64,
-    /// Positive floor applied to the curvature term α_kj (SPEC §2.3).
+    /// Positive floor applied to the curvature term α_kj (docs/method.md "Force, Eq. 2").
     pub alpha_floor: f64,
     /// Numerator reading of Eq. 2.
     pub numerator: ForceNumerator,
@@ -98,9 +99,9 @@ impl Default for NBodyParams {
 }
 
 impl NBodyParams {
-    /// `(ω₀Δt)²` of the near-field spring for K neighbours: stiffness `K_eff·G·m(X)/ε³` per
-    /// unit template mass, with `K_eff = 1` for [`ForceSum::Mean`] and K for [`ForceSum::Sum`].
-    /// Explicit integration overshoots when this approaches 1 (SPEC §2.4).
+    /// `(ω₀Δt)²` of the near-field spring for K neighbours: stiffness `K_eff·G·m(X)/ε³` per unit
+    /// template mass, with `K_eff = 1` for [`ForceSum::Mean`] and K for [`ForceSum::Sum`]. Explicit
+    /// integration overshoots when this approaches 1 (docs/method.md "Integration, Eq. 3").
     pub fn omega0_dt_squared(&self, k: usize) -> f64 {
         let k_eff = match self.summation {
             ForceSum::Mean => 1.0,

@@ -1,6 +1,6 @@
-//! The normalized frame (SPEC §1): the paper's constants (G, ε, Δt, ρ) only make sense at a
-//! fixed scale, so a fit works on coordinates centered on the target's centroid and scaled so
-//! that the target's bounding-box diagonal is 1, and reports in the user's frame.
+//! The normalized frame (docs/method.md "Frame"): the paper's constants (G, ε, Δt, ρ) only make
+//! sense at a fixed scale, so a fit works on coordinates centered on the target's centroid and
+//! scaled so that the target's bounding-box diagonal is 1, and reports in the user's frame.
 
 use crate::math::Real;
 use serde::{Deserialize, Serialize};

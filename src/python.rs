@@ -837,7 +837,7 @@ fn folded_sheet<'py>(
     Ok(d)
 }
 
-/// The paper's metrics (SPEC §3) of a fit: a dict keyed by the metric names.
+/// The paper's metrics (paper §4) of a fit: a dict keyed by the metric names.
 #[pyfunction]
 #[pyo3(signature = (template_vertices, template_faces, fitted_vertices, target, ground_truth=None, tau_s=0.02, tau_e=2.0))]
 #[allow(clippy::too_many_arguments)]

@@ -1,4 +1,5 @@
-//! Tensor-interpolation regularization of the deformation gradients (paper Eq. 5, SPEC §2.7).
+//! Tensor-interpolation regularization of the deformation gradients (paper Eq. 5; docs/method.md
+//! "Regularization, Eq. 5").
 //!
 //! The printed formula is the affine-invariant (Riemannian) mean step for SPD matrices, but
 //! H_k carries a rotation, so it is applied to the stretch part (Arsigny et al. / Pennec's

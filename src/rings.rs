@@ -1,6 +1,6 @@
-//! Template neighborhoods Γᵏ_Y (paper §3, Fig. 2; SPEC §2.5): the vertices within graph
-//! distance n (the "n-ring") of every template vertex, including the vertex itself, in CSR
-//! form, computed once per fit. β_j = 1/|Γᵏ_Y| weighs each member equally.
+//! Template neighborhoods Γᵏ_Y (paper §3, Fig. 2; docs/method.md "Template neighborhoods Γᵏ_Y"):
+//! the vertices within graph distance n (the "n-ring") of every template vertex, including the
+//! vertex itself, in CSR form, computed once per fit. β_j = 1/|Γᵏ_Y| weighs each member equally.
 
 use rayon::prelude::*;
 

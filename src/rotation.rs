@@ -1,9 +1,9 @@
-//! Per-vertex transformation (paper Eq. 8, SPEC §2.9–2.11).
+//! Per-vertex transformation (paper Eq. 8; docs/method.md "Rotation and translation, Eq. 8").
 //!
 //! `R_k* = argmin_{R ∈ SO(3)} ‖H_k − R Û_k‖_F` is an orthogonal Procrustes problem: R* is the
 //! rotation factor of `H_k Û_kᵀ`. The translation is `t_k* = Ȳ'_k − R_k* Ȳ_k` with Ȳ, Ȳ' the
-//! centroids of Γᵏ_Y at t and t+Δt, and the vertex moves to `R_k* Y_k + t_k*`.
-//! For NRGa (SPEC §2.11) the rotation is the Kabsch fit of the neighborhood's old to new
+//! centroids of Γᵏ_Y at t and t+Δt, and the vertex moves to `R_k* Y_k + t_k*`. For NRGa
+//! (docs/method.md "NRGa mode") the rotation is the Kabsch fit of the neighborhood's old to new
 //! positions instead.
 
 use crate::math::{nearest_rotation_with, vec3, Mat3, Vec3};

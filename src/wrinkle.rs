@@ -1,4 +1,5 @@
-//! ψ-modified stretch and the wrinkle-vector field (paper Eq. 6–7, SPEC §2.8).
+//! ψ-modified stretch and the wrinkle-vector field (paper Eq. 6–7; docs/method.md "Stretch and
+//! wrinkle-vector field, Eq. 6–7").
 //!
 //! The stretch tensor `U = Σ λ_i e_i e_iᵀ` (λ1 ≥ λ2 ≥ λ3; `C = Hᵀ H = U²`, Eq. 6) gets the
 //! stretch coefficient ψ added along the principal direction e1 and half of it removed from

@@ -1,4 +1,4 @@
-//! `foldmatch eval`: the paper's metrics (SPEC §3) of a fitted mesh, as JSON on standard output.
+//! `foldmatch eval`: the paper's metrics (paper §4) of a fitted mesh, as JSON on standard output.
 
 use super::args::EvalCmd;
 use super::job::read_named;

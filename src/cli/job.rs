@@ -74,7 +74,7 @@ impl Template {
         })
     }
 
-    /// The accumulated wrinkle-vector field of the motion template → `fitted` (SPEC §2.8),
+    /// The accumulated wrinkle-vector field of the motion template → `fitted` (paper Eq. 6–7),
     /// computed in the scan's normalized frame as the fit does.
     pub fn wrinkle_field(
         &self,
