@@ -10,7 +10,7 @@ use crate::fit::{
     TemplateTopology, Workspace,
 };
 use crate::io::{
-    colormap_viridis, read_mesh, read_npy, read_ply_property, write_mesh, MeshData, VertexProperty,
+    read_mesh, read_npy, read_ply_property, wrinkle_colors, write_mesh, MeshData, VertexProperty,
 };
 use crate::mesh::{clean_faces, VertexFaces};
 use crate::metrics::{evaluate, Metrics, MetricsInput, MetricsParams};
@@ -388,16 +388,16 @@ pub fn name_file(path: &Path, err: FoldMatchError) -> String {
 }
 
 /// The fitted mesh with the wrinkle-vector field: vertex properties `wvf_x`, `wvf_y`, `wvf_z`,
-/// `wvf_magnitude`, and the magnitude as viridis colors (2nd–98th percentile range).
+/// `wvf_magnitude`, and the magnitude as colors ([`wrinkle_colors`]: viridis over the 2nd–98th
+/// percentile range).
 pub fn output_mesh(
     fitted: &[[f64; 3]],
     faces: &[[u32; 3]],
     field: &[[f64; 3]],
 ) -> (MeshData, Vec<VertexProperty>) {
     let magnitude = magnitudes(field);
-    let (lo, hi) = color_range(&magnitude);
     let mut mesh = MeshData::new(fitted.to_vec(), faces.to_vec());
-    mesh.colors = Some(colormap_viridis(&magnitude, lo, hi));
+    mesh.colors = Some(wrinkle_colors(&magnitude).0);
     let column = |i: usize| field.iter().map(|v| v[i]).collect();
     let extra = vec![
         VertexProperty::new("wvf_x", column(0)),
@@ -406,17 +406,6 @@ pub fn output_mesh(
         VertexProperty::new("wvf_magnitude", magnitude),
     ];
     (mesh, extra)
-}
-
-/// The 2nd and 98th percentiles of the finite values (robust to a few extreme vertices).
-fn color_range(values: &[f64]) -> (f64, f64) {
-    let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
-    if v.is_empty() {
-        return (0.0, 1.0);
-    }
-    v.sort_by(f64::total_cmp);
-    let at = |q: f64| v[((v.len() - 1) as f64 * q).round() as usize];
-    (at(0.02), at(0.98))
 }
 
 /// Reads a mesh for `what` (ground truth, fitted mesh, ...), naming it in the error.

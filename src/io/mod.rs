@@ -50,7 +50,7 @@ mod npy;
 mod obj;
 mod ply;
 
-pub use colormap::colormap_viridis;
+pub use colormap::{colormap_viridis, robust_range, wrinkle_colors};
 pub use npy::{parse_npy, read_npy};
 pub use obj::{parse_obj, read_obj, write_obj, write_obj_to};
 pub use ply::{
