@@ -15,6 +15,7 @@ use crate::io::{
 use crate::mesh::{clean_faces, VertexFaces};
 use crate::metrics::{evaluate, Metrics, MetricsInput, MetricsParams};
 use crate::normalize::Frame;
+use crate::render::{render, write_png, PreviewOptions, Scene};
 use crate::rings::{n_rings, Neighborhoods};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
@@ -172,6 +173,27 @@ pub struct Job<'a> {
     /// `sequence` record the file in their report first, then rename it to `output`: see
     /// [`stage_path`]).
     pub stage: Option<PathBuf>,
+    /// Also draw the fit into this PNG ([`crate::render`]); staged like the mesh when
+    /// `stage` is set ([`stage_path`]).
+    pub preview: Option<PathBuf>,
+}
+
+impl Job<'_> {
+    /// The staged files of the job and where each goes once recorded (the mesh, then its
+    /// preview); none when the job writes in place.
+    pub fn commits(&self) -> Vec<(PathBuf, PathBuf)> {
+        let Some(stage) = &self.stage else {
+            return Vec::new();
+        };
+        let mut commits = vec![(stage.clone(), self.output.clone())];
+        commits.extend(self.preview.iter().map(|p| (stage_path(p), p.clone())));
+        commits
+    }
+}
+
+/// The preview image `batch --preview` writes for `output`: the same name, `.png`.
+pub fn preview_path(output: &Path) -> PathBuf {
+    output.with_extension("png")
 }
 
 /// Where `batch` and `sequence` write an output before it is recorded: `.NAME.staged.EXT`
@@ -347,6 +369,26 @@ impl Runner<'_> {
         }
         let written = job.stage.as_deref().unwrap_or(&job.output);
         write_mesh(written, &mesh, &extra, job.ascii).map_err(|e| e.to_string())?;
+        if let Some(preview) = &job.preview {
+            let at = match job.stage {
+                Some(_) => stage_path(preview),
+                None => preview.clone(),
+            };
+            let magnitude = extra[3].values.as_slice();
+            // The scan's faces index all its points: drawn only when every point is.
+            let scan_faces = (explained.len() == scan.vertices.len()).then_some(target_faces);
+            let scene = Scene {
+                field: Some(magnitude),
+                scan: Some(explained),
+                scan_faces: scan_faces.flatten(),
+                ..Scene::mesh(&fitted, &template.faces)
+            };
+            self.pool
+                .install(|| render(&scene, &PreviewOptions::default()))
+                .and_then(|p| write_png(&at, &p.image, &p.png_text()))
+                .map_err(|e| format!("preview: {e}"))?;
+            report.preview = Some(preview.display().to_string());
+        }
         let metrics = self.pool.install(|| {
             evaluate(
                 &MetricsInput {

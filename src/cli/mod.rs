@@ -146,6 +146,23 @@ fn fit(cmd: &FitCmd, ctx: &Context) -> i32 {
                 ));
             }
         }
+        if let Some(preview) = &cmd.preview {
+            let is_png = preview
+                .extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("png"));
+            if !is_png {
+                return Err(format!(
+                    "--preview {}: must end in .png",
+                    preview.display()
+                ));
+            }
+            if preview == &cmd.output {
+                return Err(format!(
+                    "--preview {} is the output: choose another name",
+                    preview.display()
+                ));
+            }
+        }
         let template = Template::load(&cmd.template, &params)?;
         Ok((params, template))
     })();
@@ -175,6 +192,7 @@ fn fit(cmd: &FitCmd, ctx: &Context) -> i32 {
             (None, Some(name)) => Some(ScanWeights::Property(name.clone())),
             (None, None) => None,
         },
+        preview: cmd.preview.clone(),
     });
     let entry = &outcome.report;
     let mut code = match entry.status {
