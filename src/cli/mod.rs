@@ -156,12 +156,6 @@ fn fit(cmd: &FitCmd, ctx: &Context) -> i32 {
                     preview.display()
                 ));
             }
-            if preview == &cmd.output {
-                return Err(format!(
-                    "--preview {} is the output: choose another name",
-                    preview.display()
-                ));
-            }
         }
         let template = Template::load(&cmd.template, &params)?;
         Ok((params, template))
