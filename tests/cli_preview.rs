@@ -19,9 +19,8 @@ struct Png {
 
 impl Png {
     fn read(path: &Path) -> Self {
-        let decoder = png::Decoder::new(std::io::BufReader::new(
-            std::fs::File::open(path).unwrap(),
-        ));
+        let decoder =
+            png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
         let mut reader = decoder.read_info().unwrap();
         let mut rgb = vec![0; reader.output_buffer_size().unwrap()];
         let info = reader.next_frame(&mut rgb).unwrap();
@@ -113,7 +112,10 @@ fn check_fit_picture(png: &Png) {
         // The distance row is painted with another scale: mostly off viridis.
         let distance = png.colored_in_panel(2, col);
         assert!(distance.len() > 320 * 320 / 20);
-        let on = distance.iter().filter(|&&p| off_viridis(p).0 < 12.0).count();
+        let on = distance
+            .iter()
+            .filter(|&&p| off_viridis(p).0 < 12.0)
+            .count();
         assert!(
             (on as f64) < 0.5 * distance.len() as f64,
             "view {col}: {on} of {} distance pixels on viridis",
@@ -143,7 +145,10 @@ fn fit_preview_draws_the_scan_the_field_and_the_distance() {
         ["fit.png", "fitted.ply", "report.json"]
     );
     check_fit_picture(&Png::read(&dir.path().join("out/fit.png")));
-    assert_eq!(json(&dir.path().join("out/report.json"))["preview"], "out/fit.png");
+    assert_eq!(
+        json(&dir.path().join("out/report.json"))["preview"],
+        "out/fit.png"
+    );
 }
 
 #[test]
@@ -170,7 +175,9 @@ fn batch_preview_writes_one_picture_per_scan_next_to_its_output() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     write_case_and_scans(d, 2);
-    batch(d, &["--iterations", "5", "--preview"]).assert().code(0);
+    batch(d, &["--iterations", "5", "--preview"])
+        .assert()
+        .code(0);
     // Committed like the meshes: no staged file is left behind.
     assert_eq!(
         tree(&d.join("out")),
@@ -195,14 +202,24 @@ fn batch_preview_writes_one_picture_per_scan_next_to_its_output() {
         .code(1)
         .get_output()
         .clone();
-    assert!(String::from_utf8(out.stderr).unwrap().contains("--scheduler"));
+    assert!(String::from_utf8(out.stderr)
+        .unwrap()
+        .contains("--scheduler"));
 }
 
 #[test]
 fn demo_writes_a_preview() {
     let dir = tempfile::tempdir().unwrap();
     foldmatch(dir.path())
-        .args(["demo", "-o", "demo", "--size", "21", "--scan-points", "1500"])
+        .args([
+            "demo",
+            "-o",
+            "demo",
+            "--size",
+            "21",
+            "--scan-points",
+            "1500",
+        ])
         .assert()
         .code(0);
     check_fit_picture(&Png::read(&dir.path().join("demo/preview.png")));

@@ -6,12 +6,10 @@ use super::report::{FileReport, ScanWeightsReport, Status};
 use super::ui::{Ui, Verbosity};
 use crate::error::FoldMatchError;
 use crate::fit::{
-    deformation_model, fit_weighted, magnitudes, validate_weights, FitParams, Progress,
-    TemplateTopology, Workspace,
+    deformation_model, fit_weighted, validate_weights, FitParams, Progress, TemplateTopology,
+    Workspace,
 };
-use crate::io::{
-    read_mesh, read_npy, read_ply_property, wrinkle_colors, write_mesh, MeshData, VertexProperty,
-};
+use crate::io::{fitted_mesh, read_mesh, read_npy, read_ply_property, write_mesh, MeshData};
 use crate::mesh::{clean_faces, VertexFaces};
 use crate::metrics::{evaluate, Metrics, MetricsInput, MetricsParams};
 use crate::normalize::Frame;
@@ -363,7 +361,7 @@ impl Runner<'_> {
             result.wvf_accumulated
         };
         let fitted = result.vertices;
-        let (mesh, extra) = output_mesh(&fitted, &template.faces, &field);
+        let (mesh, extra) = fitted_mesh(&fitted, &template.faces, &field);
         if let Some(dir) = job.output.parent().filter(|d| !d.as_os_str().is_empty()) {
             std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
         }
@@ -427,27 +425,6 @@ pub fn name_file(path: &Path, err: FoldMatchError) -> String {
     } else {
         format!("{shown}: {text}")
     }
-}
-
-/// The fitted mesh with the wrinkle-vector field: vertex properties `wvf_x`, `wvf_y`, `wvf_z`,
-/// `wvf_magnitude`, and the magnitude as colors ([`wrinkle_colors`]: viridis over the 2nd–98th
-/// percentile range).
-pub fn output_mesh(
-    fitted: &[[f64; 3]],
-    faces: &[[u32; 3]],
-    field: &[[f64; 3]],
-) -> (MeshData, Vec<VertexProperty>) {
-    let magnitude = magnitudes(field);
-    let mut mesh = MeshData::new(fitted.to_vec(), faces.to_vec());
-    mesh.colors = Some(wrinkle_colors(&magnitude).0);
-    let column = |i: usize| field.iter().map(|v| v[i]).collect();
-    let extra = vec![
-        VertexProperty::new("wvf_x", column(0)),
-        VertexProperty::new("wvf_y", column(1)),
-        VertexProperty::new("wvf_z", column(2)),
-        VertexProperty::new("wvf_magnitude", magnitude),
-    ];
-    (mesh, extra)
 }
 
 /// Reads a mesh for `what` (ground truth, fitted mesh, ...), naming it in the error.

@@ -151,10 +151,7 @@ fn fit(cmd: &FitCmd, ctx: &Context) -> i32 {
                 .extension()
                 .is_some_and(|e| e.eq_ignore_ascii_case("png"));
             if !is_png {
-                return Err(format!(
-                    "--preview {}: must end in .png",
-                    preview.display()
-                ));
+                return Err(format!("--preview {}: must end in .png", preview.display()));
             }
         }
         let template = Template::load(&cmd.template, &params)?;

@@ -6,7 +6,11 @@
 use crate::io::{colormap_viridis, robust_range};
 
 /// ColorBrewer's YlOrRd anchors (Harrower & Brewer, 2003): light yellow, orange, dark red.
-const YL_OR_RD: [[f64; 3]; 3] = [[255.0, 255.0, 204.0], [253.0, 141.0, 60.0], [189.0, 0.0, 38.0]];
+const YL_OR_RD: [[f64; 3]; 3] = [
+    [255.0, 255.0, 204.0],
+    [253.0, 141.0, 60.0],
+    [189.0, 0.0, 38.0],
+];
 
 /// The color of a NaN value in every scale.
 const NAN_COLOR: [u8; 3] = [128, 128, 128];

@@ -371,7 +371,10 @@ mod tests {
         let mut v = Vec::new();
         for j in 0..n {
             for i in 0..n {
-                let (x, y) = (i as f64 / (n - 1) as f64 - 0.5, j as f64 / (n - 1) as f64 - 0.5);
+                let (x, y) = (
+                    i as f64 / (n - 1) as f64 - 0.5,
+                    j as f64 / (n - 1) as f64 - 0.5,
+                );
                 v.push([x, y, 0.1 * (6.0 * x).sin()]);
             }
         }
@@ -400,7 +403,10 @@ mod tests {
             views: vec![View::Front, View::Back],
         };
         let alone = render(&Scene::mesh(&v, &f), &options).unwrap();
-        assert_eq!((alone.image.width, alone.image.height), (2 * 64 + LEGEND_WIDTH, 64));
+        assert_eq!(
+            (alone.image.width, alone.image.height),
+            (2 * 64 + LEGEND_WIDTH, 64)
+        );
         assert_eq!(alone.field_range, None);
         let field: Vec<f64> = v.iter().map(|p| p[0] + 0.5).collect();
         let full = Scene {
@@ -409,8 +415,14 @@ mod tests {
             ..Scene::mesh(&v, &f)
         };
         let p = render(&full, &options).unwrap();
-        assert_eq!((p.image.width, p.image.height), (2 * 64 + LEGEND_WIDTH, 3 * 64));
-        assert_eq!(p.image.pixels.len(), (p.image.width * p.image.height * 3) as usize);
+        assert_eq!(
+            (p.image.width, p.image.height),
+            (2 * 64 + LEGEND_WIDTH, 3 * 64)
+        );
+        assert_eq!(
+            p.image.pixels.len(),
+            (p.image.width * p.image.height * 3) as usize
+        );
         assert_eq!(p.distance_range, Some((0.0, 0.0)));
         let (lo, hi) = p.field_range.unwrap();
         assert!(lo < 0.1 && hi > 0.9);

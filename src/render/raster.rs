@@ -35,10 +35,26 @@ impl Canvas {
             return;
         }
         let (w, h) = (self.width as f32, self.height as f32);
-        let min_x = p.iter().map(|q| q[0]).fold(f32::INFINITY, f32::min).max(0.0);
-        let max_x = p.iter().map(|q| q[0]).fold(f32::NEG_INFINITY, f32::max).min(w - 1.0);
-        let min_y = p.iter().map(|q| q[1]).fold(f32::INFINITY, f32::min).max(0.0);
-        let max_y = p.iter().map(|q| q[1]).fold(f32::NEG_INFINITY, f32::max).min(h - 1.0);
+        let min_x = p
+            .iter()
+            .map(|q| q[0])
+            .fold(f32::INFINITY, f32::min)
+            .max(0.0);
+        let max_x = p
+            .iter()
+            .map(|q| q[0])
+            .fold(f32::NEG_INFINITY, f32::max)
+            .min(w - 1.0);
+        let min_y = p
+            .iter()
+            .map(|q| q[1])
+            .fold(f32::INFINITY, f32::min)
+            .max(0.0);
+        let max_y = p
+            .iter()
+            .map(|q| q[1])
+            .fold(f32::NEG_INFINITY, f32::max)
+            .min(h - 1.0);
         if min_x > max_x || min_y > max_y {
             return;
         }
@@ -120,7 +136,10 @@ mod tests {
         assert!(c.rgb[row + 15][0] > c.rgb[row + 8][0]);
         assert!(c.rgb[row + 8][0] > c.rgb[row + 1][0]);
         let mut degenerate = Canvas::new(4, 4, [7; 3]);
-        degenerate.triangle([[0.0; 3], [1.0, 1.0, 0.0], [2.0, 2.0, 0.0]], [[255.0; 3]; 3]);
+        degenerate.triangle(
+            [[0.0; 3], [1.0, 1.0, 0.0], [2.0, 2.0, 0.0]],
+            [[255.0; 3]; 3],
+        );
         assert!(degenerate.rgb.iter().all(|&p| p == [7; 3]));
     }
 
