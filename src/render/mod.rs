@@ -318,7 +318,7 @@ fn shade(camera: &Camera, a: &[f64; 3], b: &[f64; 3], c: &[f64; 3]) -> f32 {
         u[0] * v[1] - u[1] * v[0],
     ]);
     let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-    if !(len > 0.0) {
+    if len.is_nan() || len <= 0.0 {
         return 0.35;
     }
     let facing = if n[2] < 0.0 { -1.0 } else { 1.0 };

@@ -120,7 +120,7 @@ mod tests {
             for k in order {
                 c.triangle(draws[k].0, draws[k].1);
             }
-            assert_eq!(c.rgb[1 * 10 + 1], [0, 0, 255]);
+            assert_eq!(c.rgb[10 + 1], [0, 0, 255]);
             // Outside the triangle (beyond the hypotenuse) the background stays.
             assert_eq!(c.rgb[9 * 10 + 9], [255; 3]);
         }
@@ -149,7 +149,7 @@ mod tests {
         c.point([0.5, 0.5, 1.0], 1, [9; 3]);
         c.point([0.5, 0.5, 0.5], 1, [5; 3]);
         assert_eq!(c.rgb[0], [9; 3]);
-        assert_eq!(c.rgb[1 * 5 + 1], [9; 3]);
+        assert_eq!(c.rgb[5 + 1], [9; 3]);
         assert_eq!(c.rgb[2 * 5 + 2], [0; 3]);
         c.point([f32::NAN, 0.0, 9.0], 1, [1; 3]);
         assert_eq!(c.rgb[0], [9; 3]);
