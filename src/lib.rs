@@ -38,6 +38,8 @@ pub mod metrics;
 pub mod nbody;
 pub mod normalize;
 pub mod regularize;
+#[cfg(feature = "render")]
+pub mod render;
 pub mod rings;
 pub mod rotation;
 pub mod synthetic;

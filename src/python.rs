@@ -24,6 +24,7 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::atomic::{AtomicBool, Ordering};
 
 mod cluster;
+mod render;
 
 /// Set in a forked child (see `_mark_forked`): rayon's global pool does not survive `fork`, so
 /// the child computes in a fresh pool of its own.
@@ -931,6 +932,9 @@ fn _foldmatch_rs(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(evaluate, m)?)?;
     m.add_function(wrap_pyfunction!(_mark_forked, m)?)?;
     m.add_function(wrap_pyfunction!(run_cli, m)?)?;
+    m.add_function(wrap_pyfunction!(render::render_preview, m)?)?;
+    m.add_function(wrap_pyfunction!(render::wrinkle_colors, m)?)?;
+    m.add_function(wrap_pyfunction!(render::write_fitted, m)?)?;
     m.add_function(wrap_pyfunction!(cluster::cluster_request, m)?)?;
     m.add_class::<cluster::RunBook>()?;
     m.add_class::<cluster::FileFitter>()?;

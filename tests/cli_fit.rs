@@ -305,7 +305,7 @@ offset scan of it (300 points, noise 0.2% of the width).
   mean scan-to-fit distance[..]→[..]
 
   fitted in [..] s (5 iterations, method foldmatch)
-  wrote demo: template.ply, scan.ply, ground_truth.ply, fitted.ply (wrinkle-vector field), report.json
+  wrote demo: template.ply, scan.ply, ground_truth.ply, fitted.ply (wrinkle-vector field), preview.png, report.json
 
 "#]])
         .stderr_eq(str![[r#"
@@ -317,6 +317,7 @@ demo: fitting demo/fitted.ply (5 iterations) …
         [
             "fitted.ply",
             "ground_truth.ply",
+            "preview.png",
             "report.json",
             "scan.ply",
             "template.ply"

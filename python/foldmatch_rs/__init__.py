@@ -179,19 +179,119 @@ class FitResult:
     params: dict[str, Any] = field(default_factory=dict)
     diagnostics: dict[str, Any] = field(default_factory=dict)
 
+    def save(self, path: str | os.PathLike[str], accumulated: bool = True,
+             ascii: bool = False) -> None:
+        """Writes the fitted mesh as ``foldmatch fit`` does, with the same Rust writer (byte for
+        byte the same file for the same vertices and field): ``.ply`` with vertex colors (the
+        wrinkle-field magnitude, viridis over its 2nd–98th percentiles) and the properties
+        ``wvf_x``, ``wvf_y``, ``wvf_z``, ``wvf_magnitude``; ``.obj`` with the colors only.
+        Written atomically."""
+        _core.write_fitted(
+            os.fspath(path), _points(self.vertices, "vertices"), _faces(self.faces, "faces"),
+            _points(self.wvf_accumulated if accumulated else self.wvf, "field"), ascii)
+
     def to_trimesh(self, accumulated: bool = True) -> Any:
-        """The fitted mesh as a ``trimesh.Trimesh`` with the wrinkle-field magnitude as vertex
-        colors (viridis) and the field in ``vertex_attributes``."""
+        """The fitted mesh as a ``trimesh.Trimesh`` with the colors and vertex attributes of
+        :meth:`save` (the CLI's layout): vertex colors from the wrinkle-field magnitude with
+        the CLI's scale (the same Rust code) and the attributes ``wvf_x``, ``wvf_y``, ``wvf_z``,
+        ``wvf_magnitude``, which ``export("fitted.ply")`` writes as PLY properties of those
+        names in that order. trimesh's PLY exporter itself writes ``float`` coordinates and an
+        ``alpha`` column; :meth:`save` writes the CLI's file exactly."""
         import trimesh  # optional dependency
 
+        wvf = self.wvf_accumulated if accumulated else self.wvf
         mag = self.wvf_accumulated_magnitude if accumulated else self.wvf_magnitude
         mesh = trimesh.Trimesh(self.vertices, self.faces, process=False)
-        lo, hi = float(np.min(mag)), float(np.max(mag))
-        t = (mag - lo) / (hi - lo) if hi > lo else np.zeros_like(mag)
-        mesh.visual.vertex_colors = trimesh.visual.interpolate(t, color_map="viridis")
-        mesh.vertex_attributes["wvf"] = self.wvf_accumulated if accumulated else self.wvf
+        colors, _ = _core.wrinkle_colors(np.ascontiguousarray(mag, dtype=np.float64))
+        mesh.visual.vertex_colors = np.column_stack([colors, np.full(len(colors), 255, np.uint8)])
+        for axis, name in enumerate(("wvf_x", "wvf_y", "wvf_z")):
+            mesh.vertex_attributes[name] = np.ascontiguousarray(wvf[:, axis])
         mesh.vertex_attributes["wvf_magnitude"] = mag
         return mesh
+
+    def preview(
+        self,
+        path: Optional[str | os.PathLike[str]] = None,
+        scan: Any = None,
+        *,
+        size: int = 320,
+        views: tuple[str, ...] = ("front", "three-quarter", "back"),
+    ) -> np.ndarray:
+        """A picture of the fit, as ``foldmatch fit --preview`` draws it: see :func:`render`.
+
+        The mesh is colored by ``wvf_accumulated``; give the ``scan`` (points or a trimesh
+        object) to add the scan row and the distance-to-scan row. Returns the
+        ``(H, W, 3)`` uint8 image and writes it as a PNG when ``path`` is given."""
+        return render(self.vertices, self.faces, scan=scan, field=self.wvf_accumulated, path=path,
+                      size=size, views=views)
+
+
+def render(
+    vertices: Any,
+    faces: Any,
+    scan: Any = None,
+    field: Any = None,
+    path: Optional[str | os.PathLike[str]] = None,
+    *,
+    scan_faces: Any = None,
+    size: int = 320,
+    views: tuple[str, ...] = ("front", "three-quarter", "back"),
+) -> np.ndarray:
+    """Draws a mesh without a display, as ``foldmatch fit --preview`` does (same Rust code).
+
+    One column per view (``"front"``, ``"three-quarter"``, ``"side"``, ``"back"``: turns about
+    +y, the camera on +z) and one row per layer: the scan (gray points, or its mesh), the mesh
+    colored by the wrinkle-field magnitude (viridis over its 2nd–98th percentiles, the colors
+    of the fitted PLY), and the mesh colored by each vertex's distance to the nearest scan
+    point (yellow to dark red over [0, 98th percentile]), with a color bar per colored row.
+    Without a scan only the mesh row is drawn; without a field the mesh is gray.
+
+    Parameters
+    ----------
+    vertices : (M, 3) float
+    faces : (T, 3) int
+    scan : (N, 3) float or trimesh object, optional
+    field : (M, 3) float or (M,) float, optional
+        A wrinkle-vector field (its magnitude is drawn) or per-vertex magnitudes.
+    path : str or path-like, optional
+        Also write the image there as a PNG (atomically).
+    scan_faces : (S, 3) int, optional
+        The scan's triangles (taken from a trimesh mesh given as ``scan``).
+    size : int
+        Edge of one square panel in pixels (16 to 4096).
+    views : tuple of str
+        One to four views.
+
+    Returns
+    -------
+    (H, W, 3) uint8
+        ``W = len(views)·size + 96`` (the color-bar column), ``H = rows·size``.
+    """
+    vertices = _points(vertices, "vertices")
+    faces_array = _faces(faces, "faces")
+    scan_points = None
+    if scan is not None:
+        scan_points, scan_faces = _split_mesh(scan, scan_faces, "scan")
+    elif scan_faces is not None:
+        raise InvalidInputError("scan_faces: given without a scan")
+    magnitude = None
+    if field is not None:
+        field = np.ascontiguousarray(field, dtype=np.float64)
+        if field.ndim == 1:
+            magnitude, field = field, None
+    if isinstance(views, str):
+        views = (views,)
+    return _core.render_preview(
+        vertices,
+        faces_array,
+        scan=scan_points,
+        scan_faces=scan_faces,
+        field=field,
+        magnitude=magnitude,
+        path=None if path is None else os.fspath(path),
+        panel=_whole("size", size),
+        views=list(views),
+    )
 
 
 def fit(
@@ -671,6 +771,7 @@ __all__ = [
     "foldmatch_update",
     "folded_sheet",
     "evaluate",
+    "render",
     "FoldMatchError",
     "InvalidInputError",
     "InvalidParameterError",

@@ -15,7 +15,8 @@ __all__ = [
     "gaussian_curvature", "deformation_gradients", "regularize_gradients",
     "polar_decomposition", "wrinkle_field", "solve_rotations", "foldmatch_update",
     "folded_sheet", "evaluate", "_mark_forked", "run_cli", "cluster_request", "RunBook",
-    "FileFitter", "__version__",
+    "FileFitter", "render_preview", "wrinkle_colors", "write_fitted",
+    "__version__",
 ]
 
 def default_params_json(preset: str = "default") -> str: ...
@@ -80,6 +81,21 @@ def evaluate(
     tau_e: float = 2.0,
 ) -> dict[str, Any]: ...
 def run_cli(argv: list[str]) -> int: ...
+def render_preview(
+    vertices: _F64,
+    faces: _I64,
+    scan: Optional[_F64] = None,
+    scan_faces: Optional[_I64] = None,
+    field: Optional[_F64] = None,
+    magnitude: Optional[_F64] = None,
+    path: Optional[str] = None,
+    panel: int = 320,
+    views: Optional[list[str]] = None,
+) -> npt.NDArray[np.uint8]: ...
+def wrinkle_colors(magnitude: _F64) -> tuple[npt.NDArray[np.uint8], tuple[float, float]]: ...
+def write_fitted(
+    path: str, vertices: _F64, faces: _I64, field: _F64, ascii: bool = False
+) -> None: ...
 def _mark_forked() -> None: ...
 def cluster_request(argv: list[str]) -> Optional[str]: ...
 

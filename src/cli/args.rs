@@ -135,6 +135,10 @@ pub struct FitCmd {
     /// Write ASCII PLY instead of binary.
     #[arg(long)]
     pub ascii: bool,
+    /// Also draw the fit into this PNG: the scan, the fit colored by the wrinkle field and by
+    /// the distance to the scan, from the front, three-quarter and back (docs/cli.md).
+    #[arg(long, value_name = "FILE.png")]
+    pub preview: Option<PathBuf>,
     #[command(flatten)]
     #[allow(missing_docs)]
     pub params: ParamArgs,
@@ -182,6 +186,9 @@ pub struct BatchCmd {
     /// docs/cluster.md.
     #[arg(long, value_name = "ADDRESS")]
     pub scheduler: Option<String>,
+    /// Also draw each fit into a PNG next to its output (`NAME.png`), as `fit --preview`.
+    #[arg(long, conflicts_with = "scheduler")]
+    pub preview: bool,
     #[command(flatten)]
     #[allow(missing_docs)]
     pub params: ParamArgs,

@@ -5,8 +5,8 @@
 //! first file, rewritten (atomically) as each file finishes, and written a last time at the
 //! end, so an interrupted or killed run still leaves a report of what was done.
 //!
-//! An output is committed in two steps: the fitted mesh is written to a staged file next to
-//! it ([`stage_path`]), the report that records it as done is written, and only then is the
+//! An output is committed in two steps: the fitted mesh (and its `--preview` image) is written
+//! to a staged file next to it ([`stage_path`]), the report that records it as done is written, and only then is the
 //! staged file renamed to the output. So every output in the folder is recorded as done by
 //! the report (a `kill -9` never leaves an unrecorded output that `--resume` would fit again),
 //! and a kill between the two steps leaves a recorded staged file, which `--resume` renames
@@ -19,7 +19,7 @@
 use super::args::{BatchCmd, ParamArgs, SequenceCmd};
 use super::files::{find_scans, named_files, output_paths, Found};
 use super::interrupt;
-use super::job::{read_named, stage_path, Job, Runner, ScanWeights, Template};
+use super::job::{preview_path, read_named, stage_path, Job, Runner, ScanWeights, Template};
 use super::lock::OutputLock;
 use super::report::{write_json, FileReport, RunReport, RunState, Status, Summary};
 use super::ui::Ui;
@@ -213,17 +213,20 @@ fn check_same_run(
 
 impl Setup {
     /// The entry carried over from the earlier run when `--resume` may skip the file. An
-    /// output the earlier run recorded but had not yet renamed into place (killed between
-    /// the two steps) is renamed now; a staged file it had not recorded is removed.
+    /// output (or preview) the earlier run recorded but had not yet renamed into place (killed
+    /// between the two steps) is renamed now; a staged file it had not recorded is removed.
     pub(super) fn resumable(&self, i: usize) -> Option<FileReport> {
-        let staged = stage_path(&self.outputs[i]);
         let old = self.previous.get(&self.found[i].name);
         let done = old.is_some_and(|o| o.status.is_done());
-        if staged.is_file() {
-            if done {
-                let _ = std::fs::rename(&staged, &self.outputs[i]);
-            } else {
-                let _ = std::fs::remove_file(&staged);
+        let output = &self.outputs[i];
+        for path in [output.clone(), preview_path(output)] {
+            let staged = stage_path(&path);
+            if staged.is_file() {
+                if done {
+                    let _ = std::fs::rename(&staged, &path);
+                } else {
+                    let _ = std::fs::remove_file(&staged);
+                }
             }
         }
         let old = old?;
@@ -294,25 +297,26 @@ impl Shared {
     }
 
     /// Records a finished file and writes the report (atomically), then commits its staged
-    /// output (`stage`): renamed to the output only once the report that records it is on
-    /// disk. A failed rename turns the entry into an error.
-    pub(super) fn record(&mut self, i: usize, entry: FileReport, commit: Option<(&Path, &Path)>) {
-        let ok = entry.status == Status::Ok;
+    /// outputs (`commits`: staged path → final path, the mesh first, then its preview):
+    /// renamed into place only once the report that records them is on disk. A failed rename
+    /// turns the entry into an error and the files not yet renamed are removed.
+    pub(super) fn record(&mut self, i: usize, entry: FileReport, commits: &[(PathBuf, PathBuf)]) {
+        let mut ok = entry.status == Status::Ok;
         self.report.files[i] = entry;
         self.write(RunState::Running);
-        let Some((stage, output)) = commit.filter(|(s, _)| s.is_file()) else {
-            return;
-        };
-        if !ok {
-            let _ = std::fs::remove_file(stage);
-            return;
-        }
-        if let Err(e) = std::fs::rename(stage, output) {
-            let _ = std::fs::remove_file(stage);
-            let entry = &mut self.report.files[i];
-            entry.status = Status::Error;
-            entry.error = Some(format!("{}: {e}", output.display()));
-            self.write(RunState::Running);
+        for (stage, output) in commits.iter().filter(|(s, _)| s.is_file()) {
+            if !ok {
+                let _ = std::fs::remove_file(stage);
+                continue;
+            }
+            if let Err(e) = std::fs::rename(stage, output) {
+                let _ = std::fs::remove_file(stage);
+                ok = false;
+                let entry = &mut self.report.files[i];
+                entry.status = Status::Error;
+                entry.error = Some(format!("{}: {e}", output.display()));
+                self.write(RunState::Running);
+            }
         }
     }
 }
@@ -495,6 +499,7 @@ pub fn batch(cmd: &BatchCmd, ctx: &Context) -> i32 {
                     ascii: cmd.ascii,
                     weights: cmd.scan_weights_property.clone().map(ScanWeights::Property),
                     stage: Some(stage_path(&setup.outputs[i])),
+                    preview: cmd.preview.then(|| preview_path(&setup.outputs[i])),
                 };
                 let outcome = runner.run(&job);
                 let finished = done.fetch_add(1, Ordering::SeqCst) + 1;
@@ -504,7 +509,7 @@ pub fn batch(cmd: &BatchCmd, ctx: &Context) -> i32 {
                 shared.lock().unwrap_or_else(|p| p.into_inner()).record(
                     i,
                     outcome.report,
-                    job.stage.as_deref().map(|s| (s, job.output.as_path())),
+                    &job.commits(),
                 );
             });
         }
@@ -606,7 +611,7 @@ pub fn sequence(cmd: &SequenceCmd, ctx: &Context) -> i32 {
                 Ok(mesh) if mesh.vertices.len() == setup.template.vertices.len() => {
                     entry.warm_start = warm.as_ref().map(|w| w.1.clone());
                     log_file(ui, i + 1, n, &entry);
-                    shared.record(i, entry, None);
+                    shared.record(i, entry, &[]);
                     warm = Some((mesh.vertices, name));
                     files_bar.inc();
                     continue;
@@ -627,15 +632,12 @@ pub fn sequence(cmd: &SequenceCmd, ctx: &Context) -> i32 {
             ascii: cmd.ascii,
             weights: cmd.scan_weights_property.clone().map(ScanWeights::Property),
             stage: Some(stage_path(&setup.outputs[i])),
+            preview: None,
         };
         let mut outcome = runner.run(&job);
         outcome.report.warm_start = warm.as_ref().map(|w| w.1.clone());
         log_file(ui, i + 1, n, &outcome.report);
-        shared.record(
-            i,
-            outcome.report,
-            job.stage.as_deref().map(|s| (s, job.output.as_path())),
-        );
+        shared.record(i, outcome.report, &job.commits());
         if let Some(fitted) = outcome.fitted {
             warm = Some((fitted, name));
         }

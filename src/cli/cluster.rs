@@ -373,8 +373,7 @@ impl RunBook {
         log_file(&self.ui, live.done, self.total(), &entry);
         live.bar.inc();
         live.bar.message(&entry.name);
-        live.shared
-            .record(index, entry, Some((stage.as_path(), output.as_path())));
+        live.shared.record(index, entry, &[(stage, output.clone())]);
         Ok(())
     }
 
@@ -463,6 +462,8 @@ impl FileFitter {
                 .map(ScanWeights::Property),
             // The driver renames it into place once its report records it (`RunBook::record`).
             stage: Some(stage_path(&file.output)),
+            // `--preview` conflicts with `--scheduler` (args.rs): previews are local only.
+            preview: None,
         });
         outcome.report.warm_start = warm.map(|w| w.1.to_string());
         outcome

@@ -38,12 +38,13 @@ fn run(cmd: &DemoCmd, ctx: &Context) -> Result<i32, String> {
     let case = folded_sheet(&spec);
     let dir = &cmd.output;
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    let (template_path, scan_path, gt_path, fitted_path, report_path) = (
+    let (template_path, scan_path, gt_path, fitted_path, report_path, preview_path) = (
         dir.join("template.ply"),
         dir.join("scan.ply"),
         dir.join("ground_truth.ply"),
         dir.join("fitted.ply"),
         dir.join("report.json"),
+        dir.join("preview.png"),
     );
     let write = |path: &std::path::Path, mesh: &MeshData| {
         write_mesh(path, mesh, &[], false).map_err(|e| e.to_string())
@@ -84,6 +85,7 @@ fn run(cmd: &DemoCmd, ctx: &Context) -> Result<i32, String> {
         start: None,
         ascii: false,
         weights: None,
+        preview: Some(preview_path.clone()),
     });
     let report = FitReport {
         foldmatch_version: env!("CARGO_PKG_VERSION"),
@@ -168,7 +170,7 @@ fn print_figures(
             .unwrap_or_default()
     );
     println!(
-        "  wrote {}: template.ply, scan.ply, ground_truth.ply, fitted.ply (wrinkle-vector field), report.json",
+        "  wrote {}: template.ply, scan.ply, ground_truth.ply, fitted.ply (wrinkle-vector field), preview.png, report.json",
         cmd.output.display()
     );
 }

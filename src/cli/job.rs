@@ -6,15 +6,14 @@ use super::report::{FileReport, ScanWeightsReport, Status};
 use super::ui::{Ui, Verbosity};
 use crate::error::FoldMatchError;
 use crate::fit::{
-    deformation_model, fit_weighted, magnitudes, validate_weights, FitParams, Progress,
-    TemplateTopology, Workspace,
+    deformation_model, fit_weighted, validate_weights, FitParams, Progress, TemplateTopology,
+    Workspace,
 };
-use crate::io::{
-    colormap_viridis, read_mesh, read_npy, read_ply_property, write_mesh, MeshData, VertexProperty,
-};
+use crate::io::{fitted_mesh, read_mesh, read_npy, read_ply_property, write_mesh, MeshData};
 use crate::mesh::{clean_faces, VertexFaces};
 use crate::metrics::{evaluate, Metrics, MetricsInput, MetricsParams};
 use crate::normalize::Frame;
+use crate::render::{render, write_png, PreviewOptions, Scene};
 use crate::rings::{n_rings, Neighborhoods};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
@@ -172,6 +171,27 @@ pub struct Job<'a> {
     /// `sequence` record the file in their report first, then rename it to `output`: see
     /// [`stage_path`]).
     pub stage: Option<PathBuf>,
+    /// Also draw the fit into this PNG ([`crate::render`]); staged like the mesh when
+    /// `stage` is set ([`stage_path`]).
+    pub preview: Option<PathBuf>,
+}
+
+impl Job<'_> {
+    /// The staged files of the job and where each goes once recorded (the mesh, then its
+    /// preview); none when the job writes in place.
+    pub fn commits(&self) -> Vec<(PathBuf, PathBuf)> {
+        let Some(stage) = &self.stage else {
+            return Vec::new();
+        };
+        let mut commits = vec![(stage.clone(), self.output.clone())];
+        commits.extend(self.preview.iter().map(|p| (stage_path(p), p.clone())));
+        commits
+    }
+}
+
+/// The preview image `batch --preview` writes for `output`: the same name, `.png`.
+pub fn preview_path(output: &Path) -> PathBuf {
+    output.with_extension("png")
 }
 
 /// Where `batch` and `sequence` write an output before it is recorded: `.NAME.staged.EXT`
@@ -341,12 +361,32 @@ impl Runner<'_> {
             result.wvf_accumulated
         };
         let fitted = result.vertices;
-        let (mesh, extra) = output_mesh(&fitted, &template.faces, &field);
+        let (mesh, extra) = fitted_mesh(&fitted, &template.faces, &field);
         if let Some(dir) = job.output.parent().filter(|d| !d.as_os_str().is_empty()) {
             std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
         }
         let written = job.stage.as_deref().unwrap_or(&job.output);
         write_mesh(written, &mesh, &extra, job.ascii).map_err(|e| e.to_string())?;
+        if let Some(preview) = &job.preview {
+            let at = match job.stage {
+                Some(_) => stage_path(preview),
+                None => preview.clone(),
+            };
+            let magnitude = extra[3].values.as_slice();
+            // The scan's faces index all its points: drawn only when every point is.
+            let scan_faces = (explained.len() == scan.vertices.len()).then_some(target_faces);
+            let scene = Scene {
+                field: Some(magnitude),
+                scan: Some(explained),
+                scan_faces: scan_faces.flatten(),
+                ..Scene::mesh(&fitted, &template.faces)
+            };
+            self.pool
+                .install(|| render(&scene, &PreviewOptions::default()))
+                .and_then(|p| write_png(&at, &p.image, &p.png_text()))
+                .map_err(|e| format!("preview: {e}"))?;
+            report.preview = Some(preview.display().to_string());
+        }
         let metrics = self.pool.install(|| {
             evaluate(
                 &MetricsInput {
@@ -385,38 +425,6 @@ pub fn name_file(path: &Path, err: FoldMatchError) -> String {
     } else {
         format!("{shown}: {text}")
     }
-}
-
-/// The fitted mesh with the wrinkle-vector field: vertex properties `wvf_x`, `wvf_y`, `wvf_z`,
-/// `wvf_magnitude`, and the magnitude as viridis colors (2nd–98th percentile range).
-pub fn output_mesh(
-    fitted: &[[f64; 3]],
-    faces: &[[u32; 3]],
-    field: &[[f64; 3]],
-) -> (MeshData, Vec<VertexProperty>) {
-    let magnitude = magnitudes(field);
-    let (lo, hi) = color_range(&magnitude);
-    let mut mesh = MeshData::new(fitted.to_vec(), faces.to_vec());
-    mesh.colors = Some(colormap_viridis(&magnitude, lo, hi));
-    let column = |i: usize| field.iter().map(|v| v[i]).collect();
-    let extra = vec![
-        VertexProperty::new("wvf_x", column(0)),
-        VertexProperty::new("wvf_y", column(1)),
-        VertexProperty::new("wvf_z", column(2)),
-        VertexProperty::new("wvf_magnitude", magnitude),
-    ];
-    (mesh, extra)
-}
-
-/// The 2nd and 98th percentiles of the finite values (robust to a few extreme vertices).
-fn color_range(values: &[f64]) -> (f64, f64) {
-    let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
-    if v.is_empty() {
-        return (0.0, 1.0);
-    }
-    v.sort_by(f64::total_cmp);
-    let at = |q: f64| v[((v.len() - 1) as f64 * q).round() as usize];
-    (at(0.02), at(0.98))
 }
 
 /// Reads a mesh for `what` (ground truth, fitted mesh, ...), naming it in the error.

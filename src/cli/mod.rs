@@ -146,6 +146,14 @@ fn fit(cmd: &FitCmd, ctx: &Context) -> i32 {
                 ));
             }
         }
+        if let Some(preview) = &cmd.preview {
+            let is_png = preview
+                .extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("png"));
+            if !is_png {
+                return Err(format!("--preview {}: must end in .png", preview.display()));
+            }
+        }
         let template = Template::load(&cmd.template, &params)?;
         Ok((params, template))
     })();
@@ -175,6 +183,7 @@ fn fit(cmd: &FitCmd, ctx: &Context) -> i32 {
             (None, Some(name)) => Some(ScanWeights::Property(name.clone())),
             (None, None) => None,
         },
+        preview: cmd.preview.clone(),
     });
     let entry = &outcome.report;
     let mut code = match entry.status {

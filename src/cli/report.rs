@@ -66,6 +66,9 @@ pub struct FileReport {
     /// the scan points of positive weight.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub scan_weights: Option<ScanWeightsReport>,
+    /// The preview image drawn of the fit (`--preview`), if any.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub preview: Option<String>,
 }
 
 /// Where a file's scan weights came from, and how many points they removed.
@@ -146,6 +149,7 @@ impl FileReport {
             ground_truth: None,
             warm_start: None,
             scan_weights: None,
+            preview: None,
         }
     }
 }

@@ -36,6 +36,37 @@ pub fn colormap_viridis(values: &[f64], lo: f64, hi: f64) -> Vec<[u8; 3]> {
         .collect()
 }
 
+/// The color scale of the wrinkle-vector field everywhere it is painted (the fitted PLY's
+/// vertex colors written by the CLI and by Python's `FitResult.to_trimesh()`, and the
+/// preview images of `foldmatch::render`): viridis of the magnitude `|w|` over
+/// [`robust_range`] of the magnitudes. Returns the colors and the range `(lo, hi)` used.
+///
+/// # Examples
+/// ```
+/// use foldmatch::io::wrinkle_colors;
+/// let (colors, (lo, hi)) = wrinkle_colors(&[0.0, 1.0, 2.0]);
+/// assert_eq!((lo, hi), (0.0, 2.0));
+/// assert_eq!(colors[0], [68, 1, 84]);
+/// assert_eq!(colors[2], [253, 231, 37]);
+/// ```
+pub fn wrinkle_colors(magnitude: &[f64]) -> (Vec<[u8; 3]>, (f64, f64)) {
+    let (lo, hi) = robust_range(magnitude);
+    (colormap_viridis(magnitude, lo, hi), (lo, hi))
+}
+
+/// The 2nd and 98th percentiles of the finite values (the nearest-rank value at
+/// `round((n − 1)·q)` of the sorted values): robust to a few extreme vertices. `(0, 1)` when
+/// no value is finite.
+pub fn robust_range(values: &[f64]) -> (f64, f64) {
+    let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
+    if v.is_empty() {
+        return (0.0, 1.0);
+    }
+    v.sort_by(f64::total_cmp);
+    let at = |q: f64| v[((v.len() - 1) as f64 * q).round() as usize];
+    (at(0.02), at(0.98))
+}
+
 /// The color given to NaN values.
 const NAN_COLOR: [u8; 3] = [128, 128, 128];
 
@@ -106,6 +137,19 @@ mod tests {
         assert_eq!(c[5], [253, 231, 37]);
         assert_eq!(c[6], [68, 1, 84]);
         assert_eq!(colormap_viridis(&[0.25], 0.0, 1.0)[0], [59, 82, 139]); // #3b528b
+    }
+
+    #[test]
+    fn robust_range_ignores_outliers_and_non_finite() {
+        let mut v: Vec<f64> = (0..=100).map(f64::from).collect();
+        v.push(f64::NAN);
+        v.push(f64::INFINITY);
+        assert_eq!(robust_range(&v), (2.0, 98.0));
+        assert_eq!(robust_range(&[f64::NAN]), (0.0, 1.0));
+        let (colors, range) = wrinkle_colors(&v[..101]);
+        assert_eq!(range, (2.0, 98.0));
+        assert_eq!(colors[0], VIRIDIS[0]);
+        assert_eq!(colors[100], VIRIDIS[255]);
     }
 
     #[test]
