@@ -215,7 +215,7 @@ impl RingDeltas {
     /// The differences of `rings` (rows of any order, no member repeated) between
     /// mesh-adjacent vertices (`adjacency`, [`adjacency`]'s one-rings).
     ///
-    /// Set operations by per-thread marks ([`Visited`]): a row's members are marked once and
+    /// Set operations by per-thread marks (`Visited`): a row's members are marked once and
     /// each candidate parent's row is counted against the marks, and only the chosen parent's
     /// two difference lists are sorted (sorting every row and merging it with each candidate's
     /// took 24 ms of the paper-sized fit's setup, 2 threads; the lists are the same).

@@ -1,7 +1,7 @@
 //! A `batch` or `sequence` whose fits run elsewhere: the Dask path of the Python package
 //! (`foldmatch_rs.distributed`). The driver plans the run and keeps its report with a
 //! [`RunBook`] (the local commands' setup, report, log lines, progress bar, summary and exit
-//! code); each worker fits files with a [`FileFitter`] (the local commands' [`Runner`]), so the
+//! code); each worker fits files with a [`FileFitter`] (the local commands' `Runner`), so the
 //! outputs are the local commands' bit for bit and the report has the same schema.
 
 use super::args::{Command, ParamArgs};
@@ -359,7 +359,7 @@ impl RunBook {
     }
 
     /// Records a finished file: its log line, the bar, the report (rewritten atomically), then
-    /// commits the output the worker staged ([`stage_path`]) as the local commands do: renamed
+    /// commits the output the worker staged (`stage_path`) as the local commands do: renamed
     /// into place once the report records it, removed when the entry is not `ok`. `index` is
     /// [`Planned::index`].
     pub fn record(&self, index: usize, entry: FileReport) -> Result<(), String> {
@@ -440,7 +440,7 @@ impl FileFitter {
 
     /// Fits one file exactly as `batch` (no `warm`) or `sequence` (warm-started from the
     /// previous frame's fit and named after it) do, writing the output to its staged path
-    /// ([`stage_path`]) for [`RunBook::record`] to commit; never fails: problems are in the
+    /// (`stage_path`) for [`RunBook::record`] to commit; never fails: problems are in the
     /// entry.
     pub fn fit(&self, file: &Planned, ascii: bool, warm: Option<(&[[f64; 3]], &str)>) -> Outcome {
         let runner = Runner {

@@ -6,7 +6,7 @@
 //! `<i1..<i8` / `|i1`, `<u1..<u8` / `|u1` and `|b1` (bool: 0 or 1); the shapes `(N,)` and
 //! `(N, 1)`. Everything else (big-endian data, other types, structured or object arrays,
 //! Fortran order, other shapes, a payload of the wrong size) is refused with a
-//! [`FoldMatchError::Format`] naming the file and what is wrong; the payload's size is checked
+//! [`FoldMatchError::Format`](crate::FoldMatchError::Format) naming the file and what is wrong; the payload's size is checked
 //! against the shape before anything is allocated, and no input makes the reader panic.
 
 use super::{format_error, read_file};
@@ -19,7 +19,7 @@ const MAGIC: &[u8] = b"\x93NUMPY";
 /// Reads an `(N,)` or `(N, 1)` NumPy array of numbers or booleans as `f64` values.
 ///
 /// # Errors
-/// [`FoldMatchError::Io`] when the file cannot be read, [`FoldMatchError::Format`] (naming the
+/// [`FoldMatchError::Io`](crate::FoldMatchError::Io) when the file cannot be read, [`FoldMatchError::Format`](crate::FoldMatchError::Format) (naming the
 /// file and the reason) when it is not such an array.
 pub fn read_npy(path: &Path) -> Result<Vec<f64>> {
     let data = read_file(path)?;
@@ -29,7 +29,7 @@ pub fn read_npy(path: &Path) -> Result<Vec<f64>> {
 /// Parses `.npy` bytes as [`read_npy`] does; `name` is used in error messages.
 ///
 /// # Errors
-/// [`FoldMatchError::Format`] as for [`read_npy`].
+/// [`FoldMatchError::Format`](crate::FoldMatchError::Format) as for [`read_npy`].
 pub fn parse_npy(data: &[u8], name: &str) -> Result<Vec<f64>> {
     let err = |reason: String| format_error(name, 0, reason);
     if !data.starts_with(MAGIC) {

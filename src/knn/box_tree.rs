@@ -26,7 +26,7 @@ pub const REBUILD_LOOSENESS: f64 = 1.5;
 
 /// A k-d tree with a tight bounding box per node: for the nearest template point of scan
 /// points (the two-way attraction's queries; refitted as the template moves,
-/// [`BoxTree::update`]) and for the k-NN queries over the scan ([`PointIndex`]).
+/// [`BoxTree::update`]) and for the k-NN queries over the scan ([`PointIndex`](super::PointIndex)).
 ///
 /// A k-d tree that prunes by its split planes alone (kiddo's) only sees how far a query lies
 /// *along the split axes*: for a query at height h above a flat patch of template, every leaf
@@ -37,7 +37,7 @@ pub const REBUILD_LOOSENESS: f64 = 1.5;
 ///
 /// Median splits along each node's longest box side; the node layout depends only on the
 /// number of points, so both halves are built in parallel into their own parts of the node
-/// array. Ties go to the lower index, as in [`brute_force_nearest`].
+/// array. Ties go to the lower index, as in [`brute_force_nearest`](super::brute_force_nearest).
 #[derive(Clone, Debug, Default)]
 pub struct BoxTree {
     /// The points in tree order, with their indices.
@@ -180,7 +180,7 @@ impl BoxTree {
     /// Like [`BoxTree::nearest_one_from`] where, besides its box, each node `at` has a floor
     /// `floor(at)`: no point of the node that could answer lies closer (squared) than it
     /// unless farther than `known` — so a node whose floor exceeds the best distance found is
-    /// skipped (the two-way attraction's local certificate, [`ReverseNearest`]). With floors
+    /// skipped (the two-way attraction's local certificate, [`ReverseNearest`](super::ReverseNearest)). With floors
     /// that hold, the same answer as [`BoxTree::nearest_one_from`], ties included (a floor
     /// only skips nodes strictly beyond the bound).
     #[inline]
@@ -264,9 +264,9 @@ impl BoxTree {
 
 impl BoxTree {
     /// The `indices.len()` nearest points of `q` (at most the tree's), nearest first, ties to
-    /// the lower index — [`brute_force_nearest`]'s answer — with their squared distances in
+    /// the lower index — [`brute_force_nearest`](super::brute_force_nearest)'s answer — with their squared distances in
     /// `dist2`; nothing is allocated (short lists are sorted in the outputs, long ones gathered
-    /// in a per-thread buffer kept from call to call: [`SORTED_LIST_MAX`]).
+    /// in a per-thread buffer kept from call to call: `SORTED_LIST_MAX`).
     ///
     /// Depth first, the nearer child first, pruned by box distance against the k-th found so
     /// far. It replaced kiddo's `nearest_n` for the first query of every template point: at

@@ -191,7 +191,7 @@ pub struct TargetNeighbours<'a> {
     /// K.
     pub k: usize,
     /// Whether these are the exact K nearest (not the approximate lists of
-    /// [`NeighborCache::set_slack`]): only then does [`ReverseNearest`] prune its tree
+    /// [`NeighborCache::set_slack`]): only then does [`ReverseNearest`](super::ReverseNearest) prune its tree
     /// searches by the lists' local radii (its global certificate applies either way).
     pub exact: bool,
 }

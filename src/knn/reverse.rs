@@ -24,7 +24,7 @@ use super::{squared_distance, BoxTree, TargetNeighbours};
 /// ∞ when none lists it), so a tree node whose smallest ρ exceeds the best distance found
 /// holds no closer point and is skipped ([`BoxTree::nearest_one_floored`]). The answer is the
 /// same; on the million-point case the FoldMatch iterations' two-way stage took 6 % less time
-/// (9.3 s against 9.9 s, two runs each). Under [`NeighborCache::set_slack`] the lists are
+/// (9.3 s against 9.9 s, two runs each). Under [`NeighborCache::set_slack`](super::NeighborCache::set_slack) the lists are
 /// approximate and only the global certificate is used, as before.
 #[derive(Clone, Debug, Default)]
 pub struct ReverseNearest {

@@ -58,7 +58,7 @@ impl PlyEncoding {
 /// Reads a PLY file.
 ///
 /// # Errors
-/// [`FoldMatchError::Io`] when the file cannot be read, [`FoldMatchError::Format`] (naming the
+/// [`FoldMatchError::Io`](crate::FoldMatchError::Io) when the file cannot be read, [`FoldMatchError::Format`](crate::FoldMatchError::Format) (naming the
 /// file, the line and the reason) when its content is not a valid PLY mesh or point cloud.
 pub fn read_ply(path: &Path) -> Result<MeshData> {
     let data = read_file(path)?;
@@ -68,7 +68,7 @@ pub fn read_ply(path: &Path) -> Result<MeshData> {
 /// Parses PLY bytes; `name` is used in error messages (a path, or e.g. `<memory>`).
 ///
 /// # Errors
-/// [`FoldMatchError::Format`] as for [`read_ply`].
+/// [`FoldMatchError::Format`](crate::FoldMatchError::Format) as for [`read_ply`].
 pub fn parse_ply(data: &[u8], name: &str) -> Result<MeshData> {
     parse(data, name, None).map(|(mesh, _)| mesh)
 }
@@ -79,7 +79,7 @@ pub fn parse_ply(data: &[u8], name: &str) -> Result<MeshData> {
 /// named, including those that [`MeshData`] already holds.
 ///
 /// # Errors
-/// As [`read_ply`]; a [`FoldMatchError::Format`] naming the file and the property when the
+/// As [`read_ply`]; a [`FoldMatchError::Format`](crate::FoldMatchError::Format) naming the file and the property when the
 /// vertex element has no such property or when it is a list.
 pub fn read_ply_property(path: &Path, property: &str) -> Result<(MeshData, Vec<f64>)> {
     let data = read_file(path)?;
