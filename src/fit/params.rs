@@ -3,10 +3,11 @@
 
 use crate::nbody::{NBodyParams, TwoWayPull};
 use crate::regularize::Regularization;
+use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 /// Which motion/deformation model updates the template.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Method {
     /// The paper's method: n-ring deformation gradients, Eq. 4–8.
@@ -17,7 +18,7 @@ pub enum Method {
 }
 
 /// Which gradient enters the rotation solve of Eq. 8.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum RotationSource {
     /// The regularized gradient `R̄ Ū` (default). Û commutes with Ū, so R* = R̄ and ψ moves no
@@ -28,7 +29,7 @@ pub enum RotationSource {
 }
 
 /// What to do with a template placed far from the scan.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Prealign {
     /// Fit as given; a template whose centroid is more than [`FAR_AWAY`] target diagonals
@@ -39,7 +40,7 @@ pub enum Prealign {
 }
 
 /// Schedule selection (issue "Fidelity", docs/method.md).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Selection {
     /// Run the schedule the parameters describe.
@@ -140,7 +141,7 @@ pub const FAR_AWAY: f64 = 1.0;
 
 /// Every parameter of a fit. `Default` gives the paper's constants (§4) with the converging
 /// readings of SPEC §2.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(default)]
 pub struct FitParams {
     /// FoldMatch or NRGa.
