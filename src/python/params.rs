@@ -8,7 +8,7 @@ use super::to_pyerr;
 use crate::error::FoldMatchError;
 use crate::fit::FitParams;
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyFloat};
+use pyo3::types::{PyBool, PyDict, PyFloat};
 use schemars::{schema_for, Schema};
 use serde_json::{json, Value};
 
@@ -65,6 +65,16 @@ pub(super) fn over(
                     "must be a finite number",
                 )));
             }
+        }
+        // pythonize reads a bool setting as the value's truth (so "false" would be true):
+        // a bool setting takes a bool only.
+        let is_bool = |v: &Bound<'_, PyAny>| v.is_instance_of::<PyBool>();
+        if merged.get_item(&name)?.is_some_and(|old| is_bool(&old)) && !is_bool(&value) {
+            return Err(to_pyerr(FoldMatchError::parameter(
+                &name,
+                shown(&value),
+                "must be true or false",
+            )));
         }
         merged.set_item(&name, &value)?;
     }
