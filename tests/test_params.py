@@ -89,10 +89,10 @@ def test_every_setting_reaches_the_rust_struct(sheet):
         changed = base.replace(**{name: new})
         assert changed.to_dict() == {**base.to_dict(), name: new} != base.to_dict()
     r = fm.fit(sheet["template_vertices"], sheet["faces"], sheet["scan"],
-               params=base.replace(psi=0.125, two_way_pull="mean", knn_cache=False, k_min=9))
-    assert (r.params.psi, r.params.two_way_pull, r.params.knn_cache, r.params.k_min) == (
+               params=base.replace(psi=0.125, two_way_pull="mean", velocity_sync=False, k_min=9))
+    assert (r.params.psi, r.params.two_way_pull, r.params.velocity_sync, r.params.k_min) == (
         0.125, "mean", False, 9)
-    assert r.params == base.replace(psi=0.125, two_way_pull="mean", knn_cache=False, k_min=9)
+    assert r.params == base.replace(psi=0.125, two_way_pull="mean", velocity_sync=False, k_min=9)
 
 
 def test_cli_takes_every_setting_by_name_with_the_same_defaults(tmp_path, sheet):
