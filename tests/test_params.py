@@ -264,3 +264,22 @@ def test_fit_result_repr_is_one_short_line(sheet):
     assert text.startswith("FitResult(vertices=(121, 3), faces=(200, 3), iterations=4, ")
     assert f"schedule={r.diagnostics['schedule']!r}" in text
     assert text.endswith("params=FitParams('default', iterations=4))")
+
+
+def test_cluster_runs_take_params_like_fit(tmp_path):
+    """distributed.fit_batch's request carries a FitParams' preset and settings (keywords
+    over them), as fm.fit takes them."""
+    pytest.importorskip("distributed")
+    from foldmatch_rs import distributed
+
+    def request(**params):
+        return distributed._request(
+            "batch", tmp_path / "t.ply", tmp_path, tmp_path / "out", resume=False,
+            preset="default", recursive=False, glob=None, format="ply", ascii=False,
+            gt_dir=None, params=params,
+        )
+
+    r = request(params=fm.FitParams("paper", psi=0.1), iterations=7)
+    assert r["preset"] == "paper"
+    assert r["params"] == {**fm.FitParams("paper", psi=0.1).to_dict(), "iterations": 7}
+    assert request(params={"psi": 0.2}, psi=0.3)["params"] == {"psi": 0.3}
