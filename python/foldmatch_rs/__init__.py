@@ -203,8 +203,9 @@ def fit(
         (the default) a template more than one scan diagonal away raises
         :class:`InvalidInputError`.
     params : FitParams or dict, optional
-        Every other setting (docs/parameters.md): a :class:`FitParams`, or a dict of settings
-        by name over ``preset``. The keywords above override it.
+        Every other setting (docs/parameters.md), e.g. ``{"method": "nrga"}`` for the NRGa
+        baseline or ``{"two_way": 2.0}``: a :class:`FitParams`, or a dict of settings by name
+        over ``preset``. The keywords above override it.
     callback : callable, optional
         Called after every iteration with a dict (``iteration``, ``iterations``,
         ``mean_displacement``, ``max_displacement``); returning ``False`` stops the fit, which
