@@ -106,6 +106,8 @@ class FitParams(Mapping[str, Any]):
 
     def __getattr__(self, name: str) -> Any:
         # Reached only for names that are not attributes: an unknown setting.
+        if name.startswith("_"):
+            raise AttributeError(name)
         raise AttributeError(
             f"FitParams has no setting {name!r}; settings: {', '.join(SETTINGS)}"
         )

@@ -27,39 +27,7 @@ class FitParams(Mapping[str, Any]):
     def __hash__(self) -> int: ...
     def __reduce__(self) -> tuple[Any, ...]: ...
 
-    # ---- N-body constants and readings
-    @property
-    def gravity(self) -> float:
-        """Gravitational constant G."""
-    @property
-    def softening(self) -> float:
-        """Softening length ε."""
-    @property
-    def damping(self) -> float:
-        """Damping η."""
-    @property
-    def time_step(self) -> float:
-        """Time step Δt."""
-    @property
-    def template_mass(self) -> float:
-        """Template particle mass m(Y)."""
-    @property
-    def target_mass(self) -> float:
-        """Scan particle mass m(X)."""
-    @property
-    def alpha_floor(self) -> float:
-        """Positive floor applied to the curvature term α_kj (SPEC §2.3)."""
-    @property
-    def numerator(self) -> Literal['centered', 'literal']:
-        """Numerator reading of Eq. 2."""
-    @property
-    def summation(self) -> Literal['mean', 'sum']:
-        """Combination of neighbour forces."""
-    @property
-    def damping_mode(self) -> Literal['fraction', 'force']:
-        """Damping reading."""
-
-    # ---- Model and schedule
+    # ---- The run, the model and the schedule
     @property
     def method(self) -> Literal['foldmatch', 'nrga']:
         """FoldMatch or NRGa."""
@@ -282,5 +250,37 @@ class FitParams(Mapping[str, Any]):
         are spared. A case whose choice there is the one made at the end gets the same fit,
         bit for bit (the chosen run never sees the others). 1: at the end.
         """
+
+    # ---- N-body constants and readings
+    @property
+    def gravity(self) -> float:
+        """Gravitational constant G."""
+    @property
+    def softening(self) -> float:
+        """Softening length ε."""
+    @property
+    def damping(self) -> float:
+        """Damping η."""
+    @property
+    def time_step(self) -> float:
+        """Time step Δt."""
+    @property
+    def template_mass(self) -> float:
+        """Template particle mass m(Y)."""
+    @property
+    def target_mass(self) -> float:
+        """Scan particle mass m(X)."""
+    @property
+    def alpha_floor(self) -> float:
+        """Positive floor applied to the curvature term α_kj (SPEC §2.3)."""
+    @property
+    def numerator(self) -> Literal['centered', 'literal']:
+        """Numerator reading of Eq. 2."""
+    @property
+    def summation(self) -> Literal['mean', 'sum']:
+        """Combination of neighbour forces."""
+    @property
+    def damping_mode(self) -> Literal['fraction', 'force']:
+        """Damping reading."""
 
 __all__ = ["FitParams", "GROUPS", "PRESETS", "SETTINGS"]

@@ -160,8 +160,12 @@ fn group_schemas() -> Vec<(&'static str, Schema)> {
     )]
 }
 
-/// The title of the settings at the top level of [`FitParams`].
-const TOP_GROUP: &str = "Model and schedule";
+/// The title and doc of the settings at the top level of [`FitParams`].
+const TOP_GROUP: (&str, &str) = (
+    "The run, the model and the schedule",
+    "The method, the number of iterations, the model's constants and readings, the run's \
+     controls (early stop, placement, snapshots) and the schedule beyond the paper.",
+);
 
 /// The reference of every setting, grouped as [`FitParams`] nests them: a list of groups
 /// `{"title", "doc", "settings": [{"name", "type", "default", "doc", "choices"}]}`, read from
@@ -180,12 +184,14 @@ pub(super) fn param_reference(py: Python<'_>) -> PyResult<Bound<'_, PyAny>> {
     let order = names(py)?;
     let mut groups: Vec<Value> = Vec::new();
     let mut placed: Vec<String> = Vec::new();
-    let top = root.as_object().cloned().unwrap_or_default();
-    let group_docs = group_schemas()
+    let mut top = root.as_object().cloned().unwrap_or_default();
+    top.insert("description".into(), json!(TOP_GROUP.1));
+    let nested: Vec<_> = group_schemas()
         .into_iter()
         .map(|(title, s)| (title, s.as_object().cloned().unwrap_or_default()))
-        .chain(std::iter::once((TOP_GROUP, top)));
-    for (title, group) in group_docs {
+        .collect();
+    // The nested groups claim their settings first; the top level's are the rest, shown first.
+    for (title, group) in nested.iter().chain(std::iter::once(&(TOP_GROUP.0, top))) {
         let names: Vec<String> = match group.get("properties").and_then(Value::as_object) {
             Some(own) => own
                 .keys()
@@ -207,11 +213,16 @@ pub(super) fn param_reference(py: Python<'_>) -> PyResult<Bound<'_, PyAny>> {
                 .unwrap_or("")
                 .to_string()
         };
-        groups.push(json!({
+        let entry = json!({
             "title": title,
             "doc": text("description"),
             "settings": settings,
-        }));
+        });
+        if title == &TOP_GROUP.0 {
+            groups.insert(0, entry);
+        } else {
+            groups.push(entry);
+        }
     }
     pythonize::pythonize(py, &groups)
         .map_err(|e| super::InternalError::new_err(format!("parameter reference: {e}")))
