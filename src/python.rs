@@ -526,7 +526,7 @@ fn nbody_step<'py>(
             kappa,
             None,
             None,
-            &params.nbody,
+            &params.model.nbody,
             None,
             &mut prop,
         );
@@ -760,7 +760,7 @@ fn foldmatch_update<'py>(
     let (next, wvf) = compute(py, None, |_| {
         let clean = crate::mesh::clean_faces(&f).faces;
         let inc = crate::mesh::VertexFaces::new(&clean, o.len());
-        let nb = rings::n_rings(&clean, o.len(), params.rings);
+        let nb = rings::n_rings(&clean, o.len(), params.model.rings);
         let topo = fit::TemplateTopology {
             faces: &clean,
             incidence: &inc,

@@ -25,9 +25,10 @@ fn case() -> Case {
 }
 
 fn params() -> FitParams {
-    FitParams {
-        iterations: 30,
-        ..FitParams::default()
+    {
+        let mut p = FitParams::default();
+        p.iterations = 30;
+        p
     }
 }
 
@@ -205,9 +206,10 @@ fn a_garment_inside_a_larger_scan_is_fitted_in_its_own_frame() {
             / a.len() as f64)
             .sqrt()
     };
-    let untrusted = FitParams {
-        two_way_trust: 0.0,
-        ..params()
+    let untrusted = {
+        let mut p = params();
+        p.schedule.two_way_trust = 0.0;
+        p
     };
     let dragged = fit_simple(&v, &f, &whole, None, &untrusted).unwrap();
     let off = rms(&dressed.vertices, &alone.vertices);

@@ -870,13 +870,13 @@ mod tests {
         };
         let p = fit.params.to_params().unwrap();
         assert_eq!(p.iterations, 7);
-        assert_eq!(p.psi, -0.1);
-        assert_eq!(p.nbody.damping_mode, crate::nbody::DampingMode::Force);
+        assert_eq!(p.model.psi, -0.1);
+        assert_eq!(p.model.nbody.damping_mode, crate::nbody::DampingMode::Force);
         assert_eq!(
-            p.regularization,
+            p.readings.regularization,
             crate::regularize::Regularization::LogEuclidean
         );
-        assert!(!p.use_curvature);
+        assert!(!p.readings.use_curvature);
         assert_eq!(p.method, crate::fit::Method::Nrga);
     }
 
@@ -897,8 +897,11 @@ mod tests {
             panic!()
         };
         let p = demo.params.to_params().unwrap();
-        assert_eq!((p.psi, p.k_max), (0.2, 32));
-        assert_eq!(p.regularization, crate::regularize::Regularization::None);
+        assert_eq!((p.model.psi, p.model.k_max), (0.2, 32));
+        assert_eq!(
+            p.readings.regularization,
+            crate::regularize::Regularization::None
+        );
         let cli = Cli::try_parse_from(["foldmatch", "demo", "--set", "nonsense=1"]).unwrap();
         let Command::Demo(demo) = cli.command else {
             panic!()
@@ -922,13 +925,11 @@ mod tests {
             panic!()
         };
         let p = demo.params.to_params().unwrap();
-        assert_eq!(
-            p,
-            FitParams {
-                iterations: 9,
-                ..FitParams::preset("paper").unwrap()
-            }
-        );
+        assert_eq!(p, {
+            let mut p = FitParams::preset("paper").unwrap();
+            p.iterations = 9;
+            p
+        });
         let cli = parse(["foldmatch", "demo", "--preset", "fancy"]).unwrap();
         let Command::Demo(demo) = cli.command else {
             panic!()

@@ -505,13 +505,18 @@ mod tests {
             assert_eq!(back, p, "{name}");
         }
         // A value whose shortest decimal form has 17 digits.
-        let p = FitParams {
-            psi: 0.1 + 0.2 - 0.3 + 0.07,
-            ..FitParams::default()
+        let p = {
+            let mut p = FitParams::default();
+            p.model.psi = 0.1 + 0.2 - 0.3 + 0.07;
+            p
         };
         assert_eq!(
-            FitParams::from_json(&p.to_json()).unwrap().psi.to_bits(),
-            p.psi.to_bits()
+            FitParams::from_json(&p.to_json())
+                .unwrap()
+                .model
+                .psi
+                .to_bits(),
+            p.model.psi.to_bits()
         );
     }
 
@@ -538,7 +543,7 @@ mod tests {
         let text = serde_json::to_string(r).unwrap();
         let back: Request = serde_json::from_str(&text).unwrap();
         let params = back.param_args().to_params_over("default").unwrap();
-        assert_eq!((params.iterations, params.psi), (7, 0.2));
+        assert_eq!((params.iterations, params.model.psi), (7, 0.2));
         assert_eq!(back.scan_weights_property, None);
         let run = Request::from_cli(argv(
             "foldmatch sequence t.ply f -o o --scheduler local --scan-weights-property label",

@@ -63,7 +63,7 @@ impl Template {
         let m = vertices.len();
         let clean = clean_faces(&faces).faces;
         let incidence = VertexFaces::new(&clean, m);
-        let rings = n_rings(&clean, m, params.rings);
+        let rings = n_rings(&clean, m, params.model.rings);
         Ok(Self {
             path: path.to_path_buf(),
             vertices,
@@ -82,7 +82,7 @@ impl Template {
         scan: &[[f64; 3]],
         params: &FitParams,
     ) -> Vec<[f64; 3]> {
-        let frame = if params.normalize {
+        let frame = if params.readings.normalize {
             Frame::of_target(scan)
         } else {
             Frame::identity()

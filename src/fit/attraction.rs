@@ -106,16 +106,20 @@ impl Attraction {
         rim: bool,
     ) -> Self {
         let (n, k) = (scan.points.len(), scan.k);
-        let reverse = (params.two_way > 0.0 && params.method == Method::FoldMatch).then(|| {
-            (
-                nbody::ReverseAttraction::new(m, n, params.knn_cache),
-                vec![[0.0; 3]; m],
-            )
-        });
+        let reverse =
+            (params.schedule.two_way > 0.0 && params.method == Method::FoldMatch).then(|| {
+                (
+                    nbody::ReverseAttraction::new(m, n, params.internal.knn_cache),
+                    vec![[0.0; 3]; m],
+                )
+            });
         Self {
             nn_idx: vec![0u32; m * k],
             nn_d2: vec![0.0; m * k],
-            nn_cache: params.knn_cache.then(|| NeighborCache::new(m, k, n)),
+            nn_cache: params
+                .internal
+                .knn_cache
+                .then(|| NeighborCache::new(m, k, n)),
             reverse,
             proposed: vec![[0.0; 3]; m],
             nearest: if prepared.trust(params) > 0.0 {
@@ -125,7 +129,7 @@ impl Attraction {
             },
             edge_length: prepared.edge_length,
             trust: prepared.trust(params),
-            outward: if rim && params.two_way_rim > 0.0 && params.two_way > 0.0 {
+            outward: if rim && params.schedule.two_way_rim > 0.0 && params.schedule.two_way > 0.0 {
                 vec![[0.0; 3]; m]
             } else {
                 Vec::new()
@@ -189,7 +193,7 @@ impl Attraction {
         if !self.outward.is_empty() {
             rim.outward(pos, &mut self.outward);
         }
-        let rim_margin = params.two_way_rim * self.edge_length;
+        let rim_margin = params.schedule.two_way_rim * self.edge_length;
         let forward_rim = (!self.outward.is_empty()).then(|| (&self.outward[..], rim_margin));
         let trust_radius = match self.reverse {
             Some(_) => {
@@ -206,8 +210,8 @@ impl Attraction {
                     exact: slack == 0.0,
                 };
                 let two_way = nbody::TwoWay {
-                    weight: params.two_way,
-                    pull: params.two_way_pull,
+                    weight: params.schedule.two_way,
+                    pull: params.schedule.two_way_pull,
                     trust_radius,
                     rim: forward_rim,
                     weights,
@@ -263,7 +267,7 @@ pub(super) fn explained_points(
     params: &FitParams,
 ) -> Option<Vec<u32>> {
     let diag = |p: &[[f64; 3]]| Frame::of_target(p).scale;
-    if params.two_way_trust <= 0.0 || diag(scan) <= GARMENT_FRAME_RATIO * diag(template) {
+    if params.schedule.two_way_trust <= 0.0 || diag(scan) <= GARMENT_FRAME_RATIO * diag(template) {
         return None;
     }
     let scan_index = PointIndex::new(scan);
@@ -273,8 +277,9 @@ pub(super) fn explained_points(
         .collect();
     let mid = nearest.len() / 2;
     let median = nearest.select_nth_unstable_by(mid, f64::total_cmp).1.sqrt();
-    let radius =
-        DRESSED_TRUST_FACTOR * params.two_way_trust * median.max(mean_edge_length(template, faces));
+    let radius = DRESSED_TRUST_FACTOR
+        * params.schedule.two_way_trust
+        * median.max(mean_edge_length(template, faces));
     let template_index = PointIndex::new(template);
     let explained: Vec<u32> = (0..scan.len() as u32)
         .into_par_iter()

@@ -118,7 +118,7 @@ pub fn fit_weighted(
     let total = params.iterations;
     // Side by side up to the comparison (by default the last iteration; a single run: all).
     let compare_at = if runs.len() > 1 {
-        ((params.selection_at * total as f64).ceil() as usize).clamp(1, total)
+        ((params.schedule.selection_at * total as f64).ceil() as usize).clamp(1, total)
     } else {
         total
     };
@@ -133,7 +133,7 @@ pub fn fit_weighted(
             .collect();
         let rest_edges = crate::metrics::EdgeLengths::new(template_vertices, &prepared.faces);
         let spreads: Vec<f64> = vertices.iter().map(|v| rest_edges.spread(v)).collect();
-        let best = select_schedule(&distances, &spreads, params.selection_margin);
+        let best = select_schedule(&distances, &spreads, params.schedule.selection_margin);
         (best, vertices, distances, spreads)
     });
     let best = selection.as_ref().map_or(0, |s| s.0);

@@ -65,7 +65,9 @@ impl Workspace {
         let start = std::time::Instant::now();
         let stretch = &self.reg_stretch;
         self.wvf.par_iter_mut().enumerate().for_each(|(k, w)| {
-            *w = modified_stretch(&stretch[k], params.psi).wrinkle.into();
+            *w = modified_stretch(&stretch[k], params.model.psi)
+                .wrinkle
+                .into();
         });
         self.times.rotation += start.elapsed().as_secs_f64();
     }
@@ -129,8 +131,8 @@ pub(super) fn deformation_rotations(
                     new,
                     &n_old[k],
                     &n_new[k],
-                    params.normal_completion,
-                    params.matrix_series,
+                    params.model.normal_completion,
+                    params.internal.matrix_series,
                 );
                 *h = g;
                 *deg = d;
@@ -140,8 +142,8 @@ pub(super) fn deformation_rotations(
         regularize(
             &ws.raw,
             topo.rings,
-            params.regularization,
-            params.matrix_series,
+            params.readings.regularization,
+            params.internal.matrix_series,
             &mut ws.reg,
             &mut ws.reg_rotation,
             &mut ws.reg_stretch,
@@ -149,19 +151,19 @@ pub(super) fn deformation_rotations(
     });
     timed(&mut times.rotation, || {
         let (raw, reg_r, reg_u) = (&ws.raw, &ws.reg_rotation, &ws.reg_stretch);
-        let shortcut =
-            params.matrix_series && params.rotation_source == RotationSource::Regularized;
+        let shortcut = params.internal.matrix_series
+            && params.readings.rotation_source == RotationSource::Regularized;
         ws.rotation.par_iter_mut().enumerate().for_each(|(k, rot)| {
-            if shortcut && stretch_stays_positive(&reg_u[k], params.psi) {
+            if shortcut && stretch_stays_positive(&reg_u[k], params.model.psi) {
                 *rot = reg_r[k];
                 return;
             }
-            let m = modified_stretch(&reg_u[k], params.psi);
-            let h = match params.rotation_source {
+            let m = modified_stretch(&reg_u[k], params.model.psi);
+            let h = match params.readings.rotation_source {
                 RotationSource::Regularized => reg_r[k] * reg_u[k],
                 RotationSource::Raw => raw[k],
             };
-            *rot = solve_rotation(&h, &m.stretch, params.matrix_series);
+            *rot = solve_rotation(&h, &m.stretch, params.internal.matrix_series);
         });
     });
     ws.times = times;

@@ -139,8 +139,8 @@ pub const PAPER_K_MAX: usize = 64;
 /// Distance (in target bounding-box diagonals) beyond which an unaligned template is refused.
 pub const FAR_AWAY: f64 = 1.0;
 
-/// Every parameter of a fit. `Default` gives the paper's constants (§4) with the converging
-/// readings of SPEC §2.
+/// Every parameter of a fit, in groups (each flattened, so the JSON form is one flat object).
+/// `Default` gives the paper's constants (§4) with the converging readings of docs/method.md.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(default)]
 pub struct FitParams {
@@ -148,6 +148,35 @@ pub struct FitParams {
     pub method: Method,
     /// ξ, the number of iterations.
     pub iterations: usize,
+    /// Stop early when the mean displacement of an iteration (normalized units) is below this
+    /// (0 disables).
+    pub tolerance: f64,
+    /// Handling of a template placed far from the scan.
+    pub prealign: Prealign,
+    /// Keep the vertex positions every this many iterations (0 keeps none).
+    pub snapshot_every: usize,
+    /// The model's constants: the paper's §4 values (n, ρ and the clamps of K, ψ, γ) and the ([`ModelConstants`]).
+    #[serde(flatten)]
+    pub model: ModelConstants,
+    /// Paper readings: the switches choosing between readings of the paper where it admits more ([`Readings`]).
+    #[serde(flatten)]
+    pub readings: Readings,
+    /// The schedule of a fit beyond the paper: its phases (rigid, coarse, fine), the two-way ([`Schedule`]).
+    #[serde(flatten)]
+    pub schedule: Schedule,
+    /// Acceleration: samples and approximate neighborhoods that make a fit faster and change its ([`Acceleration`]).
+    #[serde(flatten)]
+    pub acceleration: Acceleration,
+    /// Round-off-only speed switches (not serialized; see [`Internal`]).
+    #[serde(skip)]
+    pub(crate) internal: Internal,
+}
+
+/// The model's constants: the paper's §4 values (n, ρ and the clamps of K, ψ, γ) and the
+/// N-body constants of Eq. 2–3 with their readings ([`NBodyParams`]).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(default)]
+pub struct ModelConstants {
     /// n of the n-ring template neighborhoods Γᵏ_Y.
     pub rings: usize,
     /// ρ, the target neighborhood size as a fraction of the scan's point count:
@@ -165,6 +194,13 @@ pub struct FitParams {
     pub psi: f64,
     /// γ, weight of the normal completion of Eq. 4 (0 disables it).
     pub normal_completion: f64,
+}
+
+/// Paper readings: the switches choosing between readings of the paper where it admits more
+/// than one (docs/method.md, "Ablation of the readings").
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(default)]
+pub struct Readings {
     /// Mean used by Eq. 5.
     pub regularization: Regularization,
     /// Gradient used by Eq. 8.
@@ -174,15 +210,16 @@ pub struct FitParams {
     pub velocity_sync: bool,
     /// Work in the normalized frame (SPEC §1).
     pub normalize: bool,
-    /// Stop early when the mean displacement of an iteration (normalized units) is below this
-    /// (0 disables).
-    pub tolerance: f64,
     /// Use the curvature term of Eq. 2 (`false` sets κ = 0, i.e. α = 1).
     pub use_curvature: bool,
-    /// Handling of a template placed far from the scan.
-    pub prealign: Prealign,
-    /// Keep the vertex positions every this many iterations (0 keeps none).
-    pub snapshot_every: usize,
+}
+
+/// The schedule of a fit beyond the paper: its phases (rigid, coarse, fine), the two-way
+/// attraction, the rest-shape rigidity, the softening annealing and schedule selection
+/// (docs/method.md, "Beyond the paper: the default configuration").
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(default)]
+pub struct Schedule {
     /// Two-way attraction: weight of the pull of every scan point on its nearest template
     /// vertex, added to Eq. 2 (0: the paper's one-way attraction).
     pub two_way: f64,
@@ -221,65 +258,12 @@ pub struct FitParams {
     /// mesh, and the coarse phase's rigid pieces then no longer turn a sleeve or a panel as a
     /// unit (docs/method.md "Seventeenth round": held out, f_R ×0.88 against a fixed 8).
     pub coarse_rings: usize,
-    /// Rigid phase on a sample: the N-body forces (and the two-way attraction's pulls) are
-    /// computed for every `rigid_sample`-th template vertex only, and the one Kabsch fit of
-    /// those vertices moves the whole template (1: every vertex). The rigid phase only needs
-    /// the one rigid motion, so 4 (the default) costs no accuracy on the harness and cuts
-    /// the phase's k-NN, two-way and force work by about 4× (docs/method.md).
-    pub rigid_sample: usize,
-    /// Rigid phase on a scan sample: the rigid phase sees every `rigid_scan_sample`-th scan
-    /// point only (in the fit's space-filling-curve order, so the sample is spread evenly),
-    /// with `⌈K / s⌉` target neighbours per vertex (about the same neighbourhood radius) and
-    /// the two-way pulls of the sampled points. Eq. 2's force is a mean over the neighbours
-    /// and the pulls on a vertex a mean over the scan points choosing it, which the sample
-    /// estimates; the phase reduces them to one rigid motion. 0 (the default): automatic, the
-    /// largest stride leaving [`RIGID_SCAN_POINTS_PER_VERTEX`] scan points per vertex of the
-    /// rigid phase's sample (1 — the whole scan — unless the scan has more than that many times
-    /// as many points, e.g. 4 for a 1M-point scan under a 100K-vertex template); 1: the whole
-    /// scan.
-    pub rigid_scan_sample: usize,
-    /// Coarse phase on a scan sample, as [`FitParams::rigid_scan_sample`] for the rigid
-    /// phase: the coarse phase sees every `coarse_scan_sample`-th scan point, with `⌈K / s⌉`
-    /// target neighbours; each vertex there moves by the Kabsch fit of its coarse ring, which
-    /// the sampled forces estimate. 0 (the default): automatic, the largest stride leaving
-    /// [`COARSE_SCAN_POINTS_PER_VERTEX`] scan points per vertex of the coarse phase's sample,
-    /// at most [`COARSE_SCAN_MAX_AUTO_STRIDE`] (so 2 where the scan has at least 8 points per
-    /// vertex, as a 1M-point scan under a 100K-vertex template, else 1 — the whole scan; every
-    /// harness case is at 1); 1: the whole scan. Measured on dense scans: the million-point
-    /// case 32.4 s → 24.4 s at f_R ×0.999.
-    pub coarse_scan_sample: usize,
-    /// Coarse phase on a sample: the forces are computed for every `coarse_sample`-th vertex
-    /// only, and every vertex moves by the Kabsch fit of the sampled members of its coarse
-    /// ring (1: every vertex; more needs coarse rings of radius ≥ 3 at every level).
-    pub coarse_sample: usize,
     /// Levels of the coarse phase: its iterations are split evenly into this many levels, level
     /// `l` using neighborhoods of radius `max(1, r / 2^l)`, r the coarse radius
     /// ([`FitParams::coarse_radius`]) (1: one radius throughout),
     /// so the pieces that move rigidly shrink as the fit proceeds, like the decreasing
     /// stiffness of non-rigid ICP.
     pub coarse_levels: usize,
-    /// Fast 3×3 matrix functions, each agreeing with the eigen-decomposition to round-off:
-    /// truncated series for the logarithms and exponentials of Eq. 5 near the identity, the
-    /// unit-quaternion (Horn / QCP) solution for polar factors and nearest rotations (Eq. 5's
-    /// rotation mean, Eq. 8, the Kabsch fits of the rigid and coarse phases, of the rest-shape
-    /// rigidity and of NRGa), closed-form eigenvalues and a direct inverse for well-conditioned
-    /// Eq. 4 systems. `false` always uses the Jacobi eigen-decomposition (the exact reference
-    /// path).
-    pub matrix_series: bool,
-    /// Re-use earlier k-NN candidates when that is provably exact (see
-    /// [`crate::knn::NeighborCache`]), and read the two-way attraction's nearest template
-    /// vertices off the inverted k-NN lists where certified ([`crate::knn::ReverseNearest`]);
-    /// `false` queries a k-d tree for every vertex and every scan point every iteration.
-    /// Results are the same either way.
-    pub knn_cache: bool,
-    /// σ of the rigid and coarse phases' approximate target neighborhoods: there the k-NN
-    /// cache ([`crate::knn::NeighborCache::set_slack`]) re-uses a vertex's candidates while
-    /// every returned neighbour is within `(1 + σ) ×` the true K-th nearest distance, sparing
-    /// the fresh queries of template points still far off the scan (their candidates all lie
-    /// at about their height, so the exact test fails at nearly every move). The FoldMatch
-    /// iterations stay exact. 0: exact throughout; without `knn_cache` every query is exact.
-    /// Default [`DEFAULT_KNN_SLACK`]; docs/performance.md, "Thirteenth round".
-    pub knn_slack: f64,
     /// Rest-shape rigidity β₀ of the FoldMatch iterations (as-rigid-as-possible blending): in
     /// the j-th of the J iterations after the rigid and coarse phases every vertex goes to
     /// `(1 − β) ·` its Eq. 8 update `+ β ·` the placement of its template n-ring, as given
@@ -312,11 +296,92 @@ pub struct FitParams {
     pub selection_at: f64,
 }
 
+/// Acceleration: samples and approximate neighborhoods that make a fit faster and change its
+/// result a little (beyond round-off).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(default)]
+pub struct Acceleration {
+    /// Rigid phase on a sample: the N-body forces (and the two-way attraction's pulls) are
+    /// computed for every `rigid_sample`-th template vertex only, and the one Kabsch fit of
+    /// those vertices moves the whole template (1: every vertex). The rigid phase only needs
+    /// the one rigid motion, so 4 (the default) costs no accuracy on the harness and cuts
+    /// the phase's k-NN, two-way and force work by about 4× (docs/method.md).
+    pub rigid_sample: usize,
+    /// Rigid phase on a scan sample: the rigid phase sees every `rigid_scan_sample`-th scan
+    /// point only (in the fit's space-filling-curve order, so the sample is spread evenly),
+    /// with `⌈K / s⌉` target neighbours per vertex (about the same neighbourhood radius) and
+    /// the two-way pulls of the sampled points. Eq. 2's force is a mean over the neighbours
+    /// and the pulls on a vertex a mean over the scan points choosing it, which the sample
+    /// estimates; the phase reduces them to one rigid motion. 0 (the default): automatic, the
+    /// largest stride leaving [`RIGID_SCAN_POINTS_PER_VERTEX`] scan points per vertex of the
+    /// rigid phase's sample (1 — the whole scan — unless the scan has more than that many times
+    /// as many points, e.g. 4 for a 1M-point scan under a 100K-vertex template); 1: the whole
+    /// scan.
+    pub rigid_scan_sample: usize,
+    /// Coarse phase on a scan sample, as [`FitParams::rigid_scan_sample`] for the rigid
+    /// phase: the coarse phase sees every `coarse_scan_sample`-th scan point, with `⌈K / s⌉`
+    /// target neighbours; each vertex there moves by the Kabsch fit of its coarse ring, which
+    /// the sampled forces estimate. 0 (the default): automatic, the largest stride leaving
+    /// [`COARSE_SCAN_POINTS_PER_VERTEX`] scan points per vertex of the coarse phase's sample,
+    /// at most [`COARSE_SCAN_MAX_AUTO_STRIDE`] (so 2 where the scan has at least 8 points per
+    /// vertex, as a 1M-point scan under a 100K-vertex template, else 1 — the whole scan; every
+    /// harness case is at 1); 1: the whole scan. Measured on dense scans: the million-point
+    /// case 32.4 s → 24.4 s at f_R ×0.999.
+    pub coarse_scan_sample: usize,
+    /// Coarse phase on a sample: the forces are computed for every `coarse_sample`-th vertex
+    /// only, and every vertex moves by the Kabsch fit of the sampled members of its coarse
+    /// ring (1: every vertex; more needs coarse rings of radius ≥ 3 at every level).
+    pub coarse_sample: usize,
+    /// σ of the rigid and coarse phases' approximate target neighborhoods: there the k-NN
+    /// cache ([`crate::knn::NeighborCache::set_slack`]) re-uses a vertex's candidates while
+    /// every returned neighbour is within `(1 + σ) ×` the true K-th nearest distance, sparing
+    /// the fresh queries of template points still far off the scan (their candidates all lie
+    /// at about their height, so the exact test fails at nearly every move). The FoldMatch
+    /// iterations stay exact. 0: exact throughout; without `knn_cache` every query is exact.
+    /// Default [`DEFAULT_KNN_SLACK`]; docs/performance.md, "Thirteenth round".
+    pub knn_slack: f64,
+}
+
+/// Speed switches that change a fit by round-off only: not user settings (not serialized),
+/// kept for the equivalence tests of the fast paths against the exact ones.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Internal {
+    /// Fast 3×3 matrix functions, each agreeing with the eigen-decomposition to round-off:
+    /// truncated series for the logarithms and exponentials of Eq. 5 near the identity, the
+    /// unit-quaternion (Horn / QCP) solution for polar factors and nearest rotations (Eq. 5's
+    /// rotation mean, Eq. 8, the Kabsch fits of the rigid and coarse phases, of the rest-shape
+    /// rigidity and of NRGa), closed-form eigenvalues and a direct inverse for well-conditioned
+    /// Eq. 4 systems. `false` always uses the Jacobi eigen-decomposition (the exact reference
+    /// path).
+    pub(crate) matrix_series: bool,
+    /// Re-use earlier k-NN candidates when that is provably exact (see
+    /// [`crate::knn::NeighborCache`]), and read the two-way attraction's nearest template
+    /// vertices off the inverted k-NN lists where certified ([`crate::knn::ReverseNearest`]);
+    /// `false` queries a k-d tree for every vertex and every scan point every iteration.
+    /// Results are the same either way.
+    pub(crate) knn_cache: bool,
+}
+
 impl Default for FitParams {
     fn default() -> Self {
         Self {
             method: Method::FoldMatch,
             iterations: 100,
+            tolerance: 0.0,
+            prealign: Prealign::None,
+            snapshot_every: 0,
+            model: ModelConstants::default(),
+            readings: Readings::default(),
+            schedule: Schedule::default(),
+            acceleration: Acceleration::default(),
+            internal: Internal::default(),
+        }
+    }
+}
+
+impl Default for ModelConstants {
+    fn default() -> Self {
+        Self {
             rings: 2,
             rho: DEFAULT_RHO,
             k_min: 8,
@@ -324,14 +389,25 @@ impl Default for FitParams {
             nbody: NBodyParams::default(),
             psi: 0.05,
             normal_completion: 0.3,
+        }
+    }
+}
+
+impl Default for Readings {
+    fn default() -> Self {
+        Self {
             regularization: Regularization::LogEuclidean,
             rotation_source: RotationSource::Regularized,
             velocity_sync: true,
             normalize: true,
-            tolerance: 0.0,
             use_curvature: true,
-            prealign: Prealign::None,
-            snapshot_every: 0,
+        }
+    }
+}
+
+impl Default for Schedule {
+    fn default() -> Self {
+        Self {
             two_way: 4.5,
             two_way_trust: DEFAULT_TWO_WAY_TRUST,
             two_way_rim: DEFAULT_TWO_WAY_RIM,
@@ -340,13 +416,6 @@ impl Default for FitParams {
             coarse_fraction: 0.5,
             coarse_rings: 0,
             coarse_levels: 1,
-            rigid_sample: 4,
-            rigid_scan_sample: 0,
-            coarse_scan_sample: 0,
-            coarse_sample: 1,
-            knn_cache: true,
-            knn_slack: DEFAULT_KNN_SLACK,
-            matrix_series: true,
             rest_rigidity: 0.65,
             anneal: 3.0,
             anneal_fraction: 0.6,
@@ -357,14 +426,35 @@ impl Default for FitParams {
     }
 }
 
+impl Default for Acceleration {
+    fn default() -> Self {
+        Self {
+            rigid_sample: 4,
+            rigid_scan_sample: 0,
+            coarse_scan_sample: 0,
+            coarse_sample: 1,
+            knn_slack: DEFAULT_KNN_SLACK,
+        }
+    }
+}
+
+impl Default for Internal {
+    fn default() -> Self {
+        Self {
+            matrix_series: true,
+            knn_cache: true,
+        }
+    }
+}
+
 impl FitParams {
     /// The stride of the rigid phase's scan sample ([`FitParams::rigid_scan_sample`]) for a
     /// template of `m` vertices and a scan of `n` points.
     pub fn rigid_scan_stride(&self, m: usize, n: usize) -> usize {
         let (per_vertex, most) = (RIGID_SCAN_POINTS_PER_VERTEX, MAX_SCAN_SAMPLE);
         scan_stride(
-            self.rigid_scan_sample,
-            self.rigid_sample,
+            self.acceleration.rigid_scan_sample,
+            self.acceleration.rigid_sample,
             per_vertex,
             most,
             m,
@@ -376,8 +466,8 @@ impl FitParams {
     pub fn coarse_scan_stride(&self, m: usize, n: usize) -> usize {
         let (per_vertex, most) = (COARSE_SCAN_POINTS_PER_VERTEX, COARSE_SCAN_MAX_AUTO_STRIDE);
         scan_stride(
-            self.coarse_scan_sample,
-            self.coarse_sample,
+            self.acceleration.coarse_scan_sample,
+            self.acceleration.coarse_sample,
             per_vertex,
             most,
             m,
@@ -389,8 +479,8 @@ impl FitParams {
     /// when given, else `clamp(round(8 √(m / 1,700)), 8, 12)` ([`AUTO_COARSE_RINGS`],
     /// [`COARSE_RINGS_REFERENCE_VERTICES`], [`AUTO_COARSE_RINGS_MAX`]).
     pub fn coarse_radius(&self, m: usize) -> usize {
-        if self.coarse_rings > 0 {
-            return self.coarse_rings;
+        if self.schedule.coarse_rings > 0 {
+            return self.schedule.coarse_rings;
         }
         let scaled = AUTO_COARSE_RINGS as f64 * (m as f64 / COARSE_RINGS_REFERENCE_VERTICES).sqrt();
         (scaled.round() as usize).clamp(AUTO_COARSE_RINGS, AUTO_COARSE_RINGS_MAX)
@@ -401,8 +491,8 @@ impl FitParams {
         if self.method == Method::Nrga {
             return (0, 0);
         }
-        let rigid = (self.rigid_fraction * self.iterations as f64).round() as usize;
-        let coarse = (self.coarse_fraction * self.iterations as f64).round() as usize;
+        let rigid = (self.schedule.rigid_fraction * self.iterations as f64).round() as usize;
+        let coarse = (self.schedule.coarse_fraction * self.iterations as f64).round() as usize;
         (rigid, coarse.min(self.iterations.saturating_sub(rigid)))
     }
 
@@ -411,7 +501,7 @@ impl FitParams {
     pub fn knn_slack_at(&self, it: usize) -> f64 {
         let (rigid, coarse) = self.phase_iterations();
         if it <= rigid + coarse {
-            self.knn_slack
+            self.acceleration.knn_slack
         } else {
             0.0
         }

@@ -62,7 +62,14 @@ pub(super) fn rigid(
         None => (&prepared.all_vertices[..], old, new),
     };
     let (c_old, c_new) = ring_centroids(all, fit_old, fit_new);
-    let r = kabsch(all, fit_old, fit_new, &c_old, &c_new, params.matrix_series);
+    let r = kabsch(
+        all,
+        fit_old,
+        fit_new,
+        &c_old,
+        &c_new,
+        params.internal.matrix_series,
+    );
     next.par_iter_mut().enumerate().for_each(|(v, out)| {
         *out = transform_vertex(&r, &vec3(&old[v]), &c_old, &c_new).into();
     });
@@ -104,7 +111,7 @@ pub(super) fn coarse(
             new,
         ),
     };
-    let fast = params.matrix_series;
+    let fast = params.internal.matrix_series;
     let moments = fast.then_some((&mut ws.moments, deltas, &mut ws.ring_sums));
     kabsch_update(rings, ring_old, ring_new, old, fast, moments, next);
     0
@@ -123,7 +130,7 @@ pub(super) fn fine(
     ws: &mut Workspace,
     next: &mut [[f64; 3]],
 ) -> usize {
-    let fast = params.matrix_series;
+    let fast = params.internal.matrix_series;
     if params.method == Method::Nrga {
         kabsch_update(&prepared.rings, old, new, old, fast, None, next);
         return 0;
@@ -254,7 +261,7 @@ pub(super) fn kabsch_update(
 /// The rest-shape rigidity β of the `fine`-th of the `total` FoldMatch iterations (1-based):
 /// [`FitParams::rest_rigidity`] decreasing linearly to 0 at the last one.
 pub(super) fn rest_rigidity_at(params: &FitParams, fine: usize, total: usize) -> f64 {
-    params.rest_rigidity * (1.0 - fine as f64 / total.max(1) as f64)
+    params.schedule.rest_rigidity * (1.0 - fine as f64 / total.max(1) as f64)
 }
 
 /// Where the rest-shape rigidity ([`FitParams::rest_rigidity`]) puts vertex `v`: its template
@@ -277,11 +284,11 @@ pub(super) fn rest_ring_placement(
 /// The N-body constants of iteration `it` (1-based): the softening annealed from
 /// `anneal × ε` down to ε over the first `anneal_fraction × ξ` iterations.
 pub(super) fn annealed(params: &FitParams, it: usize) -> NBodyParams {
-    let mut p = params.nbody;
-    let span = params.anneal_fraction * params.iterations as f64;
-    if params.anneal > 1.0 && span > 0.0 {
+    let mut p = params.model.nbody;
+    let span = params.schedule.anneal_fraction * params.iterations as f64;
+    if params.schedule.anneal > 1.0 && span > 0.0 {
         let remaining = 1.0 - ((it - 1) as f64 / span).min(1.0);
-        p.softening *= 1.0 + (params.anneal - 1.0) * remaining;
+        p.softening *= 1.0 + (params.schedule.anneal - 1.0) * remaining;
     }
     p
 }

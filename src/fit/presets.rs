@@ -12,19 +12,18 @@ impl FitParams {
     /// attraction, no rigid or coarse phase, constant softening, Eq. 5 as the affine-invariant
     /// mean, ρ = 0.2 % and K ≤ 64 (the `"paper"` preset).
     pub fn paper() -> Self {
-        Self {
-            rho: PAPER_RHO,
-            k_max: PAPER_K_MAX,
-            two_way: 0.0,
-            rigid_fraction: 0.0,
-            coarse_fraction: 0.0,
-            rest_rigidity: 0.0,
-            anneal: 1.0,
-            anneal_fraction: 0.0,
-            selection: Selection::Single,
-            regularization: Regularization::AffineInvariant,
-            ..Self::default()
-        }
+        let mut p = Self::default();
+        p.model.rho = PAPER_RHO;
+        p.model.k_max = PAPER_K_MAX;
+        p.schedule.two_way = 0.0;
+        p.schedule.rigid_fraction = 0.0;
+        p.schedule.coarse_fraction = 0.0;
+        p.schedule.rest_rigidity = 0.0;
+        p.schedule.anneal = 1.0;
+        p.schedule.anneal_fraction = 0.0;
+        p.schedule.selection = Selection::Single;
+        p.readings.regularization = Regularization::AffineInvariant;
+        p
     }
 
     /// The default without softening annealing, for a fit that starts close to its scan
@@ -35,16 +34,15 @@ impl FitParams {
     /// (a warm-started frame's template is the previous fit, not a rest shape, and the option
     /// was not measured on sequences).
     pub fn tracking() -> Self {
-        Self {
-            two_way: 2.0,
-            two_way_pull: TwoWayPull::Mean,
-            rigid_sample: 1,
-            rest_rigidity: 0.0,
-            anneal: 1.0,
-            anneal_fraction: 0.0,
-            selection: Selection::Single,
-            ..Self::default()
-        }
+        let mut p = Self::default();
+        p.schedule.two_way = 2.0;
+        p.schedule.two_way_pull = TwoWayPull::Mean;
+        p.acceleration.rigid_sample = 1;
+        p.schedule.rest_rigidity = 0.0;
+        p.schedule.anneal = 1.0;
+        p.schedule.anneal_fraction = 0.0;
+        p.schedule.selection = Selection::Single;
+        p
     }
 
     /// The alternative schedule of [`Selection::ScanDistance`]: these parameters with the
@@ -52,14 +50,13 @@ impl FitParams {
     /// softening — which fits gently curved, misplaced cloth (the random sheets) best, where
     /// the annealed default fits large articulated motion best.
     pub fn sharp_schedule(&self) -> Self {
-        Self {
-            two_way: self.two_way.min(1.0),
-            coarse_fraction: self.coarse_fraction.min(0.3),
-            anneal: 1.0,
-            anneal_fraction: 0.0,
-            selection: Selection::Single,
-            ..self.clone()
-        }
+        let mut p = self.clone();
+        p.schedule.two_way = self.schedule.two_way.min(1.0);
+        p.schedule.coarse_fraction = self.schedule.coarse_fraction.min(0.3);
+        p.schedule.anneal = 1.0;
+        p.schedule.anneal_fraction = 0.0;
+        p.schedule.selection = Selection::Single;
+        p
     }
 
     /// The third candidate of [`Selection::ScanDistanceWide`]: these parameters with ⅔ of the
@@ -67,22 +64,22 @@ impl FitParams {
     /// (60 % in the default): long-range pulls for longer, a gentler pull on scan regions the
     /// template does not cover yet (docs/method.md).
     pub fn gentle_schedule(&self) -> Self {
-        Self {
-            two_way: self.two_way / 1.5,
-            anneal_fraction: self.anneal_fraction.max(0.8),
-            selection: Selection::Single,
-            ..self.clone()
-        }
+        let mut p = self.clone();
+        p.schedule.two_way = self.schedule.two_way / 1.5;
+        p.schedule.anneal_fraction = self.schedule.anneal_fraction.max(0.8);
+        p.schedule.selection = Selection::Single;
+        p
     }
 
     /// The schedules a fit runs: the given one alone ([`Selection::Single`], or NRGa), or the
     /// candidates of schedule selection, named by [`SCHEDULE_NAMES`](super::SCHEDULE_NAMES).
     pub fn candidate_schedules(&self) -> Vec<Self> {
-        let given = Self {
-            selection: Selection::Single,
-            ..self.clone()
+        let given = {
+            let mut p = self.clone();
+            p.schedule.selection = Selection::Single;
+            p
         };
-        match self.selection {
+        match self.schedule.selection {
             _ if self.method != Method::FoldMatch => vec![given],
             Selection::Single => vec![given],
             Selection::ScanDistance => vec![given, self.sharp_schedule()],
@@ -100,10 +97,9 @@ impl FitParams {
     /// ([`Selection::ScanDistanceWide`], still an option) and the rigid phase on every vertex,
     /// which had become no closer to the truth than the default for twice its time.
     pub fn accurate() -> Self {
-        Self {
-            iterations: ACCURATE_ITERATIONS,
-            ..Self::default()
-        }
+        let mut p = Self::default();
+        p.iterations = ACCURATE_ITERATIONS;
+        p
     }
 
     /// One schedule instead of schedule selection's two (the `"fast"` preset), between the
@@ -116,10 +112,9 @@ impl FitParams {
     /// (the given one 0.985 / 0.999, the sharp one 0.892 / 1.054; docs/method.md "Eighteenth
     /// round"). For previews and large batches where time comes first.
     pub fn fast() -> Self {
-        Self {
-            two_way: FAST_TWO_WAY,
-            ..Self::default().sharp_schedule()
-        }
+        let mut p = Self::default().sharp_schedule();
+        p.schedule.two_way = FAST_TWO_WAY;
+        p
     }
 
     /// A named preset: `"default"` (the most accurate configuration for its cost, see

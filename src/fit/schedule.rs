@@ -134,8 +134,16 @@ impl ScheduleRun {
         let mut phase_sample = [None, None];
         let [rigid_scan, coarse_scan] = prepared.scan_strides;
         let wanted = [
-            (params.rigid_sample, rigid_scan, rigid_iterations),
-            (params.coarse_sample, coarse_scan, coarse_iterations),
+            (
+                params.acceleration.rigid_sample,
+                rigid_scan,
+                rigid_iterations,
+            ),
+            (
+                params.acceleration.coarse_sample,
+                coarse_scan,
+                coarse_iterations,
+            ),
         ];
         for (slot, (stride, scan_stride, iterations)) in phase_sample.iter_mut().zip(wanted) {
             if (stride > 1 || scan_stride > 1) && iterations > 0 {
@@ -234,7 +242,7 @@ impl ScheduleRun {
         };
         self.ws.times.update += update_start.elapsed().as_secs_f64();
         // Velocities follow the applied motion (SPEC §2.4); displacement figures.
-        let (dt, sync) = (params.nbody.time_step, params.velocity_sync);
+        let (dt, sync) = (params.model.nbody.time_step, params.readings.velocity_sync);
         let (pos, next) = (&self.pos, &self.next);
         self.disp
             .par_iter_mut()
@@ -300,7 +308,7 @@ impl ScheduleRun {
         let acc_topo = if params.method == Method::FoldMatch {
             prepared.topology()
         } else {
-            acc_rings = n_rings(&prepared.faces, m, params.rings);
+            acc_rings = n_rings(&prepared.faces, m, params.model.rings);
             TemplateTopology {
                 faces: &prepared.faces,
                 incidence: &prepared.incidence,

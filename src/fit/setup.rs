@@ -95,7 +95,7 @@ impl Prepared {
             .as_ref()
             .map(|g| g.iter().map(|&j| fitted[j as usize]).collect());
         let frame_points = garment_points.as_deref().unwrap_or(fitted);
-        let frame = if params.normalize {
+        let frame = if params.readings.normalize {
             Frame::of_target(frame_points)
         } else {
             Frame::identity()
@@ -107,7 +107,7 @@ impl Prepared {
             / fitted.len() as f64
             - vec3(&frame.center))
             / frame.scale;
-        let scan_diag = if params.normalize {
+        let scan_diag = if params.readings.normalize {
             1.0
         } else {
             Frame::of_target(fitted).scale
@@ -131,7 +131,7 @@ impl Prepared {
         // on the scan's order): k-d tree, K, curvature (a mesh's, of the given order).
         // A mesh's curvature is of the whole mesh; only the remaining points are fitted.
         let mesh_kappa = target_faces
-            .filter(|f| params.use_curvature && !f.is_empty())
+            .filter(|f| params.readings.use_curvature && !f.is_empty())
             .map(|tf| gaussian_curvature_mesh(&all_scan, tf))
             .map(|kappa| match kept {
                 Some(k) => k.iter().map(|&j| kappa[j]).collect(),
@@ -146,9 +146,14 @@ impl Prepared {
         let weights: Option<Vec<f64>> =
             weights.map(|w| order.iter().map(|&j| w[j as usize]).collect());
         let index = PointIndex::new(&scan);
-        let k = neighborhood_size(params.rho, frame_points.len(), params.k_min, params.k_max);
+        let k = neighborhood_size(
+            params.model.rho,
+            frame_points.len(),
+            params.model.k_min,
+            params.model.k_max,
+        );
         let (kappa, curvature_source) = match mesh_kappa {
-            _ if !params.use_curvature => (vec![0.0; scan.len()], "off"),
+            _ if !params.readings.use_curvature => (vec![0.0; scan.len()], "off"),
             Some(kappa) => (order.iter().map(|&j| kappa[j as usize]).collect(), "mesh"),
             None => (gaussian_curvature_points(&scan, &index), "point_cloud"),
         };
@@ -162,7 +167,7 @@ impl Prepared {
         // NRGa's neighbourhoods are k-nearest, and it has no coarse phase).
         let one_rings = std::cell::LazyCell::new(|| adjacency(&faces, m));
         let rings = match params.method {
-            Method::FoldMatch => n_rings_of(&one_rings, params.rings),
+            Method::FoldMatch => n_rings_of(&one_rings, params.model.rings),
             Method::Nrga => knn_neighborhoods(&start, params),
         };
         let phases: Vec<(usize, usize)> =
@@ -205,7 +210,7 @@ impl Prepared {
             0
         };
         let coarse_levels = if coarse_radius > 0 {
-            (0..params.coarse_levels)
+            (0..params.schedule.coarse_levels)
                 .map(|l| n_rings_of(&one_rings, (coarse_radius >> l).max(1)))
                 .collect()
         } else {
@@ -213,7 +218,7 @@ impl Prepared {
         };
         let rest_centroids = if schedules
             .iter()
-            .any(|p| p.method == Method::FoldMatch && p.rest_rigidity > 0.0)
+            .any(|p| p.method == Method::FoldMatch && p.schedule.rest_rigidity > 0.0)
         {
             (0..m)
                 .into_par_iter()
@@ -230,7 +235,7 @@ impl Prepared {
                 .map(|rings| RingDeltas::new(rings, &one_rings))
                 .collect()
         };
-        let stride = params.coarse_sample;
+        let stride = params.acceleration.coarse_sample;
         let coarse_sampled = if stride > 1 {
             coarse_levels
                 .iter()
@@ -257,7 +262,7 @@ impl Prepared {
         let rim = if garment.is_some()
             && schedules
                 .iter()
-                .any(|p| p.two_way_rim > 0.0 && p.two_way > 0.0)
+                .any(|p| p.schedule.two_way_rim > 0.0 && p.schedule.two_way > 0.0)
         {
             let vertices = crate::mesh::boundary_vertices(&faces, m);
             let rings = Neighborhoods::from_rows(
@@ -277,7 +282,7 @@ impl Prepared {
             degenerate_faces: cleaned.degenerate,
             duplicate_faces: cleaned.duplicate,
             isolated_vertices: isolated,
-            omega0_dt_squared: params.nbody.omega0_dt_squared(k),
+            omega0_dt_squared: params.model.nbody.omega0_dt_squared(k),
             curvature: curvature_source.into(),
             frame: Some(frame),
             schedule: "given".into(),
@@ -312,8 +317,8 @@ impl Prepared {
     /// [`DRESSED_TRUST_FACTOR`] of it on a scan that holds more than the garment.
     pub(super) fn trust(&self, params: &FitParams) -> f64 {
         match self.garment {
-            Some(_) => DRESSED_TRUST_FACTOR * params.two_way_trust,
-            None => params.two_way_trust,
+            Some(_) => DRESSED_TRUST_FACTOR * params.schedule.two_way_trust,
+            None => params.schedule.two_way_trust,
         }
     }
 
@@ -353,7 +358,7 @@ pub(super) fn mean_edge_length(vertices: &[[f64; 3]], faces: &[[u32; 3]]) -> f64
 /// included), `K_Y = clamp(⌊ρM⌋, k_min, k_max)`, on the initial template.
 pub(super) fn knn_neighborhoods(start: &[[f64; 3]], params: &FitParams) -> Neighborhoods {
     let m = start.len();
-    let k = neighborhood_size(params.rho, m, params.k_min, params.k_max);
+    let k = neighborhood_size(params.model.rho, m, params.model.k_min, params.model.k_max);
     let index = PointIndex::new(start);
     let mut idx = vec![0u32; m * k];
     let mut d2 = vec![0.0; m * k];

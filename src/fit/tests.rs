@@ -1,3 +1,4 @@
+use super::params::Internal;
 use super::phases::{annealed, rest_ring_placement};
 use super::*;
 use crate::math::{vec3, Vec3};
@@ -6,13 +7,14 @@ use crate::rotation::ring_centroids;
 
 #[test]
 fn softening_anneals_linearly_over_its_fraction_of_the_iterations() {
-    let mut p = FitParams {
-        anneal: 3.0,
-        anneal_fraction: 0.5,
-        iterations: 10,
-        ..FitParams::default()
+    let mut p = {
+        let mut p = FitParams::default();
+        p.schedule.anneal = 3.0;
+        p.schedule.anneal_fraction = 0.5;
+        p.iterations = 10;
+        p
     };
-    let eps = p.nbody.softening;
+    let eps = p.model.nbody.softening;
     let at = |p: &FitParams, it| annealed(p, it).softening / eps;
     assert!((at(&p, 1) - 3.0).abs() < 1e-15);
     // Span 5 iterations: at iteration 3, 2/5 of the way from 3 down to 1.
@@ -24,13 +26,15 @@ fn softening_anneals_linearly_over_its_fraction_of_the_iterations() {
     p.iterations = 100;
     assert!((at(&p, 21) - 2.2).abs() < 1e-15);
     for off in [
-        FitParams {
-            anneal: 1.0,
-            ..p.clone()
+        {
+            let mut p = p.clone();
+            p.schedule.anneal = 1.0;
+            p
         },
-        FitParams {
-            anneal_fraction: 0.0,
-            ..p.clone()
+        {
+            let mut p = p.clone();
+            p.schedule.anneal_fraction = 0.0;
+            p
         },
         FitParams::paper(),
     ] {
@@ -76,12 +80,13 @@ fn small_grid_case() -> Case {
 
 /// The default with only a rigid phase, `iterations` long, one schedule.
 fn rigid_only(iterations: usize) -> FitParams {
-    FitParams {
-        iterations,
-        rigid_fraction: 1.0,
-        coarse_fraction: 0.0,
-        selection: Selection::Single,
-        ..FitParams::default()
+    {
+        let mut p = FitParams::default();
+        p.iterations = iterations;
+        p.schedule.rigid_fraction = 1.0;
+        p.schedule.coarse_fraction = 0.0;
+        p.schedule.selection = Selection::Single;
+        p
     }
 }
 
@@ -112,7 +117,7 @@ fn assert_refused(params: &FitParams, field: &str) {
 #[test]
 fn automatic_coarse_radius_grows_with_the_square_root_of_the_template_and_is_clamped() {
     let auto = FitParams::default();
-    assert_eq!(auto.coarse_rings, 0);
+    assert_eq!(auto.schedule.coarse_rings, 0);
     // 8 rings up to the reference size, √M above it, at most 12.
     for (m, want) in [
         (10, 8),
@@ -126,15 +131,17 @@ fn automatic_coarse_radius_grows_with_the_square_root_of_the_template_and_is_cla
         assert_eq!(auto.coarse_radius(m), want, "M = {m}");
     }
     // A given radius is used as given, whatever the size.
-    let given = FitParams {
-        coarse_rings: 5,
-        ..FitParams::default()
+    let given = {
+        let mut p = FitParams::default();
+        p.schedule.coarse_rings = 5;
+        p
     };
     assert_eq!(given.coarse_radius(100_489), 5);
     assert_refused(
-        &FitParams {
-            coarse_rings: 33,
-            ..FitParams::default()
+        &{
+            let mut p = FitParams::default();
+            p.schedule.coarse_rings = 33;
+            p
         },
         "coarse_rings",
     );
@@ -145,16 +152,18 @@ fn automatic_coarse_radius_grows_with_the_square_root_of_the_template_and_is_cla
         .iter()
         .map(|p| [p[0], p[1], 0.1 * (3.0 * p[0]).sin() + 0.05])
         .collect();
-    let base = FitParams {
-        iterations: 10,
-        selection: Selection::Single,
-        ..FitParams::default()
+    let base = {
+        let mut p = FitParams::default();
+        p.iterations = 10;
+        p.schedule.selection = Selection::Single;
+        p
     };
     let auto_fit = fit_simple(&v, &f, &x, None, &base).unwrap();
     let given = |coarse_rings| {
-        let params = FitParams {
-            coarse_rings,
-            ..base.clone()
+        let params = {
+            let mut p = base.clone();
+            p.schedule.coarse_rings = coarse_rings;
+            p
         };
         fit_simple(&v, &f, &x, None, &params).unwrap().vertices
     };
@@ -166,48 +175,41 @@ fn automatic_coarse_radius_grows_with_the_square_root_of_the_template_and_is_cla
 #[test]
 fn coarse_levels_shrink_the_radius_and_stop_at_one_ring() {
     let (v, f, x) = grid_case();
-    let base = FitParams {
-        iterations: 12,
-        selection: Selection::Single,
-        coarse_rings: 1,
-        ..FitParams::default()
+    let base = {
+        let mut p = FitParams::default();
+        p.iterations = 12;
+        p.schedule.selection = Selection::Single;
+        p.schedule.coarse_rings = 1;
+        p
     };
     let one = fit_simple(&v, &f, &x, None, &base).unwrap();
     // Radius max(1, 1 >> l) = 1 at every level: the same fit, bit for bit.
-    let three = fit_simple(
-        &v,
-        &f,
-        &x,
-        None,
-        &FitParams {
-            coarse_levels: 3,
-            ..base.clone()
-        },
-    );
+    let three = fit_simple(&v, &f, &x, None, &{
+        let mut p = base.clone();
+        p.schedule.coarse_levels = 3;
+        p
+    });
     assert_eq!(one.vertices, three.unwrap().vertices);
     // From 4 rings, a second level (2 rings) changes the coarse phase.
-    let wide = FitParams {
-        coarse_rings: 4,
-        ..base.clone()
+    let wide = {
+        let mut p = base.clone();
+        p.schedule.coarse_rings = 4;
+        p
     };
     let a = fit_simple(&v, &f, &x, None, &wide).unwrap();
-    let b = fit_simple(
-        &v,
-        &f,
-        &x,
-        None,
-        &FitParams {
-            coarse_levels: 2,
-            ..wide
-        },
-    )
+    let b = fit_simple(&v, &f, &x, None, &{
+        let mut p = wide;
+        p.schedule.coarse_levels = 2;
+        p
+    })
     .unwrap();
     assert_ne!(a.vertices, b.vertices);
     for bad in [0, 5] {
         assert_refused(
-            &FitParams {
-                coarse_levels: bad,
-                ..base.clone()
+            &{
+                let mut p = base.clone();
+                p.schedule.coarse_levels = bad;
+                p
             },
             "coarse_levels",
         );
@@ -219,16 +221,11 @@ fn rigid_sample_moves_the_template_rigidly_by_the_sample_fit() {
     let (v, f, x) = small_grid_case();
     let rigid_only = rigid_only(6);
     let with = |rigid_sample| {
-        fit_simple(
-            &v,
-            &f,
-            &x,
-            None,
-            &FitParams {
-                rigid_sample,
-                ..rigid_only.clone()
-            },
-        )
+        fit_simple(&v, &f, &x, None, &{
+            let mut p = rigid_only.clone();
+            p.acceleration.rigid_sample = rigid_sample;
+            p
+        })
         .unwrap()
         .vertices
     };
@@ -248,9 +245,10 @@ fn rigid_sample_moves_the_template_rigidly_by_the_sample_fit() {
     }
     for bad in [0, 65] {
         assert_refused(
-            &FitParams {
-                rigid_sample: bad,
-                ..rigid_only.clone()
+            &{
+                let mut p = rigid_only.clone();
+                p.acceleration.rigid_sample = bad;
+                p
             },
             "rigid_sample",
         );
@@ -264,20 +262,23 @@ fn rigid_scan_sample_strides_only_dense_scans() {
     assert_eq!(default.rigid_scan_stride(13_225, 14_400), 1);
     // The large case: 1M points under 25,123 vertices, 8 per vertex → every 4th.
     assert_eq!(default.rigid_scan_stride(100_489, 1_000_000), 4);
-    let every_vertex = FitParams {
-        rigid_sample: 1,
-        ..default.clone()
+    let every_vertex = {
+        let mut p = default.clone();
+        p.acceleration.rigid_sample = 1;
+        p
     };
     assert_eq!(every_vertex.rigid_scan_stride(100_489, 1_000_000), 1);
-    let given = FitParams {
-        rigid_scan_sample: 3,
-        ..default.clone()
+    let given = {
+        let mut p = default.clone();
+        p.acceleration.rigid_scan_sample = 3;
+        p
     };
     assert_eq!(given.rigid_scan_stride(100_489, 14_400), 3);
     assert_refused(
-        &FitParams {
-            rigid_scan_sample: 65,
-            ..default
+        &{
+            let mut p = default;
+            p.acceleration.rigid_scan_sample = 65;
+            p
         },
         "rigid_scan_sample",
     );
@@ -288,9 +289,10 @@ fn rigid_scan_sample_strides_only_dense_scans() {
     let rigid_only = rigid_only(6);
     assert_eq!(rigid_only.rigid_scan_stride(v.len(), x.len()), 12);
     let with = |rigid_scan_sample| {
-        let params = FitParams {
-            rigid_scan_sample,
-            ..rigid_only.clone()
+        let params = {
+            let mut p = rigid_only.clone();
+            p.acceleration.rigid_scan_sample = rigid_scan_sample;
+            p
         };
         fit_simple(&v, &f, &x, None, &params).unwrap().vertices
     };
@@ -316,16 +318,18 @@ fn coarse_scan_sample_halves_only_scans_of_eight_points_a_vertex() {
     // The rigid phase's automatic stride keeps its own rule.
     assert_eq!(default.rigid_scan_stride(100_489, 1_000_000), 4);
     for given in [1, 3, 64] {
-        let params = FitParams {
-            coarse_scan_sample: given,
-            ..default.clone()
+        let params = {
+            let mut p = default.clone();
+            p.acceleration.coarse_scan_sample = given;
+            p
         };
         assert_eq!(params.coarse_scan_stride(1_000, 1_000_000), given);
     }
     assert_refused(
-        &FitParams {
-            coarse_scan_sample: 65,
-            ..default.clone()
+        &{
+            let mut p = default.clone();
+            p.acceleration.coarse_scan_sample = 65;
+            p
         },
         "coarse_scan_sample",
     );
@@ -335,18 +339,20 @@ fn coarse_scan_sample_halves_only_scans_of_eight_points_a_vertex() {
     // motion.
     let (v, f, _) = small_grid_case();
     let (_, _, x) = wavy_grid_case(40, 0.1);
-    let coarse_only = FitParams {
-        iterations: 6,
-        rigid_fraction: 0.0,
-        coarse_fraction: 1.0,
-        selection: Selection::Single,
-        ..default
+    let coarse_only = {
+        let mut p = default;
+        p.iterations = 6;
+        p.schedule.rigid_fraction = 0.0;
+        p.schedule.coarse_fraction = 1.0;
+        p.schedule.selection = Selection::Single;
+        p
     };
     assert_eq!(coarse_only.coarse_scan_stride(v.len(), x.len()), 2);
     let with = |coarse_scan_sample| {
-        let params = FitParams {
-            coarse_scan_sample,
-            ..coarse_only.clone()
+        let params = {
+            let mut p = coarse_only.clone();
+            p.acceleration.coarse_scan_sample = coarse_scan_sample;
+            p
         };
         fit_simple(&v, &f, &x, None, &params).unwrap().vertices
     };
@@ -362,29 +368,33 @@ fn coarse_sample_with_whole_mesh_rings_is_the_rigid_sample() {
     // sampled ring is the whole sample, so a coarse-only fit on every 4th vertex is the
     // rigid-only fit on every 4th vertex, up to the order of the sums.
     let (v, f, x) = small_grid_case();
-    let base = FitParams {
-        iterations: 6,
-        coarse_rings: 32,
-        selection: Selection::Single,
-        ..FitParams::default()
+    let base = {
+        let mut p = FitParams::default();
+        p.iterations = 6;
+        p.schedule.coarse_rings = 32;
+        p.schedule.selection = Selection::Single;
+        p
     };
     let run = |p: FitParams| fit_simple(&v, &f, &x, None, &p).unwrap().vertices;
-    let coarse = run(FitParams {
-        rigid_fraction: 0.0,
-        coarse_fraction: 1.0,
-        coarse_sample: 4,
-        ..base.clone()
+    let coarse = run({
+        let mut p = base.clone();
+        p.schedule.rigid_fraction = 0.0;
+        p.schedule.coarse_fraction = 1.0;
+        p.acceleration.coarse_sample = 4;
+        p
     });
-    let rigid = run(FitParams {
-        rigid_fraction: 1.0,
-        coarse_fraction: 0.0,
-        rigid_sample: 4,
-        ..base.clone()
+    let rigid = run({
+        let mut p = base.clone();
+        p.schedule.rigid_fraction = 1.0;
+        p.schedule.coarse_fraction = 0.0;
+        p.acceleration.rigid_sample = 4;
+        p
     });
-    let every = run(FitParams {
-        rigid_fraction: 0.0,
-        coarse_fraction: 1.0,
-        ..base.clone()
+    let every = run({
+        let mut p = base.clone();
+        p.schedule.rigid_fraction = 0.0;
+        p.schedule.coarse_fraction = 1.0;
+        p
     });
     let gap = |a: &[[f64; 3]], b: &[[f64; 3]]| {
         a.iter()
@@ -396,11 +406,12 @@ fn coarse_sample_with_whole_mesh_rings_is_the_rigid_sample() {
     assert!(gap(&coarse, &every) > 1e-9, "the sample changed nothing");
     for (bad, rings, levels) in [(0, 8, 1), (65, 8, 1), (2, 4, 2), (2, 2, 1)] {
         assert_refused(
-            &FitParams {
-                coarse_sample: bad,
-                coarse_rings: rings,
-                coarse_levels: levels,
-                ..base.clone()
+            &{
+                let mut p = base.clone();
+                p.acceleration.coarse_sample = bad;
+                p.schedule.coarse_rings = rings;
+                p.schedule.coarse_levels = levels;
+                p
             },
             "coarse_sample",
         );
@@ -414,14 +425,15 @@ fn fast_preset_is_one_schedule_between_the_given_and_the_sharp() {
     let default = FitParams::default();
     let sharp = default.sharp_schedule();
     // The sharp schedule's phases and constant softening, a two-way weight between the two.
-    assert_eq!(
-        fast,
-        FitParams {
-            two_way: FAST_TWO_WAY,
-            ..sharp.clone()
-        }
+    assert_eq!(fast, {
+        let mut p = sharp.clone();
+        p.schedule.two_way = FAST_TWO_WAY;
+        p
+    });
+    assert!(
+        sharp.schedule.two_way < fast.schedule.two_way
+            && fast.schedule.two_way < default.schedule.two_way
     );
-    assert!(sharp.two_way < fast.two_way && fast.two_way < default.two_way);
     assert_eq!(fast.candidate_schedules(), vec![fast.clone()]);
     // One run: no candidate figures, and a fit unlike either of the default's candidates.
     let (v, f, x) = small_grid_case();
@@ -440,9 +452,10 @@ fn accurate_preset_is_the_default_lengthened() {
     let accurate = FitParams::preset("accurate").unwrap();
     assert_eq!(accurate, FitParams::accurate());
     assert_eq!(
-        FitParams {
-            iterations: 100,
-            ..accurate.clone()
+        {
+            let mut p = accurate.clone();
+            p.iterations = 100;
+            p
         },
         FitParams::default()
     );
@@ -455,24 +468,26 @@ fn accurate_preset_is_the_default_lengthened() {
 #[test]
 fn wide_selection_chooses_among_three_candidates() {
     let (v, f, x) = grid_case();
-    let wide = FitParams {
-        iterations: 20,
-        selection: Selection::ScanDistanceWide,
-        rigid_sample: 1,
-        ..FitParams::default()
+    let wide = {
+        let mut p = FitParams::default();
+        p.iterations = 20;
+        p.schedule.selection = Selection::ScanDistanceWide;
+        p.acceleration.rigid_sample = 1;
+        p
     };
     let candidates = wide.candidate_schedules();
     assert_eq!(candidates.len(), SCHEDULE_NAMES.len());
     // Given, sharp, gentle: the gentle one differs from the given only in its weight and
     // its annealing's length.
     assert_eq!(candidates[1], wide.sharp_schedule());
-    assert_eq!(candidates[2].two_way, wide.two_way / 1.5);
-    assert_eq!(candidates[2].anneal_fraction, 0.8);
+    assert_eq!(candidates[2].schedule.two_way, wide.schedule.two_way / 1.5);
+    assert_eq!(candidates[2].schedule.anneal_fraction, 0.8);
     assert_eq!(
-        FitParams {
-            two_way: wide.two_way,
-            anneal_fraction: wide.anneal_fraction,
-            ..candidates[2].clone()
+        {
+            let mut p = candidates[2].clone();
+            p.schedule.two_way = wide.schedule.two_way;
+            p.schedule.anneal_fraction = wide.schedule.anneal_fraction;
+            p
         },
         candidates[0]
     );
@@ -486,14 +501,15 @@ fn wide_selection_chooses_among_three_candidates() {
     assert_eq!(chosen.diagnostics.candidate_scan_distances, d);
     let spreads = edge_spreads(&v, &f, &alone);
     assert_eq!(chosen.diagnostics.candidate_edge_spreads, spreads);
-    let best = select_schedule(&d, &spreads, wide.selection_margin);
+    let best = select_schedule(&d, &spreads, wide.schedule.selection_margin);
     assert_eq!(chosen.vertices, alone[best].vertices);
     assert_eq!(chosen.diagnostics.schedule, SCHEDULE_NAMES[best]);
     // One schedule for NRGa and for a single selection.
     for p in [
-        FitParams {
-            method: Method::Nrga,
-            ..wide.clone()
+        {
+            let mut p = wide.clone();
+            p.method = Method::Nrga;
+            p
         },
         FitParams::tracking(),
     ] {
@@ -529,9 +545,10 @@ fn the_scan_order_changes_the_fit_only_by_round_off() {
         .collect();
     let t = &case.template_vertices;
     for params in [FitParams::default(), FitParams::paper()] {
-        let params = FitParams {
-            iterations: 40,
-            ..params
+        let params = {
+            let mut p = params;
+            p.iterations = 40;
+            p
         };
         for mesh in [false, true] {
             let (a, b) = if mesh {
@@ -579,9 +596,10 @@ fn select_schedule_breaks_near_ties_by_the_edge_length_spread() {
     assert_eq!(select_schedule(&[1.0, 1.0], &[0.2, 0.1], 0.0), 1);
     for bad in [-0.01, f64::NAN, f64::INFINITY] {
         assert_refused(
-            &FitParams {
-                selection_margin: bad,
-                ..FitParams::default()
+            &{
+                let mut p = FitParams::default();
+                p.schedule.selection_margin = bad;
+                p
             },
             "selection_margin",
         );
@@ -591,10 +609,11 @@ fn select_schedule_breaks_near_ties_by_the_edge_length_spread() {
 #[test]
 fn early_selection_compares_there_and_runs_the_chosen_schedule_alone() {
     let (v, f, x) = grid_case();
-    let params = FitParams {
-        iterations: 20,
-        selection_at: 0.5,
-        ..FitParams::default()
+    let params = {
+        let mut p = FitParams::default();
+        p.iterations = 20;
+        p.schedule.selection_at = 0.5;
+        p
     };
     let mut seen = Vec::new();
     let early = fit(&v, &f, &x, None, &params, &mut |p| {
@@ -603,9 +622,10 @@ fn early_selection_compares_there_and_runs_the_chosen_schedule_alone() {
     })
     .unwrap();
     assert_eq!(seen, (1..=20).map(|i| (i, 20)).collect::<Vec<_>>());
-    let given = FitParams {
-        selection: Selection::Single,
-        ..params.clone()
+    let given = {
+        let mut p = params.clone();
+        p.schedule.selection = Selection::Single;
+        p
     };
     let schedules = [given, params.sharp_schedule()];
     // Each candidate at iteration 10: its single run stopped there.
@@ -617,7 +637,7 @@ fn early_selection_compares_there_and_runs_the_chosen_schedule_alone() {
     assert_eq!(early.diagnostics.candidate_scan_distances, d);
     let spreads = edge_spreads(&v, &f, &at_10);
     assert_eq!(early.diagnostics.candidate_edge_spreads, spreads);
-    let k = select_schedule(&d, &spreads, params.selection_margin);
+    let k = select_schedule(&d, &spreads, params.schedule.selection_margin);
     assert_eq!(early.diagnostics.schedule, ["given", "sharp"][k]);
     // The chosen schedule then ran on alone: its single run's fit, bit for bit.
     let alone = fit_simple(&v, &f, &x, None, &schedules[k]).unwrap();
@@ -626,9 +646,10 @@ fn early_selection_compares_there_and_runs_the_chosen_schedule_alone() {
     assert_eq!(early.wvf_accumulated, alone.wvf_accumulated);
     for bad in [0.0, -0.1, 1.5, f64::NAN] {
         assert_refused(
-            &FitParams {
-                selection_at: bad,
-                ..FitParams::default()
+            &{
+                let mut p = FitParams::default();
+                p.schedule.selection_at = bad;
+                p
             },
             "selection_at",
         );
@@ -638,14 +659,16 @@ fn early_selection_compares_there_and_runs_the_chosen_schedule_alone() {
 #[test]
 fn selection_chooses_between_the_given_and_the_sharp_schedule() {
     let (v, f, x) = grid_case();
-    let params = FitParams {
-        iterations: 20,
-        ..FitParams::default()
+    let params = {
+        let mut p = FitParams::default();
+        p.iterations = 20;
+        p
     };
     let chosen = fit_simple(&v, &f, &x, None, &params).unwrap();
-    let given = FitParams {
-        selection: Selection::Single,
-        ..params.clone()
+    let given = {
+        let mut p = params.clone();
+        p.schedule.selection = Selection::Single;
+        p
     };
     let runs = [
         fit_simple(&v, &f, &x, None, &given).unwrap(),
@@ -656,7 +679,7 @@ fn selection_chooses_between_the_given_and_the_sharp_schedule() {
     assert_eq!(d, vec![dist(&runs[0]), dist(&runs[1])]);
     let spreads = edge_spreads(&v, &f, &runs);
     assert_eq!(chosen.diagnostics.candidate_edge_spreads, spreads);
-    let k = select_schedule(&d, &spreads, params.selection_margin);
+    let k = select_schedule(&d, &spreads, params.schedule.selection_margin);
     assert_eq!(chosen.vertices, runs[k].vertices);
     assert_eq!(chosen.diagnostics.schedule, ["given", "sharp"][k]);
     assert_eq!(chosen.params, params);
@@ -685,18 +708,23 @@ fn selection_chooses_between_the_given_and_the_sharp_schedule() {
     // The sharp schedule differs from the given one only in its schedule fields.
     let sharp = params.sharp_schedule();
     assert_eq!(
-        (sharp.two_way, sharp.coarse_fraction, sharp.anneal),
+        (
+            sharp.schedule.two_way,
+            sharp.schedule.coarse_fraction,
+            sharp.schedule.anneal
+        ),
         (1.0, 0.3, 1.0)
     );
-    assert_eq!(sharp.selection, Selection::Single);
+    assert_eq!(sharp.schedule.selection, Selection::Single);
     assert_eq!(
-        FitParams {
-            two_way: params.two_way,
-            coarse_fraction: params.coarse_fraction,
-            anneal: params.anneal,
-            anneal_fraction: params.anneal_fraction,
-            selection: params.selection,
-            ..sharp
+        {
+            let mut p = sharp;
+            p.schedule.two_way = params.schedule.two_way;
+            p.schedule.coarse_fraction = params.schedule.coarse_fraction;
+            p.schedule.anneal = params.schedule.anneal;
+            p.schedule.anneal_fraction = params.schedule.anneal_fraction;
+            p.schedule.selection = params.schedule.selection;
+            p
         },
         params
     );
@@ -738,17 +766,19 @@ fn rest_rigidity_keeps_the_template_edge_lengths_over_a_scan_hole() {
         let r = fit_simple(&v, &f, &x, None, params).unwrap();
         crate::metrics::edge_length_spread(&v, &r.vertices, &f)
     };
-    let with_rigidity = FitParams {
-        iterations: 40,
-        coarse_fraction: 0.2,
-        selection: Selection::Single,
-        ..FitParams::default()
+    let with_rigidity = {
+        let mut p = FitParams::default();
+        p.iterations = 40;
+        p.schedule.coarse_fraction = 0.2;
+        p.schedule.selection = Selection::Single;
+        p
     };
-    assert_eq!(with_rigidity.rest_rigidity, 0.65);
+    assert_eq!(with_rigidity.schedule.rest_rigidity, 0.65);
     let with = spread(&with_rigidity);
-    let without = spread(&FitParams {
-        rest_rigidity: 0.0,
-        ..with_rigidity.clone()
+    let without = spread(&{
+        let mut p = with_rigidity.clone();
+        p.schedule.rest_rigidity = 0.0;
+        p
     });
     assert!(
         with < 0.8 * without,
@@ -756,11 +786,87 @@ fn rest_rigidity_keeps_the_template_edge_lengths_over_a_scan_hole() {
     );
     for bad in [-0.1, 1.5, f64::NAN] {
         assert_refused(
-            &FitParams {
-                rest_rigidity: bad,
-                ..FitParams::default()
+            &{
+                let mut p = FitParams::default();
+                p.schedule.rest_rigidity = bad;
+                p
             },
             "rest_rigidity",
         );
+    }
+}
+
+#[test]
+fn every_flat_key_round_trips_and_unknown_keys_are_refused_by_name() {
+    // The groups are flattened: one flat object, every key at the top level.
+    let paper = FitParams::paper();
+    let json: serde_json::Value = serde_json::from_str(&paper.to_json()).unwrap();
+    let keys = json.as_object().unwrap();
+    for key in [
+        "iterations",
+        "rho",
+        "psi",
+        "damping_mode",
+        "regularization",
+        "two_way",
+    ] {
+        assert!(keys.contains_key(key), "{key}");
+    }
+    for key in [
+        "rigid_sample",
+        "knn_slack",
+        "model",
+        "schedule",
+        "acceleration",
+    ] {
+        assert_eq!(
+            keys.contains_key(key),
+            !["model", "schedule", "acceleration"].contains(&key)
+        );
+    }
+    assert_eq!(FitParams::from_json(&paper.to_json()).unwrap(), paper);
+    // The round-off-only speed switches are not settings.
+    for key in ["matrix_series", "knn_cache", "nonsense"] {
+        let err = FitParams::from_json(&format!("{{\"{key}\": false}}")).unwrap_err();
+        assert!(err.to_string().contains(key), "{err}");
+    }
+    let err = FitParams::from_json(r#"{"anneal": 0.5}"#)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("anneal") && err.contains("[1, 1e6]"), "{err}");
+}
+
+/// The default and the paper preset, 30 iterations, exact neighborhoods throughout.
+fn exact_neighbourhood_presets() -> Vec<FitParams> {
+    [FitParams::default(), FitParams::paper()]
+        .into_iter()
+        .map(|mut p| {
+            p.iterations = 30;
+            p.acceleration.knn_slack = 0.0;
+            p
+        })
+        .collect()
+}
+
+#[test]
+fn the_fast_paths_change_the_fit_only_by_round_off() {
+    let (v, f, x) = grid_case();
+    for fast in exact_neighbourhood_presets() {
+        let mut exact = fast.clone();
+        exact.internal = Internal {
+            matrix_series: false,
+            knn_cache: false,
+        };
+        let (a, b) = (
+            fit_simple(&v, &f, &x, None, &fast).unwrap(),
+            fit_simple(&v, &f, &x, None, &exact).unwrap(),
+        );
+        assert!(max_apart(&v, &a.vertices) > 1e-3, "the fit moved");
+        assert!(max_apart(&a.vertices, &b.vertices) < 1e-9);
+        let field = |r: &FitResult| r.wvf_accumulated.clone();
+        assert!(max_apart(&field(&a), &field(&b)) < 1e-9);
+        assert!(max_apart(&a.wvf, &b.wvf) < 1e-9);
+        // The cache spared fresh queries.
+        assert!(a.diagnostics.knn_queries < b.diagnostics.knn_queries);
     }
 }

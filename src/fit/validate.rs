@@ -111,7 +111,7 @@ impl FitParams {
 
     /// Checks every parameter's range.
     pub fn validate(&self) -> Result<()> {
-        let p = &self.nbody;
+        let p = &self.model.nbody;
         if !(1..=MAX_ITERATIONS).contains(&self.iterations) {
             return Err(FoldMatchError::parameter(
                 "iterations",
@@ -121,67 +121,77 @@ impl FitParams {
         }
         // Every real-valued parameter's range.
         let rules = [
-            ("rho", self.rho, POSITIVE),
+            ("rho", self.model.rho, POSITIVE),
             ("gravity", p.gravity, POSITIVE),
             ("softening", p.softening, POSITIVE),
             ("time_step", p.time_step, POSITIVE),
             ("template_mass", p.template_mass, POSITIVE),
             ("target_mass", p.target_mass, POSITIVE),
             ("alpha_floor", p.alpha_floor, OPEN_UNIT),
-            ("psi", self.psi, PSI),
-            ("selection_at", self.selection_at, OPEN_UNIT),
-            ("normal_completion", self.normal_completion, NON_NEGATIVE),
+            ("psi", self.model.psi, PSI),
+            ("selection_at", self.schedule.selection_at, OPEN_UNIT),
+            (
+                "normal_completion",
+                self.model.normal_completion,
+                NON_NEGATIVE,
+            ),
             ("tolerance", self.tolerance, NON_NEGATIVE),
-            ("selection_margin", self.selection_margin, NON_NEGATIVE),
-            ("two_way", self.two_way, NON_NEGATIVE),
-            ("two_way_trust", self.two_way_trust, NON_NEGATIVE),
-            ("two_way_rim", self.two_way_rim, NON_NEGATIVE),
+            (
+                "selection_margin",
+                self.schedule.selection_margin,
+                NON_NEGATIVE,
+            ),
+            ("two_way", self.schedule.two_way, NON_NEGATIVE),
+            ("two_way_trust", self.schedule.two_way_trust, NON_NEGATIVE),
+            ("two_way_rim", self.schedule.two_way_rim, NON_NEGATIVE),
             ("damping", p.damping, UNIT),
-            ("knn_slack", self.knn_slack, UNIT),
-            ("rigid_fraction", self.rigid_fraction, UNIT),
-            ("coarse_fraction", self.coarse_fraction, UNIT),
-            ("anneal_fraction", self.anneal_fraction, UNIT),
-            ("rest_rigidity", self.rest_rigidity, UNIT),
-            ("anneal", self.anneal, AT_LEAST_ONE),
+            ("knn_slack", self.acceleration.knn_slack, UNIT),
+            ("rigid_fraction", self.schedule.rigid_fraction, UNIT),
+            ("coarse_fraction", self.schedule.coarse_fraction, UNIT),
+            ("anneal_fraction", self.schedule.anneal_fraction, UNIT),
+            ("rest_rigidity", self.schedule.rest_rigidity, UNIT),
+            ("anneal", self.schedule.anneal, AT_LEAST_ONE),
         ];
         for (name, v, range) in rules {
             if !(range.contains)(v) {
                 return Err(FoldMatchError::parameter(name, shown(v), range.rule));
             }
         }
-        if self.rigid_fraction + self.coarse_fraction > 1.0 {
+        if self.schedule.rigid_fraction + self.schedule.coarse_fraction > 1.0 {
             return Err(FoldMatchError::parameter(
                 "rigid_fraction + coarse_fraction",
-                self.rigid_fraction + self.coarse_fraction,
+                self.schedule.rigid_fraction + self.schedule.coarse_fraction,
                 "must be <= 1",
             ));
         }
-        if !(1..=4).contains(&self.coarse_levels) {
+        if !(1..=4).contains(&self.schedule.coarse_levels) {
             return Err(FoldMatchError::parameter(
                 "coarse_levels",
-                self.coarse_levels,
+                self.schedule.coarse_levels,
                 "must be in 1..=4",
             ));
         }
-        if !(1..=64).contains(&self.coarse_sample) {
+        if !(1..=64).contains(&self.acceleration.coarse_sample) {
             return Err(FoldMatchError::parameter(
                 "coarse_sample",
-                self.coarse_sample,
+                self.acceleration.coarse_sample,
                 "must be in 1..=64",
             ));
         }
         // The smallest radius any template gets (the automatic one grows with the size).
         let smallest_radius = self.coarse_radius(0);
-        if self.coarse_sample > 1 && (smallest_radius >> (self.coarse_levels.max(1) - 1)) < 3 {
+        if self.acceleration.coarse_sample > 1
+            && (smallest_radius >> (self.schedule.coarse_levels.max(1) - 1)) < 3
+        {
             return Err(FoldMatchError::parameter(
                 "coarse_sample",
-                self.coarse_sample,
+                self.acceleration.coarse_sample,
                 "needs coarse rings of radius >= 3 at every level (coarse_rings / 2^(coarse_levels-1))",
             ));
         }
         for (name, value) in [
-            ("rigid_scan_sample", self.rigid_scan_sample),
-            ("coarse_scan_sample", self.coarse_scan_sample),
+            ("rigid_scan_sample", self.acceleration.rigid_scan_sample),
+            ("coarse_scan_sample", self.acceleration.coarse_scan_sample),
         ] {
             if value > MAX_SCAN_SAMPLE {
                 return Err(FoldMatchError::parameter(
@@ -191,31 +201,32 @@ impl FitParams {
                 ));
             }
         }
-        if !(1..=64).contains(&self.rigid_sample) {
+        if !(1..=64).contains(&self.acceleration.rigid_sample) {
             return Err(FoldMatchError::parameter(
                 "rigid_sample",
-                self.rigid_sample,
+                self.acceleration.rigid_sample,
                 "must be in 1..=64",
             ));
         }
-        if self.coarse_rings > 32 {
+        if self.schedule.coarse_rings > 32 {
             return Err(FoldMatchError::parameter(
                 "coarse_rings",
-                self.coarse_rings,
+                self.schedule.coarse_rings,
                 "must be in 0..=32 (0: automatic)",
             ));
         }
-        if !(1..=8).contains(&self.rings) {
+        if !(1..=8).contains(&self.model.rings) {
             return Err(FoldMatchError::parameter(
                 "rings",
-                self.rings,
+                self.model.rings,
                 "must be in 1..=8",
             ));
         }
-        if self.k_min == 0 || self.k_max < self.k_min || self.k_max > MAX_K {
+        if self.model.k_min == 0 || self.model.k_max < self.model.k_min || self.model.k_max > MAX_K
+        {
             return Err(FoldMatchError::parameter(
                 "k_min/k_max",
-                format!("{}/{}", self.k_min, self.k_max),
+                format!("{}/{}", self.model.k_min, self.model.k_max),
                 &format!("need 1 <= k_min <= k_max <= {MAX_K}"),
             ));
         }
