@@ -27,13 +27,26 @@ class FitParams(Mapping[str, Any]):
     def __hash__(self) -> int: ...
     def __reduce__(self) -> tuple[Any, ...]: ...
 
-    # ---- The run, the model and the schedule
+    # ---- The run
     @property
     def method(self) -> Literal['foldmatch', 'nrga']:
         """FoldMatch or NRGa."""
     @property
     def iterations(self) -> int:
         """ξ, the number of iterations."""
+    @property
+    def tolerance(self) -> float:
+        """Stop early when the mean displacement of an iteration (normalized units) is below this
+        (0 disables).
+        """
+    @property
+    def prealign(self) -> Literal['none', 'centroid']:
+        """Handling of a template placed far from the scan."""
+    @property
+    def snapshot_every(self) -> int:
+        """Keep the vertex positions every this many iterations (0 keeps none)."""
+
+    # ---- Model constants
     @property
     def rings(self) -> int:
         """n of the n-ring template neighborhoods Γᵏ_Y."""
@@ -50,11 +63,43 @@ class FitParams(Mapping[str, Any]):
     def k_max(self) -> int:
         """Upper clamp of K. Default `DEFAULT_K_MAX` (32); the `"paper"` preset keeps SPEC §2's 64."""
     @property
+    def gravity(self) -> float:
+        """Gravitational constant G."""
+    @property
+    def softening(self) -> float:
+        """Softening length ε."""
+    @property
+    def damping(self) -> float:
+        """Damping η."""
+    @property
+    def time_step(self) -> float:
+        """Time step Δt."""
+    @property
+    def template_mass(self) -> float:
+        """Template particle mass m(Y)."""
+    @property
+    def target_mass(self) -> float:
+        """Scan particle mass m(X)."""
+    @property
+    def alpha_floor(self) -> float:
+        """Positive floor applied to the curvature term α_kj (SPEC §2.3)."""
+    @property
+    def numerator(self) -> Literal['centered', 'literal']:
+        """Numerator reading of Eq. 2."""
+    @property
+    def summation(self) -> Literal['mean', 'sum']:
+        """Combination of neighbour forces."""
+    @property
+    def damping_mode(self) -> Literal['fraction', 'force']:
+        """Damping reading."""
+    @property
     def psi(self) -> float:
         """ψ, the wrinkle stretch coefficient."""
     @property
     def normal_completion(self) -> float:
         """γ, weight of the normal completion of Eq. 4 (0 disables it)."""
+
+    # ---- Paper readings
     @property
     def regularization(self) -> Literal['affine_invariant', 'log_euclidean', 'none']:
         """Mean used by Eq. 5."""
@@ -70,19 +115,10 @@ class FitParams(Mapping[str, Any]):
     def normalize(self) -> bool:
         """Work in the normalized frame (SPEC §1)."""
     @property
-    def tolerance(self) -> float:
-        """Stop early when the mean displacement of an iteration (normalized units) is below this
-        (0 disables).
-        """
-    @property
     def use_curvature(self) -> bool:
         """Use the curvature term of Eq. 2 (`false` sets κ = 0, i.e. α = 1)."""
-    @property
-    def prealign(self) -> Literal['none', 'centroid']:
-        """Handling of a template placed far from the scan."""
-    @property
-    def snapshot_every(self) -> int:
-        """Keep the vertex positions every this many iterations (0 keeps none)."""
+
+    # ---- Schedule
     @property
     def two_way(self) -> float:
         """Two-way attraction: weight of the pull of every scan point on its nearest template
@@ -136,79 +172,12 @@ class FitParams(Mapping[str, Any]):
         unit (docs/method.md "Seventeenth round": held out, f_R ×0.88 against a fixed 8).
         """
     @property
-    def rigid_sample(self) -> int:
-        """Rigid phase on a sample: the N-body forces (and the two-way attraction's pulls) are
-        computed for every `rigid_sample`-th template vertex only, and the one Kabsch fit of
-        those vertices moves the whole template (1: every vertex). The rigid phase only needs
-        the one rigid motion, so 4 (the default) costs no accuracy on the harness and cuts
-        the phase's k-NN, two-way and force work by about 4× (docs/method.md).
-        """
-    @property
-    def rigid_scan_sample(self) -> int:
-        """Rigid phase on a scan sample: the rigid phase sees every `rigid_scan_sample`-th scan
-        point only (in the fit's space-filling-curve order, so the sample is spread evenly),
-        with `⌈K / s⌉` target neighbours per vertex (about the same neighbourhood radius) and
-        the two-way pulls of the sampled points. Eq. 2's force is a mean over the neighbours
-        and the pulls on a vertex a mean over the scan points choosing it, which the sample
-        estimates; the phase reduces them to one rigid motion. 0 (the default): automatic, the
-        largest stride leaving `RIGID_SCAN_POINTS_PER_VERTEX` scan points per vertex of the
-        rigid phase's sample (1 — the whole scan — unless the scan has more than that many times
-        as many points, e.g. 4 for a 1M-point scan under a 100K-vertex template); 1: the whole
-        scan.
-        """
-    @property
-    def coarse_scan_sample(self) -> int:
-        """Coarse phase on a scan sample, as `FitParams::rigid_scan_sample` for the rigid
-        phase: the coarse phase sees every `coarse_scan_sample`-th scan point, with `⌈K / s⌉`
-        target neighbours; each vertex there moves by the Kabsch fit of its coarse ring, which
-        the sampled forces estimate. 0 (the default): automatic, the largest stride leaving
-        `COARSE_SCAN_POINTS_PER_VERTEX` scan points per vertex of the coarse phase's sample,
-        at most `COARSE_SCAN_MAX_AUTO_STRIDE` (so 2 where the scan has at least 8 points per
-        vertex, as a 1M-point scan under a 100K-vertex template, else 1 — the whole scan; every
-        harness case is at 1); 1: the whole scan. Measured on dense scans: the million-point
-        case 32.4 s → 24.4 s at f_R ×0.999.
-        """
-    @property
-    def coarse_sample(self) -> int:
-        """Coarse phase on a sample: the forces are computed for every `coarse_sample`-th vertex
-        only, and every vertex moves by the Kabsch fit of the sampled members of its coarse
-        ring (1: every vertex; more needs coarse rings of radius ≥ 3 at every level).
-        """
-    @property
     def coarse_levels(self) -> int:
         """Levels of the coarse phase: its iterations are split evenly into this many levels, level
         `l` using neighborhoods of radius `max(1, r / 2^l)`, r the coarse radius
         (`FitParams::coarse_radius`) (1: one radius throughout),
         so the pieces that move rigidly shrink as the fit proceeds, like the decreasing
         stiffness of non-rigid ICP.
-        """
-    @property
-    def matrix_series(self) -> bool:
-        """Fast 3×3 matrix functions, each agreeing with the eigen-decomposition to round-off:
-        truncated series for the logarithms and exponentials of Eq. 5 near the identity, the
-        unit-quaternion (Horn / QCP) solution for polar factors and nearest rotations (Eq. 5's
-        rotation mean, Eq. 8, the Kabsch fits of the rigid and coarse phases, of the rest-shape
-        rigidity and of NRGa), closed-form eigenvalues and a direct inverse for well-conditioned
-        Eq. 4 systems. `false` always uses the Jacobi eigen-decomposition (the exact reference
-        path).
-        """
-    @property
-    def knn_cache(self) -> bool:
-        """Re-use earlier k-NN candidates when that is provably exact (see
-        `crate::knn::NeighborCache`), and read the two-way attraction's nearest template
-        vertices off the inverted k-NN lists where certified (`crate::knn::ReverseNearest`);
-        `false` queries a k-d tree for every vertex and every scan point every iteration.
-        Results are the same either way.
-        """
-    @property
-    def knn_slack(self) -> float:
-        """σ of the rigid and coarse phases' approximate target neighborhoods: there the k-NN
-        cache (`crate::knn::NeighborCache::set_slack`) re-uses a vertex's candidates while
-        every returned neighbour is within `(1 + σ) ×` the true K-th nearest distance, sparing
-        the fresh queries of template points still far off the scan (their candidates all lie
-        at about their height, so the exact test fails at nearly every move). The FoldMatch
-        iterations stay exact. 0: exact throughout; without `knn_cache` every query is exact.
-        Default `DEFAULT_KNN_SLACK`; docs/performance.md, "Thirteenth round".
         """
     @property
     def rest_rigidity(self) -> float:
@@ -251,36 +220,55 @@ class FitParams(Mapping[str, Any]):
         bit for bit (the chosen run never sees the others). 1: at the end.
         """
 
-    # ---- N-body constants and readings
+    # ---- Acceleration
     @property
-    def gravity(self) -> float:
-        """Gravitational constant G."""
+    def rigid_sample(self) -> int:
+        """Rigid phase on a sample: the N-body forces (and the two-way attraction's pulls) are
+        computed for every `rigid_sample`-th template vertex only, and the one Kabsch fit of
+        those vertices moves the whole template (1: every vertex). The rigid phase only needs
+        the one rigid motion, so 4 (the default) costs no accuracy on the harness and cuts
+        the phase's k-NN, two-way and force work by about 4× (docs/method.md).
+        """
     @property
-    def softening(self) -> float:
-        """Softening length ε."""
+    def rigid_scan_sample(self) -> int:
+        """Rigid phase on a scan sample: the rigid phase sees every `rigid_scan_sample`-th scan
+        point only (in the fit's space-filling-curve order, so the sample is spread evenly),
+        with `⌈K / s⌉` target neighbours per vertex (about the same neighbourhood radius) and
+        the two-way pulls of the sampled points. Eq. 2's force is a mean over the neighbours
+        and the pulls on a vertex a mean over the scan points choosing it, which the sample
+        estimates; the phase reduces them to one rigid motion. 0 (the default): automatic, the
+        largest stride leaving `RIGID_SCAN_POINTS_PER_VERTEX` scan points per vertex of the
+        rigid phase's sample (1 — the whole scan — unless the scan has more than that many times
+        as many points, e.g. 4 for a 1M-point scan under a 100K-vertex template); 1: the whole
+        scan.
+        """
     @property
-    def damping(self) -> float:
-        """Damping η."""
+    def coarse_scan_sample(self) -> int:
+        """Coarse phase on a scan sample, as `FitParams::rigid_scan_sample` for the rigid
+        phase: the coarse phase sees every `coarse_scan_sample`-th scan point, with `⌈K / s⌉`
+        target neighbours; each vertex there moves by the Kabsch fit of its coarse ring, which
+        the sampled forces estimate. 0 (the default): automatic, the largest stride leaving
+        `COARSE_SCAN_POINTS_PER_VERTEX` scan points per vertex of the coarse phase's sample,
+        at most `COARSE_SCAN_MAX_AUTO_STRIDE` (so 2 where the scan has at least 8 points per
+        vertex, as a 1M-point scan under a 100K-vertex template, else 1 — the whole scan; every
+        harness case is at 1); 1: the whole scan. Measured on dense scans: the million-point
+        case 32.4 s → 24.4 s at f_R ×0.999.
+        """
     @property
-    def time_step(self) -> float:
-        """Time step Δt."""
+    def coarse_sample(self) -> int:
+        """Coarse phase on a sample: the forces are computed for every `coarse_sample`-th vertex
+        only, and every vertex moves by the Kabsch fit of the sampled members of its coarse
+        ring (1: every vertex; more needs coarse rings of radius ≥ 3 at every level).
+        """
     @property
-    def template_mass(self) -> float:
-        """Template particle mass m(Y)."""
-    @property
-    def target_mass(self) -> float:
-        """Scan particle mass m(X)."""
-    @property
-    def alpha_floor(self) -> float:
-        """Positive floor applied to the curvature term α_kj (SPEC §2.3)."""
-    @property
-    def numerator(self) -> Literal['centered', 'literal']:
-        """Numerator reading of Eq. 2."""
-    @property
-    def summation(self) -> Literal['mean', 'sum']:
-        """Combination of neighbour forces."""
-    @property
-    def damping_mode(self) -> Literal['fraction', 'force']:
-        """Damping reading."""
+    def knn_slack(self) -> float:
+        """σ of the rigid and coarse phases' approximate target neighborhoods: there the k-NN
+        cache (`crate::knn::NeighborCache::set_slack`) re-uses a vertex's candidates while
+        every returned neighbour is within `(1 + σ) ×` the true K-th nearest distance, sparing
+        the fresh queries of template points still far off the scan (their candidates all lie
+        at about their height, so the exact test fails at nearly every move). The FoldMatch
+        iterations stay exact. 0: exact throughout; without `knn_cache` every query is exact.
+        Default `DEFAULT_KNN_SLACK`; docs/performance.md, "Thirteenth round".
+        """
 
 __all__ = ["FitParams", "GROUPS", "PRESETS", "SETTINGS"]

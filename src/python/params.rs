@@ -154,17 +154,20 @@ pub(super) fn param_names(py: Python<'_>) -> PyResult<Vec<String>> {
 /// schema (its doc comment and its fields'), in order; the settings of the top level come
 /// last, under [`TOP_GROUP`].
 fn group_schemas() -> Vec<(&'static str, Schema)> {
-    vec![(
-        "N-body constants and readings",
-        schema_for!(crate::nbody::NBodyParams),
-    )]
+    use crate::fit::{Acceleration, ModelConstants, Readings, Schedule};
+    vec![
+        ("Model constants", schema_for!(ModelConstants)),
+        ("Paper readings", schema_for!(Readings)),
+        ("Schedule", schema_for!(Schedule)),
+        ("Acceleration", schema_for!(Acceleration)),
+    ]
 }
 
 /// The title and doc of the settings at the top level of [`FitParams`].
 const TOP_GROUP: (&str, &str) = (
-    "The run, the model and the schedule",
-    "The method, the number of iterations, the model's constants and readings, the run's \
-     controls (early stop, placement, snapshots) and the schedule beyond the paper.",
+    "The run",
+    "The method, the number of iterations and the run's controls (early stop, placement, \
+     snapshots).",
 );
 
 /// The reference of every setting, grouped as [`FitParams`] nests them: a list of groups
