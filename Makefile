@@ -44,7 +44,7 @@ rust-test: venv
 
 ## Type stubs must match the built module.
 stubtest: build
-	$(PY) -m mypy.stubtest foldmatch_rs._foldmatch_rs
+	$(PY) -m mypy.stubtest foldmatch_rs._foldmatch_rs foldmatch_rs.params
 
 py-test: build
 	$(PY) -m pytest -q tests

@@ -64,7 +64,7 @@ def main() -> None:
             try:
                 # Each literal reading is measured against the paper preset (the method as
                 # printed, with the converging readings): the fidelity options are off.
-                r = fm.fit(c["template_vertices"], c["faces"], c["scan"], preset="paper", **opts)
+                r = fm.fit(c["template_vertices"], c["faces"], c["scan"], preset="paper", params=opts)
                 m = fm.evaluate(c["template_vertices"], c["faces"], r.vertices, c["scan"],
                                 c["ground_truth"])
                 if not np.isfinite(r.vertices).all():

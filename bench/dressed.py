@@ -80,7 +80,10 @@ def run_fit(template: np.ndarray, faces: np.ndarray, target: np.ndarray, kw: dic
     extra = {} if weights is None else {"target_weights": weights}
     t0 = time.perf_counter()
     try:
-        r = fm.fit(template, faces, target, target_faces=target_faces, **kw, **extra)
+        settings = dict(kw)
+        preset = settings.pop("preset", None)
+        r = fm.fit(template, faces, target, target_faces=target_faces, preset=preset,
+                   params=settings, **extra)
     except Exception as e:  # noqa: BLE001  (recorded in the table)
         return None, time.perf_counter() - t0, f"{type(e).__name__}: {str(e)[:200]}"
     return np.asarray(r.vertices, float), time.perf_counter() - t0, None

@@ -87,7 +87,9 @@ def main(argv: list[str] | None = None) -> int:
                   "target": case.target, "ground_truth": case.ground_truth}
         row = []
         for extra in (against, {}):
-            r = fm.fit(case.template_vertices, case.faces, case.target, **extra)
+            settings = dict(extra)
+            r = fm.fit(case.template_vertices, case.faces, case.target,
+                       preset=settings.pop("preset", None), params=settings)
             e = harness.evaluate(arrays, np.asarray(r.vertices))
             row.append((e["f_R"], e["f_lambda"], r.diagnostics["target_neighbours"]))
         (ra, la, ka), (rb, lb, kb) = row

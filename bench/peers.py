@@ -80,11 +80,11 @@ def normalize(template: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.
 # ---- adapters -------------------------------------------------------------------------------
 
 
-def run_foldmatch(v, f, x, xf=None, trace=False, method="foldmatch", **params):
+def run_foldmatch(v, f, x, xf=None, trace=False, method="foldmatch", preset=None, **params):
     import foldmatch_rs as fm
 
-    r = fm.fit(v, f, x, target_faces=xf, method=method, snapshot_every=1 if trace else 0,
-               **params)
+    settings = dict(params, method=method, snapshot_every=1 if trace else 0)
+    r = fm.fit(v, f, x, target_faces=xf, preset=preset, params=settings)
     tr = [v] + [s for _, s in r.snapshots] if trace else None
     return r.vertices, tr, {"iterations": r.iterations}
 

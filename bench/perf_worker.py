@@ -99,7 +99,7 @@ def work_foldmatch(job: dict[str, Any], case: dict[str, np.ndarray]) -> dict[str
             case["scan"],
             preset=job["preset"],
             threads=job.get("threads"),
-            **kw,
+            params=kw,
         ))
     cpu = _cpu_s() - cpu0
     peak = _status_kib("VmHWM") / 1024

@@ -356,8 +356,10 @@ def fit_rows(groups: list[str], variants: list[tuple[str, dict[str, Any]]],
             cells = []
             for name, kw in variants:
                 t0 = time.perf_counter()
+                settings = dict(kw)
                 r = fm.fit(case.template_vertices, case.faces, case.target,
-                           target_faces=case.target_faces, **kw)
+                           target_faces=case.target_faces, preset=settings.pop("preset", None),
+                           params=settings)
                 seconds = time.perf_counter() - t0
                 e = harness.evaluate(arrays, r.vertices)
                 rows.append({"group": group, "case": case.name, "variant": name,

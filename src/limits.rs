@@ -160,16 +160,18 @@ mod tests {
             assert!(err.starts_with(expected), "{err}");
         };
         check(
-            FitParams {
-                iterations: 0,
-                ..FitParams::default()
+            {
+                let mut p = FitParams::default();
+                p.iterations = 0;
+                p
             },
             "parameter iterations = 0: must be in 1..=1000000",
         );
         check(
-            FitParams {
-                iterations: 1_000_000_000,
-                ..FitParams::default()
+            {
+                let mut p = FitParams::default();
+                p.iterations = 1_000_000_000;
+                p
             },
             "parameter iterations = 1000000000:",
         );
@@ -184,9 +186,10 @@ mod tests {
             },
             "parameter rho = NaN:",
         );
-        assert!(FitParams {
-            iterations: MAX_ITERATIONS,
-            ..FitParams::default()
+        assert!({
+            let mut p = FitParams::default();
+            p.iterations = MAX_ITERATIONS;
+            p
         }
         .validate()
         .is_ok());
@@ -220,9 +223,10 @@ mod tests {
         }
         // And the fit itself refuses them before doing anything (no panic).
         let tri = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
-        let p = FitParams {
-            iterations: 0,
-            ..FitParams::default()
+        let p = {
+            let mut p = FitParams::default();
+            p.iterations = 0;
+            p
         };
         let err = crate::fit::fit(&tri, &[[0, 1, 2]], &tri, None, &p, &mut |_| true);
         assert!(matches!(err, Err(FoldMatchError::Parameter { .. })));

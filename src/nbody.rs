@@ -6,10 +6,11 @@
 use crate::knn::{ReverseNearest, TargetNeighbours};
 use crate::math::{vec3, Vec3};
 use rayon::prelude::*;
+use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 /// The numerator of Eq. 2.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum ForceNumerator {
     /// `α_kj (Y_k − X_j)`: translation-invariant (default; docs/method.md "Force, Eq. 2").
@@ -19,7 +20,7 @@ pub enum ForceNumerator {
 }
 
 /// How the per-neighbour forces are combined.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum ForceSum {
     /// Mean over the K neighbours, i.e. m(X_j) = 1/K (default; the sum overshoots, docs/method.md
@@ -30,7 +31,7 @@ pub enum ForceSum {
 }
 
 /// How η dissipates velocity.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum DampingMode {
     /// `v ← (1 − η) v + F/m Δt`: η is the fraction of velocity dissipated per step (default).
@@ -41,7 +42,7 @@ pub enum DampingMode {
 
 /// How the two-way attraction combines the pulls of the scan points choosing one template
 /// point ([`ReverseAttraction`]).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum TwoWayPull {
     /// Their mean: a template point chosen by many scan points is pulled no harder than one
@@ -56,7 +57,7 @@ pub enum TwoWayPull {
 }
 
 /// Constants of the N-body simulation (paper §4 defaults).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(default)]
 pub struct NBodyParams {
     /// Gravitational constant G.

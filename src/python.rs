@@ -17,7 +17,6 @@ use numpy::{
     IntoPyArray, PyArray1, PyArray2, PyArray3, PyReadonlyArray1, PyReadonlyArray2,
     PyReadonlyArray3, PyUntypedArrayMethods,
 };
-use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::panic::{catch_unwind, AssertUnwindSafe};
@@ -25,40 +24,41 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 mod cluster;
 mod render;
+mod meshes;
+mod params;
 
 /// Set in a forked child (see `_mark_forked`): rayon's global pool does not survive `fork`, so
 /// the child computes in a fresh pool of its own.
 static FORKED: AtomicBool = AtomicBool::new(false);
 
-/// Maps a crate error to the Python exception class of the same name in `foldmatch_rs.errors`.
+// The exception classes of `foldmatch_rs.errors` (each also subclasses the built-in class a
+// caller expects, `ValueError`, `OSError`, ..., which `create_exception!`'s single base cannot
+// give), imported as typed Rust exceptions.
+pyo3::import_exception!(foldmatch_rs.errors, InvalidInputError);
+pyo3::import_exception!(foldmatch_rs.errors, InvalidParameterError);
+pyo3::import_exception!(foldmatch_rs.errors, MeshFileError);
+pyo3::import_exception!(foldmatch_rs.errors, MeshFormatError);
+pyo3::import_exception!(foldmatch_rs.errors, FitCancelled);
+pyo3::import_exception!(foldmatch_rs.errors, NumericalError);
+pyo3::import_exception!(foldmatch_rs.errors, OutOfMemoryError);
+pyo3::import_exception!(foldmatch_rs.errors, RunSetupError);
+pyo3::import_exception!(foldmatch_rs.errors, InternalError);
+
+/// Maps a crate error to its exception class of `foldmatch_rs.errors`.
 fn to_pyerr(err: FoldMatchError) -> PyErr {
-    let class = match &err {
+    let message = err.to_string();
+    match &err {
         FoldMatchError::Shape { .. }
         | FoldMatchError::NonFinite { .. }
         | FoldMatchError::FaceIndex { .. }
-        | FoldMatchError::FarAway { .. } => "InvalidInputError",
-        FoldMatchError::Parameter { .. } => "InvalidParameterError",
-        FoldMatchError::Io { .. } => "MeshFileError",
-        FoldMatchError::Format { .. } => "MeshFormatError",
-        FoldMatchError::Cancelled { .. } => "FitCancelled",
-        FoldMatchError::Numerical(_) => "NumericalError",
-        FoldMatchError::OutOfMemory { .. } => "OutOfMemoryError",
-    };
-    raise(class, err.to_string())
-}
-
-/// Builds an instance of `foldmatch_rs.errors.<class>(message)`.
-fn raise(class: &str, message: String) -> PyErr {
-    Python::attach(|py| {
-        let made = py
-            .import("foldmatch_rs.errors")
-            .and_then(|m| m.getattr(class))
-            .and_then(|cls| cls.call1((message.clone(),)));
-        match made {
-            Ok(obj) => PyErr::from_value(obj),
-            Err(_) => PyRuntimeError::new_err(message),
-        }
-    })
+        | FoldMatchError::FarAway { .. } => InvalidInputError::new_err(message),
+        FoldMatchError::Parameter { .. } => InvalidParameterError::new_err(message),
+        FoldMatchError::Io { .. } => MeshFileError::new_err(message),
+        FoldMatchError::Format { .. } => MeshFormatError::new_err(message),
+        FoldMatchError::Cancelled { .. } => FitCancelled::new_err(message),
+        FoldMatchError::Numerical(_) => NumericalError::new_err(message),
+        FoldMatchError::OutOfMemory { .. } => OutOfMemoryError::new_err(message),
+    }
 }
 
 /// How often a computation's calling thread looks for signals (Ctrl-C) while it waits.
@@ -129,17 +129,16 @@ fn compute<T: Send>(
     }
     match outcome {
         Ok(Ok(v)) => Ok(v),
-        Ok(Err(msg)) => Err(raise("InternalError", msg)),
+        Ok(Err(msg)) => Err(InternalError::new_err(msg)),
         Err(panic) => {
             let msg = panic
                 .downcast_ref::<String>()
                 .cloned()
                 .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
                 .unwrap_or_else(|| "unknown panic".into());
-            Err(raise(
-                "InternalError",
-                format!("internal error (please report): {msg}"),
-            ))
+            Err(InternalError::new_err(format!(
+                "internal error (please report): {msg}"
+            )))
         }
     }
 }
@@ -297,20 +296,15 @@ fn csr<'a>(
     Ok(rings::Neighborhoods { offsets, members })
 }
 
-fn params_from(json: &str) -> PyResult<FitParams> {
-    FitParams::from_json(json).map_err(to_pyerr)
-}
-
-/// The parameters of a preset (`"default"` or `"paper"`) as a JSON object.
-#[pyfunction]
-#[pyo3(signature = (preset="default"))]
-fn default_params_json(preset: &str) -> PyResult<String> {
-    Ok(FitParams::preset(preset).map_err(to_pyerr)?.to_json())
+/// The settings of a stage function (`nbody_step`, `foldmatch_update`): the default's, with
+/// the given ones over them.
+fn params_from(py: Python<'_>, given: Option<&Bound<'_, PyDict>>) -> PyResult<FitParams> {
+    params::over(py, &FitParams::default(), given)
 }
 
 /// Fits a template to a target; see `foldmatch_rs.fit`.
 #[pyfunction]
-#[pyo3(signature = (template_vertices, template_faces, target, target_faces, params_json, callback=None, threads=None, preset="default", target_weights=None))]
+#[pyo3(signature = (template_vertices, template_faces, target, target_faces, params, callback=None, threads=None, target_weights=None))]
 #[allow(clippy::too_many_arguments)]
 fn fit_raw<'py>(
     py: Python<'py>,
@@ -318,15 +312,13 @@ fn fit_raw<'py>(
     template_faces: PyReadonlyArray2<'py, i64>,
     target: PyReadonlyArray2<'py, f64>,
     target_faces: Option<PyReadonlyArray2<'py, i64>>,
-    params_json: &str,
+    params: &Bound<'py, PyDict>,
     callback: Option<Py<PyAny>>,
     threads: Option<Bound<'py, PyAny>>,
-    preset: &str,
     target_weights: Option<PyReadonlyArray1<'py, f64>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let threads = threads_arg(threads.as_ref())?;
-    let base = FitParams::preset(preset).map_err(to_pyerr)?;
-    let params = FitParams::from_json_over(params_json, base).map_err(to_pyerr)?;
+    let params = params::from_dict(py, params)?;
     let tv = points("template_vertices", &template_vertices)?;
     let x = points("target", &target)?;
     let tf = faces("template_faces", &template_faces, tv.len())?;
@@ -422,11 +414,10 @@ fn fit_raw<'py>(
         .map(|(i, s)| (i, array2(py, s)))
         .collect();
     d.set_item("snapshots", snaps)?;
-    d.set_item("params_json", r.params.to_json())?;
-    d.set_item(
-        "diagnostics_json",
-        serde_json::to_string(&r.diagnostics).expect("serializable"),
-    )?;
+    d.set_item("params", params::to_dict(py, &r.params)?)?;
+    let diagnostics = pythonize::pythonize(py, &r.diagnostics)
+        .map_err(|e| InternalError::new_err(format!("diagnostics: {e}")))?;
+    d.set_item("diagnostics", diagnostics)?;
     Ok(d)
 }
 
@@ -486,7 +477,7 @@ fn knn_query<'py>(
 
 /// One N-body step (Eq. 2–3): `(velocities, proposed positions)`.
 #[pyfunction]
-#[pyo3(signature = (positions, velocities, target, neighbours, curvature, params_json="{}"))]
+#[pyo3(signature = (positions, velocities, target, neighbours, curvature, params=None))]
 fn nbody_step<'py>(
     py: Python<'py>,
     positions: PyReadonlyArray2<'py, f64>,
@@ -494,9 +485,9 @@ fn nbody_step<'py>(
     target: PyReadonlyArray2<'py, f64>,
     neighbours: PyReadonlyArray2<'py, i64>,
     curvature: PyReadonlyArray1<'py, f64>,
-    params_json: &str,
+    params: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>)> {
-    let params = params_from(params_json)?;
+    let params = params_from(py, params)?;
     let y = points("positions", &positions)?;
     let v = points("velocities", &velocities)?;
     let x = points("target", &target)?;
@@ -749,15 +740,15 @@ fn solve_rotations<'py>(
 /// One FoldMatch update (Eq. 4–8 and the per-vertex transform) of the motion `old → proposed`:
 /// `(new positions (M,3), per-step wvf (M,3))`.
 #[pyfunction]
-#[pyo3(signature = (old, proposed, faces, params_json="{}"))]
+#[pyo3(signature = (old, proposed, faces, params=None))]
 fn foldmatch_update<'py>(
     py: Python<'py>,
     old: PyReadonlyArray2<'py, f64>,
     proposed: PyReadonlyArray2<'py, f64>,
     faces: PyReadonlyArray2<'py, i64>,
-    params_json: &str,
+    params: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>)> {
-    let params = params_from(params_json)?;
+    let params = params_from(py, params)?;
     let o = points("old", &old)?;
     let n = points("proposed", &proposed)?;
     if o.len() != n.len() {
@@ -916,7 +907,11 @@ fn run_cli(py: Python<'_>, argv: Vec<String>) -> i32 {
 /// The compiled core of `foldmatch_rs`.
 #[pymodule]
 fn _foldmatch_rs(m: &Bound<'_, PyModule>) -> PyResult<()> {
-    m.add_function(wrap_pyfunction!(default_params_json, m)?)?;
+    m.add_function(wrap_pyfunction!(params::fit_params, m)?)?;
+    m.add_function(wrap_pyfunction!(params::param_names, m)?)?;
+    m.add_function(wrap_pyfunction!(params::param_reference, m)?)?;
+    m.add_function(wrap_pyfunction!(meshes::read_mesh, m)?)?;
+    m.add_function(wrap_pyfunction!(meshes::read_weights, m)?)?;
     m.add_function(wrap_pyfunction!(fit_raw, m)?)?;
     m.add_function(wrap_pyfunction!(knn_query, m)?)?;
     m.add_function(wrap_pyfunction!(nbody_step, m)?)?;

@@ -17,10 +17,11 @@ use crate::math::{
 };
 use crate::rings::Neighborhoods;
 use rayon::prelude::*;
+use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 /// Which mean regularizes the stretch tensors.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Regularization {
     /// Eq. 5 on the stretch part, as printed (the `"paper"` preset).

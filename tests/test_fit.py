@@ -59,7 +59,7 @@ def test_few_flips_away_from_the_boundary(case, fitted):
 
 
 def test_nrga_mode_runs_on_the_same_case(case):
-    r = fm.fit(case["template_vertices"], case["faces"], case["scan"], method="nrga")
+    r = fm.fit(case["template_vertices"], case["faces"], case["scan"], params=dict(method="nrga"))
     before = rmse(case["template_vertices"], case["ground_truth"])
     assert rmse(r.vertices, case["ground_truth"]) < before
     assert np.all(r.wvf == 0), "NRGa has no per-step deformation gradient"
@@ -129,7 +129,13 @@ def test_history_callback_and_early_stop(case):
         seen.append(info["iteration"])
         return info["iteration"] < 7
 
-    r = fm.fit(case["template_vertices"], case["faces"], case["scan"], callback=callback, snapshot_every=3)
+    r = fm.fit(
+        case["template_vertices"],
+        case["faces"],
+        case["scan"],
+        callback=callback,
+        params=dict(snapshot_every=3),
+    )
     assert seen == list(range(1, 8)) and r.iterations == 7
     assert r.diagnostics["stopped_by_callback"]
     assert [i for i, _ in r.snapshots] == [3, 6]
@@ -145,16 +151,19 @@ def test_callback_exception_propagates(case):
 
 
 def test_tolerance_stops_early(case):
-    r = fm.fit(case["template_vertices"], case["faces"], case["scan"], tolerance=1e-3)
+    r = fm.fit(case["template_vertices"], case["faces"], case["scan"], params=dict(tolerance=1e-3))
     assert r.diagnostics["converged"] and r.iterations < 100
     assert r.history["mean_displacement"][-1] < 1e-3
 
 
 def test_literal_readings_stay_reachable(case):
     r = fm.fit(
-        case["template_vertices"], case["faces"], case["scan"], iterations=5,
-        numerator="literal", summation="sum", damping_mode="force", velocity_sync=False,
-        regularization="log_euclidean",
+        case["template_vertices"],
+        case["faces"],
+        case["scan"],
+        iterations=5,
+        params=dict(numerator="literal", summation="sum", damping_mode="force",
+                    velocity_sync=False, regularization="log_euclidean"),
     )
     assert r.params["numerator"] == "literal" and r.params["velocity_sync"] is False
 
@@ -214,7 +223,7 @@ def test_nan_names_the_row():
 )
 def test_parameters_out_of_range(param, value):
     with pytest.raises(fm.InvalidParameterError):
-        fm.fit(**small(), **{param: value})
+        fm.fit(**small(), params={param: value})
 
 
 def test_degenerate_and_duplicate_faces_are_reported_and_skipped():
@@ -258,17 +267,17 @@ def test_knn_slack_spares_queries_in_the_early_phases_only():
                           offset=(0.05, 0, 0.3))
     args = (far["template_vertices"], far["faces"], far["scan"])
     assert fm.DEFAULT_PARAMS["knn_slack"] == 0.1
-    exact = fm.fit(*args, selection="single", knn_slack=0.0)
-    slack = {s: fm.fit(*args, selection="single", knn_slack=s) for s in (0.1, 0.5)}
+    exact = fm.fit(*args, params=dict(selection="single", knn_slack=0.0))
+    slack = {s: fm.fit(*args, params=dict(selection="single", knn_slack=s)) for s in (0.1, 0.5)}
     assert (exact.diagnostics["knn_queries"] > slack[0.1].diagnostics["knn_queries"]
             > slack[0.5].diagnostics["knn_queries"])
     for r in slack.values():
         assert not np.array_equal(r.vertices, exact.vertices)
         assert rmse(r.vertices, far["ground_truth"]) < 1.2 * rmse(exact.vertices, far["ground_truth"])
-    paper = [fm.fit(*args, preset="paper", iterations=20, knn_slack=s) for s in (0.0, 0.5)]
+    paper = [fm.fit(*args, preset="paper", iterations=20, params=dict(knn_slack=s)) for s in (0.0, 0.5)]
     np.testing.assert_array_equal(paper[0].vertices, paper[1].vertices)
     with pytest.raises(fm.InvalidParameterError, match="knn_slack"):
-        fm.fit(*args, knn_slack=1.5)
+        fm.fit(*args, params=dict(knn_slack=1.5))
 
 
 def scan_distance(x, y):
@@ -307,14 +316,14 @@ def test_wide_selection_selects_among_three_schedules(case):
     annealing) schedules and keeps the one the selection rule picks from brute-force scan→fit
     distances and NumPy edge-length spreads; each equals its single run."""
     v, f, x = case["template_vertices"], case["faces"], case["scan"]
-    r = fm.fit(v, f, x, iterations=20, selection="scan_distance_wide", rigid_sample=1)
-    single = dict(iterations=20, selection="single", rigid_sample=1)
+    r = fm.fit(v, f, x, iterations=20, params=dict(selection="scan_distance_wide", rigid_sample=1))
+    single = fm.FitParams(iterations=20, selection="single", rigid_sample=1)
     alone = [
-        fm.fit(v, f, x, **single),
-        fm.fit(v, f, x, **single, two_way=1.0, coarse_fraction=0.3, anneal=1.0,
-               anneal_fraction=0.0),
-        fm.fit(v, f, x, **single, two_way=fm.DEFAULT_PARAMS["two_way"] / 1.5,
-               anneal_fraction=0.8),
+        fm.fit(v, f, x, params=single),
+        fm.fit(v, f, x, params=single.replace(two_way=1.0, coarse_fraction=0.3, anneal=1.0,
+                                              anneal_fraction=0.0)),
+        fm.fit(v, f, x, params=single.replace(two_way=fm.DEFAULT_PARAMS["two_way"] / 1.5,
+                                              anneal_fraction=0.8)),
     ]
 
     d = [scan_distance(x, a.vertices) for a in alone]
@@ -353,15 +362,15 @@ def test_two_way_pull_sums_by_default_and_the_mean_stays_reachable(case):
     """The default combines the two-way pulls by coverage (their sum × M / N), weight 4.5; the
     previous rule (their mean) and the tracking preset's are reachable and fit differently."""
     v, f, x = case["template_vertices"], case["faces"], case["scan"]
-    default = fm.fit(v, f, x, iterations=20, selection="single")
-    mean = fm.fit(v, f, x, iterations=20, selection="single", two_way_pull="mean")
+    default = fm.fit(v, f, x, iterations=20, params=dict(selection="single"))
+    mean = fm.fit(v, f, x, iterations=20, params=dict(selection="single", two_way_pull="mean"))
     assert default.params["two_way_pull"] == "coverage" and default.params["two_way"] == 4.5
     assert mean.params["two_way_pull"] == "mean"
     assert np.abs(default.vertices - mean.vertices).max() > 1e-6
     tracking = fm.fit(v, f, x, iterations=2, preset="tracking")
     assert tracking.params["two_way_pull"] == "mean"
     with pytest.raises(fm.InvalidParameterError, match="two_way_pull"):
-        fm.fit(v, f, x, iterations=2, two_way_pull="sum")
+        fm.fit(v, f, x, iterations=2, params=dict(two_way_pull="sum"))
 
 
 def test_gil_is_released_during_the_fit(case):
@@ -397,9 +406,14 @@ def test_selection_keeps_the_closer_schedule_or_on_a_near_tie_the_less_stretched
     own."""
     v, f, x = case["template_vertices"], case["faces"], case["scan"]
     chosen = fm.fit(v, f, x, iterations=30)
-    given = fm.fit(v, f, x, iterations=30, selection="single")
-    sharp = fm.fit(v, f, x, iterations=30, selection="single", two_way=1.0,
-                   coarse_fraction=0.3, anneal=1.0, anneal_fraction=0.0)
+    given = fm.fit(v, f, x, iterations=30, params=dict(selection="single"))
+    sharp = fm.fit(
+        v,
+        f,
+        x,
+        iterations=30,
+        params=dict(selection="single", two_way=1.0, coarse_fraction=0.3, anneal=1.0, anneal_fraction=0.0),
+    )
 
     want = [scan_distance(x, given.vertices), scan_distance(x, sharp.vertices)]
     got = chosen.diagnostics["candidate_scan_distances"]
@@ -409,8 +423,13 @@ def test_selection_keeps_the_closer_schedule_or_on_a_near_tie_the_less_stretched
     assert chosen.params["selection_margin"] == 0.06
     picks = set()
     for margin in (0.06, 0.0, 0.1):
-        result = chosen if margin == 0.06 else fm.fit(v, f, x, iterations=30,
-                                                      selection_margin=margin)
+        result = chosen if margin == 0.06 else fm.fit(
+            v,
+            f,
+            x,
+            iterations=30,
+            params=dict(selection_margin=margin),
+        )
         k = selected(want, spreads, margin)
         assert result.diagnostics["schedule"] == ("given", "sharp")[k]
         np.testing.assert_array_equal(result.vertices, (given, sharp)[k].vertices)
@@ -418,9 +437,9 @@ def test_selection_keeps_the_closer_schedule_or_on_a_near_tie_the_less_stretched
     assert picks == {0, 1}, "the margins tried should pick both schedules on this case"
     assert given.diagnostics["candidate_scan_distances"] == []
     with pytest.raises(fm.InvalidParameterError, match="selection_margin"):
-        fm.fit(v, f, x, iterations=2, selection_margin=-0.1)
+        fm.fit(v, f, x, iterations=2, params=dict(selection_margin=-0.1))
     with pytest.raises(fm.InvalidParameterError, match="selection"):
-        fm.fit(v, f, x, iterations=2, selection="best")
+        fm.fit(v, f, x, iterations=2, params=dict(selection="best"))
 
 
 def test_rigid_sample_moves_the_template_rigidly(case):
@@ -429,8 +448,8 @@ def test_rigid_sample_moves_the_template_rigidly(case):
     without equalling it; out-of-range values are refused by name."""
     v, f, x = case["template_vertices"], case["faces"], case["scan"]
     rigid_only = dict(iterations=8, rigid_fraction=1.0, coarse_fraction=0.0, selection="single")
-    sampled = fm.fit(v, f, x, rigid_sample=4, **rigid_only).vertices
-    full = fm.fit(v, f, x, rigid_sample=1, **rigid_only).vertices
+    sampled = fm.fit(v, f, x, params=dict(rigid_sample=4, **rigid_only)).vertices
+    full = fm.fit(v, f, x, params=dict(rigid_sample=1, **rigid_only)).vertices
     rng = np.random.default_rng(5)
     i, j = rng.integers(0, len(v), 300), rng.integers(0, len(v), 300)
     d_start = np.linalg.norm(v[i] - v[j], axis=1)
@@ -441,11 +460,11 @@ def test_rigid_sample_moves_the_template_rigidly(case):
     assert 0 < apart < 0.2 * moved
     for bad in (0, 65):
         with pytest.raises(fm.InvalidParameterError, match="rigid_sample"):
-            fm.fit(v, f, x, iterations=2, rigid_sample=bad)
+            fm.fit(v, f, x, iterations=2, params=dict(rigid_sample=bad))
         with pytest.raises(fm.InvalidParameterError, match="coarse_sample"):
-            fm.fit(v, f, x, iterations=2, coarse_sample=bad)
+            fm.fit(v, f, x, iterations=2, params=dict(coarse_sample=bad))
     with pytest.raises(fm.InvalidParameterError, match="coarse_sample"):
-        fm.fit(v, f, x, iterations=2, coarse_sample=2, coarse_rings=2)
+        fm.fit(v, f, x, iterations=2, params=dict(coarse_sample=2, coarse_rings=2))
 
 
 def test_rigid_scan_sample_strides_only_dense_scans(case):
@@ -456,7 +475,7 @@ def test_rigid_scan_sample_strides_only_dense_scans(case):
     accuracy."""
     args = (case["template_vertices"], case["faces"], case["scan"])
     auto = fm.fit(*args, iterations=40)
-    every = fm.fit(*args, iterations=40, rigid_scan_sample=1)
+    every = fm.fit(*args, iterations=40, params=dict(rigid_scan_sample=1))
     np.testing.assert_array_equal(auto.vertices, every.vertices)
 
     dense = fm.folded_sheet(nx=15, ny=15, scan_points=12000, noise=0.001)
@@ -466,13 +485,13 @@ def test_rigid_scan_sample_strides_only_dense_scans(case):
         return fm.evaluate(*dargs[:2], vertices, dense["scan"],
                            ground_truth=dense["ground_truth"])["f_R"]
 
-    strided, full = fm.fit(*dargs), fm.fit(*dargs, rigid_scan_sample=1)
+    strided, full = fm.fit(*dargs), fm.fit(*dargs, params=dict(rigid_scan_sample=1))
     assert np.abs(strided.vertices - full.vertices).max() > 1e-9
     assert f_r(strided.vertices) < 0.5 * f_r(dense["template_vertices"])
     # No less accurate (here the strided fit is the closer one: 0.0260 against 0.0270).
     assert f_r(strided.vertices) < 1.05 * f_r(full.vertices)
     with pytest.raises(fm.InvalidParameterError, match="rigid_scan_sample"):
-        fm.fit(*args, rigid_scan_sample=65)
+        fm.fit(*args, params=dict(rigid_scan_sample=65))
 
 
 def test_coarse_scan_sample_halves_only_dense_scans(case):
@@ -484,7 +503,7 @@ def test_coarse_scan_sample_halves_only_dense_scans(case):
     args = (case["template_vertices"], case["faces"], case["scan"])
     np.testing.assert_array_equal(
         fm.fit(*args, iterations=40).vertices,
-        fm.fit(*args, iterations=40, coarse_scan_sample=1).vertices,
+        fm.fit(*args, iterations=40, params=dict(coarse_scan_sample=1)).vertices,
     )
     ratios = []
     for side, per_vertex in [(15, 18), (20, 10), (25, 12), (30, 8), (40, 10)]:
@@ -495,14 +514,17 @@ def test_coarse_scan_sample_halves_only_dense_scans(case):
             return fm.evaluate(*dargs[:2], vertices, dense["scan"],
                                ground_truth=dense["ground_truth"])["f_R"]
 
-        halved, full = fm.fit(*dargs), fm.fit(*dargs, coarse_scan_sample=1)
-        np.testing.assert_array_equal(halved.vertices, fm.fit(*dargs, coarse_scan_sample=2).vertices)
+        halved, full = fm.fit(*dargs), fm.fit(*dargs, params=dict(coarse_scan_sample=1))
+        np.testing.assert_array_equal(halved.vertices, fm.fit(
+            *dargs,
+            params=dict(coarse_scan_sample=2),
+        ).vertices)
         assert np.abs(halved.vertices - full.vertices).max() > 1e-9
         assert f_r(halved.vertices) < 0.5 * f_r(dense["template_vertices"])
         ratios.append(f_r(halved.vertices) / f_r(full.vertices))
     assert max(ratios) < 1.2 and np.exp(np.log(ratios).mean()) < 1.05, ratios
     with pytest.raises(fm.InvalidParameterError, match="coarse_scan_sample"):
-        fm.fit(*args, coarse_scan_sample=65)
+        fm.fit(*args, params=dict(coarse_scan_sample=65))
 
 
 def test_rest_rigidity_keeps_edge_lengths_over_a_scan_hole(case):
@@ -523,13 +545,13 @@ def test_rest_rigidity_keeps_edge_lengths_over_a_scan_hole(case):
         return float(np.log(length(vertices) / length(v)).std())
 
     with_rigidity = fm.fit(v, f, holed)
-    without = fm.fit(v, f, holed, rest_rigidity=0.0)
+    without = fm.fit(v, f, holed, params=dict(rest_rigidity=0.0))
     assert with_rigidity.params["rest_rigidity"] == 0.65
     assert spread(with_rigidity.vertices) < 0.8 * spread(without.vertices)
     truth = case["ground_truth"]
     assert rmse(with_rigidity.vertices, truth) < 1.05 * rmse(without.vertices, truth)
     with pytest.raises(fm.InvalidParameterError, match="rest_rigidity"):
-        fm.fit(v, f, holed, rest_rigidity=1.5)
+        fm.fit(v, f, holed, params=dict(rest_rigidity=1.5))
 
 
 def test_fast_preset_is_one_schedule_between_the_default_s_two(case):
@@ -541,7 +563,7 @@ def test_fast_preset_is_one_schedule_between_the_default_s_two(case):
     mine = {"selection": "single", "two_way": 3.0, "coarse_fraction": 0.3, "anneal": 1.0,
             "anneal_fraction": 0.0, "iterations": 30}
     assert r.params == {**fm.DEFAULT_PARAMS, **mine}
-    np.testing.assert_array_equal(r.vertices, fm.fit(v, f, x, **mine).vertices)
+    np.testing.assert_array_equal(r.vertices, fm.fit(v, f, x, params=mine).vertices)
     both = fm.fit(v, f, x, iterations=30)
     d = float(np.mean([np.sqrt(((r.vertices - p) ** 2).sum(1).min()) for p in x]))
     assert all(abs(c - d) > 1e-9 * d for c in both.diagnostics["candidate_scan_distances"])

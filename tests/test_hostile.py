@@ -78,8 +78,9 @@ def test_hostile_cases_through_the_cli_in_process(folder, capfd):
     assert not failures, "\n".join(failures)
 
 
-def _fit(sheet: dict, **kw):
-    return fm.fit(sheet["template_vertices"], sheet["faces"], sheet["scan"], **kw)
+def _fit(sheet: dict, threads=None, callback=None, **settings):
+    return fm.fit(sheet["template_vertices"], sheet["faces"], sheet["scan"], threads=threads,
+                  callback=callback, params=settings)
 
 
 def _huge_snapshots(_sheet: dict):

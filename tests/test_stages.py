@@ -121,8 +121,8 @@ def test_psi_changes_the_wrinkle_field_but_not_the_vertices():
     np.testing.assert_allclose(a.vertices, b.vertices, rtol=0, atol=1e-9)
     assert np.abs(a.wvf_accumulated_magnitude - b.wvf_accumulated_magnitude).max() > 1e-3
     # The raw-gradient reading lets ψ act on the vertices.
-    c = fm.fit(*args, iterations=15, psi=0.2, rotation_source="raw")
-    d = fm.fit(*args, iterations=15, psi=0.0, rotation_source="raw")
+    c = fm.fit(*args, iterations=15, psi=0.2, params=dict(rotation_source="raw"))
+    d = fm.fit(*args, iterations=15, psi=0.0, params=dict(rotation_source="raw"))
     assert np.abs(c.vertices - d.vertices).max() > 1e-6
 
 

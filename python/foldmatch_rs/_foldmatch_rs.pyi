@@ -11,7 +11,8 @@ _F64 = npt.NDArray[np.float64]
 _I64 = npt.NDArray[np.int64]
 
 __all__ = [
-    "default_params_json", "fit_raw", "knn_query", "nbody_step", "n_rings",
+    "fit_params", "param_names", "param_reference", "read_mesh", "read_weights", "fit_raw",
+    "knn_query", "nbody_step", "n_rings",
     "gaussian_curvature", "deformation_gradients", "regularize_gradients",
     "polar_decomposition", "wrinkle_field", "solve_rotations", "foldmatch_update",
     "folded_sheet", "evaluate", "_mark_forked", "run_cli", "cluster_request", "RunBook",
@@ -19,16 +20,23 @@ __all__ = [
     "__version__",
 ]
 
-def default_params_json(preset: str = "default") -> str: ...
+def fit_params(
+    preset: str = "default", overrides: Optional[dict[str, Any]] = None
+) -> dict[str, Any]: ...
+def param_names() -> list[str]: ...
+def param_reference() -> list[dict[str, Any]]: ...
+def read_mesh(
+    path: str, property: Optional[str] = None
+) -> tuple[_F64, _I64, Optional[_F64]]: ...
+def read_weights(path: str) -> _F64: ...
 def fit_raw(
     template_vertices: _F64,
     template_faces: _I64,
     target: _F64,
     target_faces: Optional[_I64],
-    params_json: str,
+    params: dict[str, Any],
     callback: Optional[Callable[[dict[str, Any]], Any]] = None,
     threads: Optional[int] = None,
-    preset: str = "default",
     target_weights: Optional[_F64] = None,
 ) -> dict[str, Any]: ...
 def knn_query(
@@ -40,7 +48,7 @@ def nbody_step(
     target: _F64,
     neighbours: _I64,
     curvature: _F64,
-    params_json: str = "{}",
+    params: Optional[dict[str, Any]] = None,
 ) -> tuple[_F64, _F64]: ...
 def n_rings(
     faces: _I64, n_vertices: int, rings: int = 2
@@ -56,7 +64,7 @@ def polar_decomposition(matrices: _F64) -> tuple[_F64, _F64]: ...
 def wrinkle_field(stretches: _F64, psi: float = 0.05) -> tuple[_F64, _F64]: ...
 def solve_rotations(gradients: _F64, modified_stretches: _F64) -> _F64: ...
 def foldmatch_update(
-    old: _F64, proposed: _F64, faces: _I64, params_json: str = "{}"
+    old: _F64, proposed: _F64, faces: _I64, params: Optional[dict[str, Any]] = None
 ) -> tuple[_F64, _F64]: ...
 def folded_sheet(
     nx: int = 41,

@@ -46,6 +46,7 @@ except ImportError as _missing:  # pragma: no cover - depends on the installed e
 from . import _foldmatch_rs as _core
 from ._cluster_tasks import Threads, fit_file, track_frame
 from .errors import InvalidParameterError
+from .params import FitParams
 
 PathLike = Union[str, "os.PathLike[str]"]
 #: A ``distributed.Client``, a scheduler address, or ``None`` / ``"local"`` for a local cluster.
@@ -92,7 +93,9 @@ def fit_batch(
     resume : bool
         Skip the scans whose output exists and whose entry in ``report.json`` is ok.
     preset, **params
-        The fit parameters, as ``foldmatch_rs.fit`` takes them.
+        The fit settings: a preset, and settings by name or as ``params=`` (a
+        :class:`~foldmatch_rs.FitParams`, which carries its preset, or a dict), as
+        :func:`foldmatch_rs.fit` takes them.
     format, ascii, gt_dir
         As ``foldmatch batch --format / --ascii / --gt-dir``.
     threads : int, optional
@@ -357,13 +360,24 @@ def _request(
         "ascii": bool(ascii),
         "gt_dir": None if gt_dir is None else os.path.abspath(gt_dir),
         "preset": preset,
-        "params": {k: _plain(v) for k, v in params.items() if v is not None},
+        "params": {k: _plain(v) for k, v in _settings(params).items() if v is not None},
     }
+    nested = params.get("params")
+    if isinstance(nested, FitParams):
+        request["preset"] = nested.preset_name
     if isinstance(scans, (str, os.PathLike)):
         request["input_dir"] = os.path.abspath(scans)
     else:
         request["files"] = [os.path.abspath(p) for p in scans]
     return request
+
+
+def _settings(given: dict[str, Any]) -> dict[str, Any]:
+    """The settings by name: ``params=`` (a :class:`~foldmatch_rs.FitParams` or a dict, as
+    :func:`foldmatch_rs.fit` takes it) with the other keywords over it."""
+    given = dict(given)
+    nested = given.pop("params", None)
+    return {**(dict(nested) if nested is not None else {}), **given}
 
 
 def _book(request: dict[str, Any], progress: bool) -> _core.RunBook:

@@ -548,7 +548,7 @@ fn command_with(generated: &[(String, Value)]) -> clap::Command {
                 .value_parser(parse_json_value)
                 .help_heading("Fit parameters")
                 .help(format!(
-                    "The `{key}` parameter of FitParams (see docs/method.md) [default: {shown}]"
+                    "The `{key}` setting of FitParams (see docs/parameters.md) [default: {shown}]"
                 ))
         })
         .collect();

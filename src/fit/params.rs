@@ -3,10 +3,11 @@
 
 use crate::nbody::{NBodyParams, TwoWayPull};
 use crate::regularize::Regularization;
+use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 /// Which motion/deformation model updates the template.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Method {
     /// The paper's method: n-ring deformation gradients, Eq. 4–8.
@@ -17,7 +18,7 @@ pub enum Method {
 }
 
 /// Which gradient enters the rotation solve of Eq. 8.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum RotationSource {
     /// The regularized gradient `R̄ Ū` (default). Û commutes with Ū, so R* = R̄ and ψ moves no
@@ -29,7 +30,7 @@ pub enum RotationSource {
 }
 
 /// What to do with a template placed far from the scan.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Prealign {
     /// Fit as given; a template whose centroid is more than [`FAR_AWAY`] target diagonals from the
@@ -41,7 +42,7 @@ pub enum Prealign {
 }
 
 /// Schedule selection (docs/method.md, "Beyond the paper: the default configuration").
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Selection {
     /// Run the schedule the parameters describe.
@@ -142,7 +143,7 @@ pub const FAR_AWAY: f64 = 1.0;
 
 /// Every parameter of a fit, in groups (each flattened, so the JSON form is one flat object).
 /// `Default` gives the paper's constants (§4) with the converging readings of docs/method.md.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(default)]
 pub struct FitParams {
     /// FoldMatch or NRGa.
@@ -179,7 +180,7 @@ pub struct FitParams {
 
 /// The model's constants: the paper's §4 values (n, ρ and the clamps of K, ψ, γ) and the
 /// N-body constants of Eq. 2–3 with their readings ([`NBodyParams`]).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(default)]
 pub struct ModelConstants {
     /// n of the n-ring template neighborhoods Γᵏ_Y.
@@ -204,7 +205,7 @@ pub struct ModelConstants {
 
 /// Paper readings: the switches choosing between readings of the paper where it admits more
 /// than one (docs/method.md, "Ablation of the readings").
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(default)]
 pub struct Readings {
     /// Mean used by Eq. 5.
@@ -223,7 +224,7 @@ pub struct Readings {
 /// The schedule of a fit beyond the paper: its phases (rigid, coarse, fine), the two-way
 /// attraction, the rest-shape rigidity, the softening annealing and schedule selection
 /// (docs/method.md, "Beyond the paper: the default configuration").
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(default)]
 pub struct Schedule {
     /// Two-way attraction: weight of the pull of every scan point on its nearest template
@@ -304,7 +305,7 @@ pub struct Schedule {
 
 /// Acceleration: samples and approximate neighborhoods that make a fit faster and change its
 /// result a little (beyond round-off).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(default)]
 pub struct Acceleration {
     /// Rigid phase on a sample: the N-body forces (and the two-way attraction's pulls) are

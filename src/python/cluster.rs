@@ -3,7 +3,7 @@
 //! command line with `--scheduler` for the console script. Plans, entries and reports cross as
 //! JSON (the schema of `report.json`); vertices as `(n, 3)` float64 arrays.
 
-use super::{array2, raise};
+use super::{array2, InvalidInputError, InvalidParameterError, RunSetupError};
 use crate::cli::cluster::{self, FileReport, Planned, Request, Verbosity};
 use numpy::{PyArray2, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
@@ -13,15 +13,14 @@ fn verbosity(name: &str) -> PyResult<Verbosity> {
         "quiet" => Ok(Verbosity::Quiet),
         "normal" => Ok(Verbosity::Normal),
         "verbose" => Ok(Verbosity::Verbose),
-        other => Err(raise(
-            "InvalidParameterError",
-            format!("verbosity {other:?}: expected \"quiet\", \"normal\" or \"verbose\""),
-        )),
+        other => Err(InvalidParameterError::new_err(format!(
+            "verbosity {other:?}: expected \"quiet\", \"normal\" or \"verbose\""
+        ))),
     }
 }
 
 fn from_json<T: serde::de::DeserializeOwned>(what: &str, text: &str) -> PyResult<T> {
-    serde_json::from_str(text).map_err(|e| raise("InvalidParameterError", format!("{what}: {e}")))
+    serde_json::from_str(text).map_err(|e| InvalidParameterError::new_err(format!("{what}: {e}")))
 }
 
 fn to_json<T: serde::Serialize>(value: &T) -> String {
@@ -45,7 +44,7 @@ impl RunBook {
         let verbosity = self::verbosity(verbosity)?;
         py.detach(|| cluster::RunBook::start(&request, verbosity))
             .map(Self)
-            .map_err(|e| raise("RunSetupError", e))
+            .map_err(RunSetupError::new_err)
     }
 
     /// The files to send to workers (JSON list of `{index, name, scan, output, gt, resumed}`).
@@ -87,14 +86,14 @@ impl RunBook {
         let entry: FileReport = from_json("entry", entry_json)?;
         self.0
             .record(index, entry)
-            .map_err(|e| raise("InvalidParameterError", e))
+            .map_err(InvalidParameterError::new_err)
     }
 
     /// Records a file whose task failed on the cluster, with why.
     fn record_failure(&self, index: usize, message: &str) -> PyResult<()> {
         self.0
             .record_failure(index, message)
-            .map_err(|e| raise("InvalidParameterError", e))
+            .map_err(InvalidParameterError::new_err)
     }
 
     /// Writes the last report and prints the summary: `(exit code, report JSON)`.
@@ -116,7 +115,7 @@ impl FileFitter {
     fn new(py: Python<'_>, template: &str, params_json: &str, threads: usize) -> PyResult<Self> {
         py.detach(|| cluster::FileFitter::new(template.as_ref(), params_json, threads))
             .map(Self)
-            .map_err(|e| raise("RunSetupError", e))
+            .map_err(RunSetupError::new_err)
     }
 
     /// Fits one planned file (JSON, from `RunBook.files_json`) and writes its output to the
@@ -167,13 +166,10 @@ impl FileFitter {
     fn warm_vertices(&self, a: &PyReadonlyArray2<'_, f64>) -> PyResult<Vec<[f64; 3]>> {
         let shape = a.shape();
         if shape[1] != 3 || shape[0] != self.0.vertex_count() {
-            return Err(raise(
-                "InvalidInputError",
-                format!(
-                    "warm: expected shape ({}, 3), got {shape:?}",
-                    self.0.vertex_count()
-                ),
-            ));
+            return Err(InvalidInputError::new_err(format!(
+                "warm: expected shape ({}, 3), got {shape:?}",
+                self.0.vertex_count()
+            )));
         }
         Ok(a.as_array()
             .rows()
