@@ -71,7 +71,7 @@ def test_callback_passes_on_a_stop():
 
 def test_log_fit_logs_the_scan_the_snapshots_and_the_colored_fit(case):
     result = fm.fit(case["template_vertices"], case["faces"], case["scan"], iterations=10,
-                    snapshot_every=5)
+                    params={"snapshot_every": 5})
     rec = Recording()
     viz.log_fit(result, scan=case["scan"], template=case["template_vertices"], recording=rec,
                 sdk=SDK)
@@ -90,11 +90,11 @@ def test_log_fit_logs_the_scan_the_snapshots_and_the_colored_fit(case):
 
 def test_with_rerun_sdk_installed(case, tmp_path):
     rr = pytest.importorskip(
-        "rerun", reason="rerun-sdk is not installed (pip install 'foldmatch-rs[viz]')")
+        "rerun", reason="rerun-sdk is not installed (pip install rerun-sdk)")
     rec = rr.RecordingStream("foldmatch-test")
     rec.save(str(tmp_path / "fit.rrd"))
     result = fm.fit(case["template_vertices"], case["faces"], case["scan"], iterations=4,
-                    callback=viz.rerun_callback(rec), snapshot_every=2)
+                    callback=viz.rerun_callback(rec), params={"snapshot_every": 2})
     viz.log_fit(result, scan=case["scan"], recording=rec)
     rec.flush()
     assert (tmp_path / "fit.rrd").stat().st_size > 1000

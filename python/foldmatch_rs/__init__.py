@@ -223,7 +223,7 @@ def render(
     faces_array = _faces(faces, "faces")
     scan_points = None
     if scan is not None:
-        scan_points, scan_faces = _split_mesh(scan, scan_faces, "scan")
+        scan_points, scan_faces = _inputs.mesh(scan, scan_faces, "scan")
     elif scan_faces is not None:
         raise InvalidInputError("scan_faces: given without a scan")
     magnitude = None

@@ -61,7 +61,9 @@ class FitParams(Mapping[str, Any]):
         """Lower clamp of K."""
     @property
     def k_max(self) -> int:
-        """Upper clamp of K. Default `DEFAULT_K_MAX` (32); the `"paper"` preset keeps SPEC §2's 64."""
+        """Upper clamp of K. Default `DEFAULT_K_MAX` (32); the `"paper"` preset keeps
+        `PAPER_K_MAX`.
+        """
     @property
     def gravity(self) -> float:
         """Gravitational constant G."""
@@ -82,7 +84,7 @@ class FitParams(Mapping[str, Any]):
         """Scan particle mass m(X)."""
     @property
     def alpha_floor(self) -> float:
-        """Positive floor applied to the curvature term α_kj (SPEC §2.3)."""
+        """Positive floor applied to the curvature term α_kj (docs/method.md "Force, Eq. 2")."""
     @property
     def numerator(self) -> Literal['centered', 'literal']:
         """Numerator reading of Eq. 2."""
@@ -108,12 +110,12 @@ class FitParams(Mapping[str, Any]):
         """Gradient used by Eq. 8."""
     @property
     def velocity_sync(self) -> bool:
-        """Set velocities to the applied motion after each update (SPEC §2.4); `false` keeps the
-        integrated velocity (literal reading).
+        """Set velocities to the applied motion after each update (docs/method.md, "Integration, Eq.
+        3"); `false` keeps the integrated velocity (literal reading).
         """
     @property
     def normalize(self) -> bool:
-        """Work in the normalized frame (SPEC §1)."""
+        """Work in the normalized frame (docs/method.md, "Frame")."""
     @property
     def use_curvature(self) -> bool:
         """Use the curvature term of Eq. 2 (`false` sets κ = 0, i.e. α = 1)."""
@@ -169,7 +171,7 @@ class FitParams(Mapping[str, Any]):
         `AUTO_COARSE_RINGS` up to `COARSE_RINGS_REFERENCE_VERTICES` vertices, then growing
         as √M up to `AUTO_COARSE_RINGS_MAX`. A fixed radius covers a smaller share of a finer
         mesh, and the coarse phase's rigid pieces then no longer turn a sleeve or a panel as a
-        unit (docs/method.md "Seventeenth round": held out, f_R ×0.88 against a fixed 8).
+        unit (docs/method.md, "Beyond the paper: the default configuration").
         """
     @property
     def coarse_levels(self) -> int:
@@ -189,7 +191,7 @@ class FitParams(Mapping[str, Any]):
         non-rigid ICP's decreasing stiffness). Eq. 8 moves the *current* ring, so edge lengths
         drift where the scan does not pin them (tangential sliding, holes); the rest-shape term
         remembers the template's metric, as ARAP's local step does. 0: the paper's update
-        alone. FoldMatch only; docs/method.md "Seventh round".
+        alone. FoldMatch only (docs/method.md, "Beyond the paper: the default configuration").
         """
     @property
     def anneal(self) -> float:
@@ -206,18 +208,18 @@ class FitParams(Mapping[str, Any]):
     def selection_margin(self) -> float:
         """Schedule selection's near-tie margin: candidates whose mean scan→fit distance is within
         `(1 + selection_margin) ×` the closest one's are tied, and the tie goes to the least
-        edge-length spread (`select_schedule`). 0: the closest fit alone (the rule before
-        2026-12-01). The given schedule's three-fold two-way pull minimizes exactly the
-        distance compared, so it wins it by a few per cent even where its fit slid along the
-        scan (docs/method.md "Eighth round").
+        edge-length spread (`select_schedule`). 0: the closest fit alone. The given
+        schedule's stronger two-way pull minimizes exactly the distance compared, so it wins it by a
+        few per cent even where its fit slid along the scan (docs/method.md, "Beyond the paper: the
+        default configuration").
         """
     @property
     def selection_at(self) -> float:
         """When schedule selection compares its candidates, as a fraction of the ξ iterations: at
         iteration `⌈selection_at · ξ⌉` the candidates' fits are compared by the same rule
-        (`select_schedule`) and only the chosen one runs on; the others' remaining iterations
-        are spared. A case whose choice there is the one made at the end gets the same fit,
-        bit for bit (the chosen run never sees the others). 1: at the end.
+        (`select_schedule`) and only the chosen one runs on; the others'
+        remaining iterations are spared. A case whose choice there is the one made at the end gets
+        the same fit, bit for bit (the chosen run never sees the others). 1: at the end.
         """
 
     # ---- Acceleration
@@ -226,8 +228,9 @@ class FitParams(Mapping[str, Any]):
         """Rigid phase on a sample: the N-body forces (and the two-way attraction's pulls) are
         computed for every `rigid_sample`-th template vertex only, and the one Kabsch fit of
         those vertices moves the whole template (1: every vertex). The rigid phase only needs
-        the one rigid motion, so 4 (the default) costs no accuracy on the harness and cuts
-        the phase's k-NN, two-way and force work by about 4× (docs/method.md).
+        the one rigid motion, so 4 (the default) costs no accuracy and cuts the phase's k-NN,
+        two-way and force work by about 4× (docs/method.md, "Beyond the paper: the default
+        configuration").
         """
     @property
     def rigid_scan_sample(self) -> int:
@@ -244,15 +247,15 @@ class FitParams(Mapping[str, Any]):
         """
     @property
     def coarse_scan_sample(self) -> int:
-        """Coarse phase on a scan sample, as `FitParams::rigid_scan_sample` for the rigid
-        phase: the coarse phase sees every `coarse_scan_sample`-th scan point, with `⌈K / s⌉`
-        target neighbours; each vertex there moves by the Kabsch fit of its coarse ring, which
-        the sampled forces estimate. 0 (the default): automatic, the largest stride leaving
-        `COARSE_SCAN_POINTS_PER_VERTEX` scan points per vertex of the coarse phase's sample,
-        at most `COARSE_SCAN_MAX_AUTO_STRIDE` (so 2 where the scan has at least 8 points per
-        vertex, as a 1M-point scan under a 100K-vertex template, else 1 — the whole scan; every
-        harness case is at 1); 1: the whole scan. Measured on dense scans: the million-point
-        case 32.4 s → 24.4 s at f_R ×0.999.
+        """Coarse phase on a scan sample, as
+        `rigid_scan_sample` for the rigid phase: the
+        coarse phase sees every `coarse_scan_sample`-th scan point, with `⌈K / s⌉` target
+        neighbours; each vertex there moves by the Kabsch fit of its coarse ring, which the sampled
+        forces estimate. 0 (the default): automatic, the largest stride leaving
+        `COARSE_SCAN_POINTS_PER_VERTEX` scan points per vertex of the coarse phase's sample, at
+        most `COARSE_SCAN_MAX_AUTO_STRIDE` (so 2 where the scan has at least 8 points per vertex,
+        as a 1M-point scan under a 100K-vertex template, else 1 — the whole scan); 1: the whole
+        scan.
         """
     @property
     def coarse_sample(self) -> int:
@@ -267,8 +270,8 @@ class FitParams(Mapping[str, Any]):
         every returned neighbour is within `(1 + σ) ×` the true K-th nearest distance, sparing
         the fresh queries of template points still far off the scan (their candidates all lie
         at about their height, so the exact test fails at nearly every move). The FoldMatch
-        iterations stay exact. 0: exact throughout; without `knn_cache` every query is exact.
-        Default `DEFAULT_KNN_SLACK`; docs/performance.md, "Thirteenth round".
+        iterations stay exact. 0: exact throughout. Default `DEFAULT_KNN_SLACK`
+        (docs/method.md, "Target neighborhoods Γᵏ_X").
         """
 
 __all__ = ["FitParams", "GROUPS", "PRESETS", "SETTINGS"]

@@ -1,11 +1,12 @@
 """Watching fits in the Rerun viewer (https://rerun.io), with the optional ``viz`` extra
-(``pip install 'foldmatch-rs[viz]'``, which installs ``rerun-sdk``).
+(``rerun-sdk``: ``pip install rerun-sdk`` beside the wheel, or ``pip install '.[viz]'`` from
+the repository).
 
 * :func:`rerun_callback` is a ``callback`` for :func:`foldmatch_rs.fit` that logs each
   iteration's mean and max displacement on the ``iteration`` timeline while the fit runs.
 * :func:`log_fit` logs a finished fit: the scan as points, the template, every snapshot
-  (``fit(..., snapshot_every=N)``) and the fitted mesh as meshes on the same timeline, the
-  fitted mesh with the wrinkle-field colors of the CLI's PLY and ``fm.render``.
+  (``fit(..., params={"snapshot_every": N})``) and the fitted mesh as meshes on the same
+  timeline, the fitted mesh with the wrinkle-field colors of the CLI's PLY and ``fm.render``.
 
 Both take the recording to log to (default: Rerun's global recording, which
 ``rerun.init("foldmatch", spawn=True)`` starts) and ``sdk``, the ``rerun`` module itself (the
@@ -16,7 +17,8 @@ Examples
 >>> import rerun as rr                                              # doctest: +SKIP
 >>> from foldmatch_rs import viz                                    # doctest: +SKIP
 >>> rr.init("foldmatch", spawn=True)                                # doctest: +SKIP
->>> result = fm.fit(t, f, scan, callback=viz.rerun_callback(), snapshot_every=10)  # doctest: +SKIP
+>>> every_10 = {"snapshot_every": 10}                                # doctest: +SKIP
+>>> result = fm.fit(t, f, scan, callback=viz.rerun_callback(), params=every_10)  # doctest: +SKIP
 >>> viz.log_fit(result, scan=scan, template=t)                      # doctest: +SKIP
 """
 
@@ -38,7 +40,7 @@ def _sdk(sdk: Any) -> Any:
         import rerun
     except ImportError as e:
         raise ImportError(
-            "foldmatch_rs.viz needs rerun-sdk: pip install 'foldmatch-rs[viz]'"
+            "foldmatch_rs.viz needs rerun-sdk: pip install rerun-sdk"
         ) from e
     return rerun
 
