@@ -340,6 +340,21 @@ impl EdgeLengths {
         Self { edges, rest }
     }
 
+    /// The unique edges `(i, j)`, `i < j`, each once.
+    pub fn edges(&self) -> &[(u32, u32)] {
+        &self.edges
+    }
+
+    /// Every edge's length on `fitted` over its template length, in [`EdgeLengths::edges`]
+    /// order (0 for an edge collapsed to a point).
+    pub fn ratios(&self, fitted: &[[f64; 3]]) -> Vec<f64> {
+        self.edges
+            .iter()
+            .zip(&self.rest)
+            .map(|(&e, &rest)| edge_length(fitted, e) / rest)
+            .collect()
+    }
+
     /// [`edge_length_spread`] of `fitted` (the template's vertices, moved).
     pub fn spread(&self, fitted: &[[f64; 3]]) -> f64 {
         if self.edges.is_empty() {
@@ -493,7 +508,7 @@ fn face_counts(
 
 /// `(b − a) × (c − a)` of face `f` over `p`: the normal scaled by twice the area.
 #[inline]
-fn cross_of(p: &[[f64; 3]], f: &[u32; 3]) -> [f64; 3] {
+pub(crate) fn cross_of(p: &[[f64; 3]], f: &[u32; 3]) -> [f64; 3] {
     let [a, b, c] = f.map(|i| p[i as usize]);
     let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
     let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
@@ -515,7 +530,7 @@ fn norm(a: [f64; 3]) -> f64 {
 }
 
 /// Length of the diagonal of the axis-aligned bounding box (0 for an empty set).
-fn bbox_diagonal(points: &[[f64; 3]]) -> f64 {
+pub(crate) fn bbox_diagonal(points: &[[f64; 3]]) -> f64 {
     let Some(first) = points.first() else {
         return 0.0;
     };
@@ -567,7 +582,7 @@ fn mean_of(v: &[f64]) -> f64 {
 /// The `p`-th percentile (`0 ≤ p ≤ 100`) with linear interpolation between the order
 /// statistics at ranks `⌊h⌋` and `⌊h⌋+1`, `h = (n − 1)·p/100` (NumPy's default). NaN when
 /// empty. O(n) by selection.
-fn percentile_linear(v: &[f64], p: f64) -> f64 {
+pub(crate) fn percentile_linear(v: &[f64], p: f64) -> f64 {
     if v.is_empty() {
         return f64::NAN;
     }
