@@ -24,6 +24,7 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::atomic::{AtomicBool, Ordering};
 
 mod cluster;
+mod quality;
 
 /// Set in a forked child (see `_mark_forked`): rayon's global pool does not survive `fork`, so
 /// the child computes in a fresh pool of its own.
@@ -929,6 +930,7 @@ fn _foldmatch_rs(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(foldmatch_update, m)?)?;
     m.add_function(wrap_pyfunction!(folded_sheet, m)?)?;
     m.add_function(wrap_pyfunction!(evaluate, m)?)?;
+    m.add_function(wrap_pyfunction!(quality::assess_raw, m)?)?;
     m.add_function(wrap_pyfunction!(_mark_forked, m)?)?;
     m.add_function(wrap_pyfunction!(run_cli, m)?)?;
     m.add_function(wrap_pyfunction!(cluster::cluster_request, m)?)?;

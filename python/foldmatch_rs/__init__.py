@@ -652,6 +652,65 @@ def evaluate(
     )
 
 
+def assess(
+    template: Any,
+    template_faces: Any,
+    fitted: Any,
+    scan: Any,
+    *,
+    thresholds: Optional[dict[str, float]] = None,
+) -> dict[str, Any]:
+    """Does a fit look right? The quality verdict from figures that need no ground truth
+    (docs/method.md "Quality verdict"); :func:`fit` puts the same into ``FitResult.quality``.
+
+    Parameters
+    ----------
+    template : (M, 3) float or trimesh.Trimesh
+        The template before fitting.
+    template_faces : (T, 3) int
+    fitted : (M, 3) float or FitResult
+        The fitted vertices.
+    scan : (N, 3) float
+        The scan the template was fitted to.
+    thresholds : dict, optional
+        Replaces the verdict's thresholds (every key of ``quality`` below from ``fit_to_scan``
+        to ``edge_distortion``); ``float("inf")`` turns a test off.
+
+    Returns
+    -------
+    dict
+        ``quality``: ``verdict`` (``"ok"`` or ``"suspicious"``), ``reasons`` (one sentence per
+        figure past its threshold), ``fit_to_scan`` and ``scan_to_fit`` (mean distances over
+        the scan's bounding-box diagonal; scan→fit to the fitted surface), ``asymmetry``,
+        ``unsupported_share``, ``flipped_share``, ``collapsed_share``, ``edge_distortion``
+        (95th percentile of the edge-length ratio, scale divided out), ``support_radius``,
+        ``scan_diagonal``. ``correspondences`` (M,) uint32: each vertex's nearest scan point;
+        ``residuals`` (M,) float: the distance to it; ``support`` (M,) bool: whether the
+        vertex has scan support.
+    """
+    thresholds_json = None
+    if thresholds is not None:
+        # Missing keys keep their defaults; +inf (off) crosses JSON as the largest float.
+        thresholds_json = json.dumps(
+            {k: (1.7976931348623157e308 if v == math.inf else float(v)) for k, v in thresholds.items()}
+        )
+    raw = _core.assess_raw(
+        _points(template, "template_vertices"),
+        _faces(template_faces, "template_faces"),
+        _points(fitted, "fitted_vertices"),
+        _points(scan, "scan"),
+        thresholds_json,
+    )
+    return {
+        "quality": json.loads(raw["quality_json"]),
+        "correspondences": raw["correspondences"],
+        "residuals": raw["residuals"],
+        "support": raw["support"],
+    }
+
+
+
+
 def folded_sheet(**spec: Any) -> dict[str, np.ndarray]:
     """A generated case with ground truth: a flat sheet template (``template_vertices``,
     ``faces``), the same sheet folded, rotated and offset (``ground_truth``, same vertex
@@ -682,6 +741,7 @@ __all__ = [
     "foldmatch_update",
     "folded_sheet",
     "evaluate",
+    "assess",
     "FoldMatchError",
     "InvalidInputError",
     "InvalidParameterError",

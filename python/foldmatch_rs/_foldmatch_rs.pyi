@@ -109,3 +109,10 @@ class FileFitter:
     def resume_frame(
         self, file_json: str, warm_name: Optional[str] = None
     ) -> Optional[tuple[str, _F64]]: ...
+def assess_raw(
+    template_vertices: _F64,
+    template_faces: _I64,
+    fitted_vertices: _F64,
+    scan: _F64,
+    thresholds_json: Optional[str] = None,
+) -> dict[str, Any]: ...

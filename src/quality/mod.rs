@@ -53,6 +53,7 @@ const SPACING_SAMPLE: usize = 4096;
 /// (for `asymmetry`, when its absolute value does). The defaults come from `bench/verdict.py`
 /// (docs/method.md "Quality verdict"); `f64::INFINITY` turns a figure's test off.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct VerdictThresholds {
     /// Most [`Quality::fit_to_scan`].
     pub fit_to_scan: f64,
@@ -158,6 +159,8 @@ pub struct Quality {
     pub support_radius: f64,
     /// The scan's bounding-box diagonal (the distances' normalizer), in the scan's units.
     pub scan_diagonal: f64,
+    /// The thresholds the verdict was given under.
+    pub thresholds: VerdictThresholds,
 }
 
 /// [`Quality`] with the per-vertex figures behind it.
@@ -286,6 +289,7 @@ pub fn assess(input: &AssessInput<'_>, thresholds: &VerdictThresholds) -> Result
         edge_distortion,
         support_radius,
         scan_diagonal: diagonal,
+        thresholds: *thresholds,
     };
     Ok(Assessment {
         quality: judged(quality, thresholds),
@@ -320,6 +324,7 @@ pub fn judged(mut quality: Quality, thresholds: &VerdictThresholds) -> Quality {
             format!("{label} {value:.4}{unit} exceeds {limit:.4}")
         })
         .collect();
+    quality.thresholds = *thresholds;
     quality.verdict = if reasons.is_empty() {
         Verdict::Ok
     } else {
