@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-import cases as cases_mod
-from dressed_scans import render_view
+from bench import cases as cases_mod
+from bench.dressed_scans import render_view
 
 AZIMUTHS_DEG = (-40.0, 0.0, 40.0)
 HEIGHTS = (-0.25, 0.25)  # in bounding-box diagonals, about the centre

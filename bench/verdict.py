@@ -20,9 +20,9 @@ threshold on the tuning half alone (the largest value among its right fits, time
 ``--margin``), and the table reports both halves under the thresholds in force (the library's
 defaults unless ``--calibrate``): every wrong fit should be flagged, at most 1 in 20 right fits.
 
-    .venv/bin/python bench/verdict.py                      # real,small; about 5 min on 2 cores
-    .venv/bin/python bench/verdict.py --calibrate          # also proposes thresholds
-    .venv/bin/python bench/verdict.py --from-json F        # re-scores an earlier run's rows
+    .venv/bin/python -m bench.verdict                      # real,small; about 5 min on 2 cores
+    .venv/bin/python -m bench.verdict --calibrate          # also proposes thresholds
+    .venv/bin/python -m bench.verdict --from-json F        # re-scores an earlier run's rows
 """
 
 from __future__ import annotations
@@ -32,19 +32,16 @@ import hashlib
 import json
 import math
 import pathlib
-import sys
 import time
 from typing import Any
 
 import numpy as np
 
-HERE = pathlib.Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
+from bench import cases as cases_mod
+from bench import variants
+from bench.front_scan import front_scan
 
-import cases as cases_mod  # noqa: E402
-import harness  # noqa: E402
-import variants  # noqa: E402
-from front_scan import front_scan  # noqa: E402
+HERE = pathlib.Path(__file__).resolve().parent
 
 FIGURES = ("fit_to_scan", "scan_to_fit", "asymmetry", "unsupported_share", "flipped_share",
            "collapsed_share", "edge_distortion")

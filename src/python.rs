@@ -427,6 +427,15 @@ fn fit_raw<'py>(
         "diagnostics_json",
         serde_json::to_string(&r.diagnostics).expect("serializable"),
     )?;
+    quality::assessment_items(
+        &d,
+        crate::quality::Assessment {
+            quality: r.quality,
+            correspondences: r.correspondences,
+            residuals: r.residuals,
+            support: r.support,
+        },
+    )?;
     Ok(d)
 }
 

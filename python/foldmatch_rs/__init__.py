@@ -165,6 +165,16 @@ class FitResult:
         Every parameter used.
     diagnostics : dict
         Facts about the run: K, ring size, removed faces, (ω₀Δt)², curvature source, frame.
+    quality : dict
+        Does the fit look right: ``verdict`` (``"ok"`` or ``"suspicious"``), ``reasons`` and
+        the figures behind them, none of which needs ground truth (see :func:`assess`).
+    correspondences : (M,) uint32
+        Per template vertex, the index of the scan point it ends nearest to.
+    residuals : (M,) float
+        Per template vertex, the distance to that scan point (the scan's units).
+    support : (M,) bool
+        Per template vertex, whether it has scan support: its nearest scan point lies within
+        the support radius and is claimed back by the vertex or a template neighbour.
     """
 
     vertices: np.ndarray
@@ -178,6 +188,10 @@ class FitResult:
     snapshots: list[tuple[int, np.ndarray]] = field(default_factory=list)
     params: dict[str, Any] = field(default_factory=dict)
     diagnostics: dict[str, Any] = field(default_factory=dict)
+    quality: dict[str, Any] = field(default_factory=dict)
+    correspondences: np.ndarray = field(default_factory=lambda: np.zeros(0, np.uint32))
+    residuals: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    support: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
 
     def to_trimesh(self, accumulated: bool = True) -> Any:
         """The fitted mesh as a ``trimesh.Trimesh`` with the wrinkle-field magnitude as vertex
@@ -488,6 +502,10 @@ def fit(
         snapshots=raw["snapshots"],
         params=json.loads(raw["params_json"]),
         diagnostics=json.loads(raw["diagnostics_json"]),
+        quality=json.loads(raw["quality_json"]),
+        correspondences=raw["correspondences"],
+        residuals=raw["residuals"],
+        support=raw["support"],
     )
 
 

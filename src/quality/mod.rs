@@ -299,6 +299,39 @@ pub fn assess(input: &AssessInput<'_>, thresholds: &VerdictThresholds) -> Result
     })
 }
 
+/// [`assess`] against the scan points `points` (indices into `scan`; `None`: every point),
+/// with the correspondences indexing `scan` itself.
+pub fn assess_points(
+    template_vertices: &[[f64; 3]],
+    faces: &[[u32; 3]],
+    fitted_vertices: &[[f64; 3]],
+    scan: &[[f64; 3]],
+    points: Option<&[usize]>,
+    thresholds: &VerdictThresholds,
+) -> Result<Assessment> {
+    let chosen: Vec<[f64; 3]>;
+    let scan_points = match points {
+        Some(p) => {
+            chosen = p.iter().map(|&j| scan[j]).collect();
+            &chosen[..]
+        }
+        None => scan,
+    };
+    let input = AssessInput {
+        template_vertices,
+        faces,
+        fitted_vertices,
+        scan: scan_points,
+    };
+    let mut a = assess(&input, thresholds)?;
+    if let Some(p) = points {
+        for c in &mut a.correspondences {
+            *c = p[*c as usize] as u32;
+        }
+    }
+    Ok(a)
+}
+
 /// `quality` with its verdict and reasons under `thresholds`.
 pub fn judged(mut quality: Quality, thresholds: &VerdictThresholds) -> Quality {
     let q = &quality;
