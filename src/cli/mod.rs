@@ -187,7 +187,7 @@ fn fit(cmd: &FitCmd, ctx: &Context) -> i32 {
                 entry.iterations.unwrap_or(0),
                 entry.seconds.unwrap_or(0.0)
             ));
-            ui.info(entry.quality_note());
+            ui.detail(entry.quality_note());
             if let Some(reasons) = entry.suspicious_reasons() {
                 ui.warn(format_args!(
                     "the fit looks wrong (quality verdict suspicious): {}",

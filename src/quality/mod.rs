@@ -72,15 +72,19 @@ pub struct VerdictThresholds {
 }
 
 impl Default for VerdictThresholds {
+    /// `bench/verdict.py --calibrate` on its tuning half (real and small harness cases under
+    /// placed, turned, z-up, stopped-early, front-half and other-garment fits): each figure's
+    /// largest value among the right fits × 1.25, at least 0.5 % collapsed and 1.5 % flipped
+    /// faces, rounded (docs/method.md "Quality verdict").
     fn default() -> Self {
         Self {
-            fit_to_scan: 0.02,
-            scan_to_fit: 0.02,
+            fit_to_scan: 0.035,
+            scan_to_fit: 0.16,
             asymmetry: 0.8,
-            unsupported_share: 0.35,
-            flipped_share: 0.02,
-            collapsed_share: 0.02,
-            edge_distortion: 2.0,
+            unsupported_share: 0.4,
+            flipped_share: 0.015,
+            collapsed_share: 0.005,
+            edge_distortion: 3.1,
         }
     }
 }
