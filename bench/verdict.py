@@ -17,8 +17,9 @@ A fit is *wrong* when its f_R exceeds 3× the best peer's f_R on the case
 (bench/peer_figures.json, bench/standing.py), *right* otherwise. The cases are split by a hash
 of their name into a tuning half and a held-out half; ``--calibrate`` chooses each figure's
 threshold on the tuning half alone (the largest value among its right fits, times
-``--margin``, at least :data:`FLOORS`), and the table reports both halves under the thresholds in force (the library's
-defaults unless ``--calibrate``): every wrong fit should be flagged, at most 1 in 20 right fits.
+``--margin``, at least :data:`FLOORS`), and the table reports both halves under the thresholds
+in force (the library's defaults unless ``--calibrate``): every wrong fit should be flagged, at
+most 1 in 20 right fits.
 
     .venv/bin/python -m bench.verdict                      # real,small; about 5 min on 2 cores
     .venv/bin/python -m bench.verdict --calibrate          # also proposes thresholds
