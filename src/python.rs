@@ -26,6 +26,7 @@ mod cluster;
 mod meshes;
 mod params;
 mod render;
+mod quality;
 
 /// Set in a forked child (see `_mark_forked`): rayon's global pool does not survive `fork`, so
 /// the child computes in a fresh pool of its own.
@@ -418,6 +419,15 @@ fn fit_raw<'py>(
     let diagnostics = pythonize::pythonize(py, &r.diagnostics)
         .map_err(|e| InternalError::new_err(format!("diagnostics: {e}")))?;
     d.set_item("diagnostics", diagnostics)?;
+    quality::assessment_items(
+        &d,
+        crate::quality::Assessment {
+            quality: r.quality,
+            correspondences: r.correspondences,
+            residuals: r.residuals,
+            support: r.support,
+        },
+    )?;
     Ok(d)
 }
 
@@ -925,6 +935,7 @@ fn _foldmatch_rs(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(foldmatch_update, m)?)?;
     m.add_function(wrap_pyfunction!(folded_sheet, m)?)?;
     m.add_function(wrap_pyfunction!(evaluate, m)?)?;
+    m.add_function(wrap_pyfunction!(quality::assess_raw, m)?)?;
     m.add_function(wrap_pyfunction!(_mark_forked, m)?)?;
     m.add_function(wrap_pyfunction!(run_cli, m)?)?;
     m.add_function(wrap_pyfunction!(render::render_preview, m)?)?;

@@ -28,7 +28,7 @@ fn fit_writes_the_mesh_the_field_and_the_report() {
         .stdout_eq(str![""])
         .stderr_eq(str![[r#"
 fitted scan.ply -> out/fitted.ply (5 iterations, [..] s, mean scan-to-fit [..])
-
+...
 "#]]);
     assert_eq!(
         tree(dir.path()),

@@ -72,8 +72,10 @@ sequence: 4 frames in frames (f1.ply … f10.ply) -> out
 [1/4] ok      f1.ply -> out/f1.ply (3 it, [..] s, scan-to-fit [..])
 [2/4] ok      f2.ply -> out/f2.ply (3 it, [..] s, scan-to-fit [..])
 [3/4] ok      f3.obj -> out/f3.ply (3 it, [..] s, scan-to-fit [..])
+...
 [4/4] ok      f10.ply -> out/f10.ply (3 it, [..] s, scan-to-fit [..])
 sequence: 4 ok, 0 failed, 0 skipped in [..] s; report: out/report.json
+...
 ",
         );
     let report = json(&d.join("out/report.json"));
@@ -126,7 +128,7 @@ sequence: 4 ok, 0 failed, 0 skipped in [..] s; report: out/report.json
         .args(["sequence", "template.ply", "frames", "-o", "out", "--iterations", "3", "--resume"])
         .assert()
         .code(0)
-        .stderr_eq("sequence: 4 frames in frames (f1.ply … f10.ply) -> out\nsequence: 0 ok, 0 failed, 4 skipped in [..] s; report: out/report.json\n");
+        .stderr_eq("sequence: 4 frames in frames (f1.ply … f10.ply) -> out\nsequence: 0 ok, 0 failed, 4 skipped in [..] s; report: out/report.json\n...\n");
     let again: Vec<_> = ["f1.ply", "f10.ply"]
         .iter()
         .map(|n| {

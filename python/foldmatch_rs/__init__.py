@@ -106,6 +106,16 @@ class FitResult:
         Every setting used.
     diagnostics : dict
         Facts about the run: K, ring size, removed faces, (ω₀Δt)², curvature source, frame.
+    quality : dict
+        Does the fit look right: ``verdict`` (``"ok"`` or ``"suspicious"``), ``reasons`` and
+        the figures behind them, none of which needs ground truth (see :func:`assess`).
+    correspondences : (M,) uint32
+        Per template vertex, the index of the scan point it ends nearest to.
+    residuals : (M,) float
+        Per template vertex, the distance to that scan point (the scan's units).
+    support : (M,) bool
+        Per template vertex, whether it has scan support: its nearest scan point lies within
+        the support radius and is claimed back by the vertex or a template neighbour.
     """
 
     vertices: np.ndarray
@@ -119,6 +129,10 @@ class FitResult:
     snapshots: list[tuple[int, np.ndarray]] = field(default_factory=list)
     params: FitParams = field(default_factory=FitParams)
     diagnostics: dict[str, Any] = field(default_factory=dict)
+    quality: dict[str, Any] = field(default_factory=dict)
+    correspondences: np.ndarray = field(default_factory=lambda: np.zeros(0, np.uint32))
+    residuals: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    support: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
 
     def save(self, path: str | os.PathLike[str], accumulated: bool = True,
              ascii: bool = False) -> None:
@@ -369,6 +383,10 @@ def fit(
         snapshots=raw["snapshots"],
         params=FitParams.from_dict(raw["params"], settings.preset_name),
         diagnostics=raw["diagnostics"],
+        quality=raw["quality"],
+        correspondences=raw["correspondences"],
+        residuals=raw["residuals"],
+        support=raw["support"],
     )
 
 
@@ -556,6 +574,62 @@ def evaluate(
     )
 
 
+def assess(
+    template: Any,
+    template_faces: Any,
+    fitted: Any,
+    scan: Any,
+    *,
+    thresholds: Optional[dict[str, float]] = None,
+) -> dict[str, Any]:
+    """Does a fit look right? The quality verdict from figures that need no ground truth
+    (docs/method.md "Quality verdict"); :func:`fit` puts the same into ``FitResult.quality``.
+
+    Parameters
+    ----------
+    template : (M, 3) float or trimesh.Trimesh
+        The template before fitting.
+    template_faces : (T, 3) int
+    fitted : (M, 3) float or FitResult
+        The fitted vertices.
+    scan : (N, 3) float
+        The scan the template was fitted to.
+    thresholds : dict, optional
+        Replaces the verdict's thresholds (every key of ``quality`` below from ``fit_to_scan``
+        to ``edge_distortion``); ``float("inf")`` turns a test off.
+
+    Returns
+    -------
+    dict
+        ``quality``: ``verdict`` (``"ok"`` or ``"suspicious"``), ``reasons`` (one sentence per
+        figure past its threshold), ``fit_to_scan`` and ``scan_to_fit`` (mean distances over
+        the scan's bounding-box diagonal; scan→fit to the fitted surface), ``asymmetry``,
+        ``unsupported_share``, ``flipped_share``, ``collapsed_share``, ``edge_distortion``
+        (95th percentile of the edge-length ratio, scale divided out), ``support_radius``,
+        ``scan_diagonal``. ``correspondences`` (M,) uint32: each vertex's nearest scan point;
+        ``residuals`` (M,) float: the distance to it; ``support`` (M,) bool: whether the
+        vertex has scan support.
+    """
+    if thresholds is not None:
+        # Missing keys keep their defaults; +inf turns a threshold off.
+        thresholds = {k: float(v) for k, v in thresholds.items()}
+    raw = _core.assess_raw(
+        _points(template, "template_vertices"),
+        _faces(template_faces, "template_faces"),
+        _points(fitted, "fitted_vertices"),
+        _points(scan, "scan"),
+        thresholds,
+    )
+    return {
+        "quality": raw["quality"],
+        "correspondences": raw["correspondences"],
+        "residuals": raw["residuals"],
+        "support": raw["support"],
+    }
+
+
+
+
 def folded_sheet(**spec: Any) -> dict[str, np.ndarray]:
     """A generated case with ground truth: a flat sheet template (``template_vertices``,
     ``faces``), the same sheet folded, rotated and offset (``ground_truth``, same vertex
@@ -588,6 +662,7 @@ __all__ = [
     "folded_sheet",
     "evaluate",
     "render",
+    "assess",
     "FoldMatchError",
     "InvalidInputError",
     "InvalidParameterError",

@@ -15,8 +15,8 @@ __all__ = [
     "knn_query", "nbody_step", "n_rings",
     "gaussian_curvature", "deformation_gradients", "regularize_gradients",
     "polar_decomposition", "wrinkle_field", "solve_rotations", "foldmatch_update",
-    "folded_sheet", "evaluate", "_mark_forked", "run_cli", "cluster_request", "RunBook",
-    "FileFitter", "render_preview", "wrinkle_colors", "write_fitted",
+    "folded_sheet", "evaluate", "assess_raw", "_mark_forked", "run_cli", "cluster_request",
+    "RunBook", "FileFitter", "render_preview", "wrinkle_colors", "write_fitted",
     "__version__",
 ]
 
@@ -133,3 +133,10 @@ class FileFitter:
     def resume_frame(
         self, file_json: str, warm_name: Optional[str] = None
     ) -> Optional[tuple[str, _F64]]: ...
+def assess_raw(
+    template_vertices: _F64,
+    template_faces: _I64,
+    fitted_vertices: _F64,
+    scan: _F64,
+    thresholds: Optional[dict[str, float]] = None,
+) -> dict[str, Any]: ...

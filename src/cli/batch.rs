@@ -256,6 +256,7 @@ impl Setup {
             seconds: 0.0,
             summary: Summary::of(&files),
             params: serde_json::to_value(&self.params).unwrap_or_default(),
+            suspicious: Vec::new(),
             files,
         }
     }
@@ -291,6 +292,13 @@ impl Shared {
         self.report.state = state;
         self.report.seconds = self.started.elapsed().as_secs_f64();
         self.report.summary = Summary::of(&self.report.files);
+        self.report.suspicious = self
+            .report
+            .files
+            .iter()
+            .filter(|f| f.status.is_done() && f.suspicious_reasons().is_some())
+            .map(|f| f.name.clone())
+            .collect();
         if let Err(e) = write_json(&self.path, &self.report) {
             self.write_error = Some(e);
         }
@@ -334,7 +342,15 @@ pub(super) fn log_file(ui: &Ui, done: usize, total: usize, entry: &FileReport) {
                 entry.output,
                 entry.iterations.unwrap_or(0),
                 entry.seconds.unwrap_or(0.0)
-            ))
+            ));
+            ui.detail(format_args!("{head} {}", entry.quality_note()));
+            if let Some(reasons) = entry.suspicious_reasons() {
+                ui.warn(format_args!(
+                    "{head} {} looks wrong (quality verdict suspicious): {}",
+                    entry.name,
+                    reasons.join("; ")
+                ));
+            }
         }
         Status::Error => ui.error(format_args!(
             "{head} {}: {}",
@@ -386,6 +402,15 @@ pub(super) fn finish(ui: &Ui, shared: &mut Shared, what: &str, interrupted: bool
             failed.len(),
             s.total,
             failed.join(", ")
+        ));
+    }
+    let suspicious = &shared.report.suspicious;
+    if !suspicious.is_empty() {
+        ui.warn(format_args!(
+            "{} of {} fits look wrong (quality verdict suspicious; the report says why): {}",
+            suspicious.len(),
+            s.total,
+            suspicious.join(", ")
         ));
     }
     if let Some(e) = &shared.write_error {

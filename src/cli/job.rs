@@ -351,6 +351,7 @@ impl Runner<'_> {
         report.seconds = Some(fit_started.elapsed().as_secs_f64());
         report.iterations = Some(result.iterations);
         report.diagnostics = serde_json::to_value(&result.diagnostics).ok();
+        report.quality = serde_json::to_value(&result.quality).ok();
         if result.diagnostics.stopped_by_callback {
             return Err(INTERRUPTED.into());
         }

@@ -196,6 +196,13 @@ fn fit(cmd: &FitCmd, ctx: &Context) -> i32 {
                 entry.iterations.unwrap_or(0),
                 entry.seconds.unwrap_or(0.0)
             ));
+            ui.detail(entry.quality_note());
+            if let Some(reasons) = entry.suspicious_reasons() {
+                ui.warn(format_args!(
+                    "the fit looks wrong (quality verdict suspicious): {}",
+                    reasons.join("; ")
+                ));
+            }
             exit_code::OK
         }
         Status::Interrupted => {

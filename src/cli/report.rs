@@ -55,6 +55,10 @@ pub struct FileReport {
     pub metrics: Option<Value>,
     /// [`crate::fit::Diagnostics`] of the fit.
     pub diagnostics: Option<Value>,
+    /// [`crate::quality::Quality`] of the fit: the figures without ground truth and the
+    /// verdict (`ok` / `suspicious`, with the reasons).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub quality: Option<Value>,
     /// Ground-truth file used for f_R, if any.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub ground_truth: Option<String>,
@@ -122,6 +126,45 @@ impl ScanWeightsReport {
 }
 
 impl FileReport {
+    /// The reasons of a `suspicious` verdict (`None` when the fit has no verdict or it is
+    /// `ok`).
+    pub fn suspicious_reasons(&self) -> Option<Vec<String>> {
+        let q = self.quality.as_ref()?;
+        if q.get("verdict")?.as_str()? != "suspicious" {
+            return None;
+        }
+        let reasons = q.get("reasons").and_then(Value::as_array);
+        Some(
+            reasons
+                .into_iter()
+                .flatten()
+                .filter_map(|r| r.as_str().map(str::to_string))
+                .collect(),
+        )
+    }
+
+    /// The verdict and every figure of the fit's quality, for a log line (empty without
+    /// one); the module docs of [`crate::quality`] define the figures.
+    pub fn quality_note(&self) -> String {
+        let Some(q) = &self.quality else {
+            return String::new();
+        };
+        let f = |k: &str| q.get(k).and_then(Value::as_f64).unwrap_or(f64::NAN);
+        format!(
+            "quality {}: fit→scan {:.4} and scan→fit {:.4} of the scan diagonal (mean), \
+             asymmetry {:+.2}, unsupported vertices {:.1} %, flipped faces {:.1} %, collapsed \
+             faces {:.1} %, edge-length distortion {:.2} (95th percentile)",
+            q.get("verdict").and_then(Value::as_str).unwrap_or("?"),
+            f("fit_to_scan"),
+            f("scan_to_fit"),
+            f("asymmetry"),
+            100.0 * f("unsupported_share"),
+            100.0 * f("flipped_share"),
+            100.0 * f("collapsed_share"),
+            f("edge_distortion"),
+        )
+    }
+
     /// The mean scan-to-fit distance of a fitted file, formatted for a log line after
     /// `label` (empty when there are no metrics).
     pub fn scan_to_fit_note(&self, label: &str) -> String {
@@ -146,6 +189,7 @@ impl FileReport {
             total_seconds: None,
             metrics: None,
             diagnostics: None,
+            quality: None,
             ground_truth: None,
             warm_start: None,
             scan_weights: None,
@@ -219,6 +263,10 @@ pub struct RunReport {
     pub summary: Summary,
     /// The [`crate::fit::FitParams`] used (every key).
     pub params: Value,
+    /// The names of the fitted files whose quality verdict is `suspicious` (their entries say
+    /// why), in processing order.
+    #[serde(default)]
+    pub suspicious: Vec<String>,
     /// One entry per file, in processing order (natural order of the relative paths).
     pub files: Vec<FileReport>,
 }

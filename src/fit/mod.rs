@@ -155,8 +155,19 @@ pub fn fit_weighted(
         Some((_, compared, ..)) if compare_at == total => compared.swap_remove(best),
         _ => winner.user_vertices(&prepared),
     };
+    // The verdict against the points the fit was drawn to: those of positive weight, or on a
+    // scan that holds more than the garment, those the template explains.
+    let assessed = prepared.garment.as_deref().or(kept.as_deref());
+    let assessment = crate::quality::assess_points(
+        template_vertices,
+        &prepared.faces,
+        &vertices,
+        target,
+        assessed,
+        &crate::quality::VerdictThresholds::default(),
+    )?;
     // Only the chosen run is finished (its wrinkle fields are a whole Eq. 4–8 pass).
-    let mut chosen = winner.finish(&prepared, vertices);
+    let mut chosen = winner.finish(&prepared, vertices, assessment);
     if let Some((_, _, distances, spreads)) = selection {
         chosen.params = params.clone();
         let d = &mut chosen.diagnostics;

@@ -3,6 +3,7 @@
 
 use super::params::FitParams;
 use crate::normalize::Frame;
+use crate::quality::Quality;
 use serde::{Deserialize, Serialize};
 
 /// One iteration's figures.
@@ -149,4 +150,15 @@ pub struct FitResult {
     pub params: FitParams,
     /// Facts about the run.
     pub diagnostics: Diagnostics,
+    /// Does the fit look right: figures without ground truth and the verdict
+    /// ([`crate::quality`]), against the scan points of positive weight (on a scan that holds
+    /// more than the garment, the points the template explains).
+    pub quality: Quality,
+    /// Per template vertex, the scan point (index into the target as given) it ends nearest
+    /// to.
+    pub correspondences: Vec<u32>,
+    /// Per template vertex, the distance from the fitted vertex to that point (user units).
+    pub residuals: Vec<f64>,
+    /// Per template vertex, whether it has scan support ([`crate::quality`]).
+    pub support: Vec<bool>,
 }

@@ -292,8 +292,13 @@ impl ScheduleRun {
     }
 
     /// The result (`vertices`: [`ScheduleRun::user_vertices`]), with the wrinkle-vector fields
-    /// of the last step and of the whole motion.
-    pub(super) fn finish(mut self, prepared: &Prepared, vertices: Vec<[f64; 3]>) -> FitResult {
+    /// of the last step and of the whole motion, and the `assessment` of `vertices`.
+    pub(super) fn finish(
+        mut self,
+        prepared: &Prepared,
+        vertices: Vec<[f64; 3]>,
+        assessment: crate::quality::Assessment,
+    ) -> FitResult {
         let params = &self.params;
         let m = self.pos.len();
         self.diagnostics.stage_seconds = self.ws.times;
@@ -326,6 +331,10 @@ impl ScheduleRun {
             snapshots: self.snapshots,
             params: self.params,
             diagnostics: self.diagnostics,
+            quality: assessment.quality,
+            correspondences: assessment.correspondences,
+            residuals: assessment.residuals,
+            support: assessment.support,
         }
     }
 }

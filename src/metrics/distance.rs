@@ -98,7 +98,7 @@ pub(super) fn norm(a: [f64; 3]) -> f64 {
 }
 
 /// Length of the diagonal of the axis-aligned bounding box (0 for an empty set).
-pub(super) fn bbox_diagonal(points: &[[f64; 3]]) -> f64 {
+pub(crate) fn bbox_diagonal(points: &[[f64; 3]]) -> f64 {
     let Some(first) = points.first() else {
         return 0.0;
     };

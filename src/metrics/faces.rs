@@ -46,6 +46,21 @@ impl EdgeLengths {
         Self { edges, rest }
     }
 
+    /// The unique edges `(i, j)`, `i < j`, each once.
+    pub fn edges(&self) -> &[(u32, u32)] {
+        &self.edges
+    }
+
+    /// Every edge's length on `fitted` over its template length, in [`EdgeLengths::edges`]
+    /// order (0 for an edge collapsed to a point).
+    pub fn ratios(&self, fitted: &[[f64; 3]]) -> Vec<f64> {
+        self.edges
+            .iter()
+            .zip(&self.rest)
+            .map(|(&e, &rest)| edge_length(fitted, e) / rest)
+            .collect()
+    }
+
     /// [`edge_length_spread`] of `fitted` (the template's vertices, moved).
     pub fn spread(&self, fitted: &[[f64; 3]]) -> f64 {
         if self.edges.is_empty() {
@@ -128,7 +143,7 @@ pub(super) fn face_counts(
 
 /// `(b − a) × (c − a)` of face `f` over `p`: the normal scaled by twice the area.
 #[inline]
-fn cross_of(p: &[[f64; 3]], f: &[u32; 3]) -> [f64; 3] {
+pub(crate) fn cross_of(p: &[[f64; 3]], f: &[u32; 3]) -> [f64; 3] {
     let [a, b, c] = f.map(|i| p[i as usize]);
     let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
     let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];

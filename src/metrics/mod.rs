@@ -68,10 +68,13 @@ use crate::error::{FoldMatchError, Result};
 
 pub use distance::{hausdorff, nearest_distances};
 pub use faces::{edge_length_spread, EdgeLengths};
+pub(crate) use distance::bbox_diagonal;
+pub(crate) use faces::cross_of;
+pub(crate) use summary::percentile_linear;
 
-use distance::{bbox_diagonal, rmse_of, NnIndex};
+use distance::{rmse_of, NnIndex};
 use faces::face_counts;
-use summary::{max_of, mean_of, percentile_linear, safe_ratio};
+use summary::{max_of, mean_of, safe_ratio};
 
 /// Default collapse threshold `τ_S` (paper §4).
 pub const DEFAULT_TAU_S: f64 = 0.02;

@@ -24,7 +24,7 @@ pub(super) fn mean_of(v: &[f64]) -> f64 {
 /// The `p`-th percentile (`0 ≤ p ≤ 100`) with linear interpolation between the order
 /// statistics at ranks `⌊h⌋` and `⌊h⌋+1`, `h = (n − 1)·p/100` (NumPy's default). NaN when
 /// empty. O(n) by selection.
-pub(super) fn percentile_linear(v: &[f64], p: f64) -> f64 {
+pub(crate) fn percentile_linear(v: &[f64], p: f64) -> f64 {
     if v.is_empty() {
         return f64::NAN;
     }

@@ -1,0 +1,205 @@
+"""Calibrates and checks the quality verdict (``FitResult.quality``, ``fm.assess``) on fits that
+are right and fits that are wrong.
+
+Every case of the chosen harness groups (bench/variants.py's; default ``real,small``) is fitted
+under conditions that a user meets, some of which make the fit wrong:
+
+* ``placed``: the case as the harness gives it (the default fit);
+* ``turn90`` / ``turn180``: the scan (and its truth) turned 90° / 180° about the vertical,
+  fitted with ``prealign="centroid"`` (no rotation search);
+* ``z-up``: the scan given z-up instead of y-up, ``prealign="centroid"``;
+* ``few-iterations``: the default stopped after 4 iterations;
+* ``front-half``: only the scan points one camera rig on the front sees (bench/front_scan.py);
+* ``other-garment`` (real group): the template of another garment of the group, fitted to
+  this scan. Wrong by construction (there is no truth for it).
+
+A fit is *wrong* when its f_R exceeds 3× the best peer's f_R on the case
+(bench/peer_figures.json, bench/standing.py), *right* otherwise. The cases are split by a hash
+of their name into a tuning half and a held-out half; ``--calibrate`` chooses each figure's
+threshold on the tuning half alone (the largest value among its right fits, times
+``--margin``, at least :data:`FLOORS`), and the table reports both halves under the thresholds
+in force (the library's defaults unless ``--calibrate``): every wrong fit should be flagged, at
+most 1 in 20 right fits.
+
+    .venv/bin/python -m bench.verdict                      # real,small; about 5 min on 2 cores
+    .venv/bin/python -m bench.verdict --calibrate          # also proposes thresholds
+    .venv/bin/python -m bench.verdict --from-json F        # re-scores an earlier run's rows
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import math
+import pathlib
+import time
+from typing import Any
+
+import numpy as np
+
+from bench import cases as cases_mod
+from bench import variants
+from bench.front_scan import front_scan
+
+HERE = pathlib.Path(__file__).resolve().parent
+
+FIGURES = ("fit_to_scan", "scan_to_fit", "asymmetry", "unsupported_share", "flipped_share",
+           "collapsed_share", "edge_distortion")
+WRONG_RATIO = 3.0
+
+
+def split_of(name: str) -> str:
+    """``tune`` or ``held-out``, by a stable hash of the case's name."""
+    return "tune" if hashlib.sha256(name.encode()).digest()[0] % 2 == 0 else "held-out"
+
+
+def turned(points: np.ndarray, axis: int, degrees: float, centre: np.ndarray) -> np.ndarray:
+    r = cases_mod.rotation_matrix(np.eye(3)[axis], degrees)
+    return np.ascontiguousarray((points - centre) @ r.T + centre)
+
+
+def conditions(case: cases_mod.Case) -> list[tuple[str, np.ndarray, np.ndarray, dict[str, Any]]]:
+    """(name, scan, truth, fit keywords) of every condition but ``other-garment``."""
+    up = int(case.meta.get("up", 1))
+    truth, scan = case.ground_truth, case.target
+    c = scan.mean(0)
+    out = [("placed", scan, truth, {})]
+    for deg in (90.0, 180.0):
+        out.append((f"turn{int(deg)}", turned(scan, up, deg, c), turned(truth, up, deg, c),
+                    {"prealign": "centroid"}))
+    if up == 1:  # y-up → z-up: a quarter turn about x
+        out.append(("z-up", turned(scan, 0, 90.0, c), turned(truth, 0, 90.0, c),
+                    {"prealign": "centroid"}))
+    out.append(("few-iterations", scan, truth, {"iterations": 4}))
+    seed = int(hashlib.sha256(case.name.encode()).hexdigest()[:8], 16)
+    half = front_scan(truth, case.faces, up, seed, most=len(scan))
+    out.append(("front-half", half, truth, {}))
+    return out
+
+
+def fit_rows(groups: list[str], best: dict[str, dict[str, float]]) -> list[dict[str, Any]]:
+    import foldmatch_rs as fm
+
+    rows: list[dict[str, Any]] = []
+    real: list[cases_mod.Case] = []
+    for group in groups:
+        for case in variants.group_cases(group):
+            if case.ground_truth is None or case.name not in best:
+                continue
+            if group == "real" and case.name.endswith("-pts"):
+                real.append(case)
+            for name, scan, truth, kw in conditions(case):
+                t0 = time.perf_counter()
+                r = fm.fit(case.template_vertices, case.faces, scan, **kw)
+                seconds = time.perf_counter() - t0
+                e = fm.evaluate(case.template_vertices, case.faces, r.vertices, scan, truth)
+                f_r = e["f_R"] * cases_mod.bbox_diagonal(scan) / cases_mod.bbox_diagonal(case.target)
+                q = fm.assess(case.template_vertices, case.faces, r.vertices, scan)["quality"]
+                ratio = f_r / best[case.name]["f_R"]
+                rows.append({"group": group, "case": case.name, "condition": name,
+                             "split": split_of(case.name), "f_R": f_r, "ratio": ratio,
+                             "wrong": bool(ratio > WRONG_RATIO), "seconds": seconds,
+                             **{k: q[k] for k in FIGURES}})
+                print(f"{case.name:32s} {name:15s} f_R {f_r:.4f} ×{ratio:6.2f} "
+                      + " ".join(f"{q[k]:.3f}" for k in FIGURES), flush=True)
+    # Another garment's template (the first of each kind of garment on another's scan).
+    kinds = {}
+    for case in real:
+        kinds.setdefault(case.name.split("-")[0] + case.name.split("-")[1][:3], case)
+    chosen = list(kinds.values())
+    for i, case in enumerate(chosen):
+        other = chosen[(i + 1) % len(chosen)]
+        if other is case:
+            continue
+        r = fm.fit(other.template_vertices, other.faces, case.target, prealign="centroid")
+        q = fm.assess(other.template_vertices, other.faces, r.vertices, case.target)["quality"]
+        rows.append({"group": "real", "case": case.name, "condition": f"other-garment ({other.name})",
+                     "split": split_of(case.name), "f_R": math.nan, "ratio": math.inf,
+                     "wrong": True, "seconds": 0.0, **{k: q[k] for k in FIGURES}})
+        print(f"{case.name:32s} other-garment   " + " ".join(f"{q[k]:.3f}" for k in FIGURES),
+              flush=True)
+    return rows
+
+
+def flagged(row: dict[str, Any], thresholds: dict[str, float]) -> list[str]:
+    return [k for k in FIGURES
+            if (abs(row[k]) if k == "asymmetry" else row[k]) > thresholds[k]]
+
+
+#: The least thresholds of the face shares: a right fit may collapse or fold a few faces in a
+#: tight fold, and the tuning half is too small to see the worst of them.
+FLOORS = {"collapsed_share": 0.005, "flipped_share": 0.015}
+
+
+def calibrate(rows: list[dict[str, Any]], margin: float) -> dict[str, float]:
+    """Each figure's threshold: the largest value among the tuning half's right fits × margin,
+    at least its :data:`FLOORS`."""
+    right = [r for r in rows if r["split"] == "tune" and not r["wrong"]]
+    return {k: max(FLOORS.get(k, 0.0),
+                   margin * max(abs(r[k]) if k == "asymmetry" else r[k] for r in right))
+            for k in FIGURES}
+
+
+def table(rows: list[dict[str, Any]], thresholds: dict[str, float]) -> None:
+    print("\n| split | fits | wrong | wrong flagged | right | right flagged |")
+    print("| :--- | ---: | ---: | ---: | ---: | ---: |")
+    for split in ("tune", "held-out"):
+        part = [r for r in rows if r["split"] == split]
+        wrong = [r for r in part if r["wrong"]]
+        right = [r for r in part if not r["wrong"]]
+        wf = sum(bool(flagged(r, thresholds)) for r in wrong)
+        rf = sum(bool(flagged(r, thresholds)) for r in right)
+        print(f"| {split} | {len(part)} | {len(wrong)} | {wf} | {len(right)} | {rf} "
+              f"({rf / max(len(right), 1):.1%}) |")
+    print("\n| condition | fits | wrong | wrong flagged | right flagged |")
+    print("| :--- | ---: | ---: | ---: | ---: |")
+    for cond in sorted({r["condition"].split(" (")[0] for r in rows}):
+        part = [r for r in rows if r["condition"].split(" (")[0] == cond]
+        wrong = [r for r in part if r["wrong"]]
+        right = [r for r in part if not r["wrong"]]
+        print(f"| {cond} | {len(part)} | {len(wrong)} "
+              f"| {sum(bool(flagged(r, thresholds)) for r in wrong)} "
+              f"| {sum(bool(flagged(r, thresholds)) for r in right)} / {len(right)} |")
+    missed = [r for r in rows if r["wrong"] and not flagged(r, thresholds)]
+    false = [r for r in rows if not r["wrong"] and flagged(r, thresholds)]
+    for title, part in (("wrong and not flagged", missed), ("right and flagged", false)):
+        print(f"\n{title}: {len(part)}")
+        for r in part:
+            print(f"  {r['split']:8s} {r['case']:32s} {r['condition']:15s} ×{r['ratio']:.2f} "
+                  + " ".join(f"{k}={r[k]:.3f}" for k in FIGURES)
+                  + (f"  [{', '.join(flagged(r, thresholds))}]" if title.startswith("right") else ""))
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--groups", default="real,small")
+    ap.add_argument("--calibrate", action="store_true",
+                    help="choose the thresholds on the tuning half and report under them")
+    ap.add_argument("--margin", type=float, default=1.25)
+    ap.add_argument("--out", type=pathlib.Path, default=HERE / "out" / "verdict.json")
+    ap.add_argument("--from-json", type=pathlib.Path)
+    args = ap.parse_args()
+    import foldmatch_rs as fm
+
+    if args.from_json:
+        rows = json.loads(args.from_json.read_text())["rows"]
+    else:
+        best, _ = variants.load_best(None)
+        rows = fit_rows(args.groups.split(","), best)
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_text(json.dumps({"rows": rows}, indent=1, default=float))
+    thresholds = calibrate(rows, args.margin) if args.calibrate else library_thresholds(fm)
+    print("\nthresholds: " + json.dumps({k: round(v, 4) for k, v in thresholds.items()}))
+    table(rows, thresholds)
+    return 0
+
+
+def library_thresholds(fm: Any) -> dict[str, float]:
+    """The library's default thresholds (every assessment carries the ones it used)."""
+    tri = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]])
+    return dict(fm.assess(tri, np.array([[0, 1, 2]]), tri, tri)["quality"]["thresholds"])
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,72 @@
+"""The quality verdict from Python: FitResult.quality / correspondences / residuals / support and
+foldmatch_rs.assess (docs/method.md "Quality verdict"), checked against NumPy."""
+
+import math
+
+import foldmatch_rs as fm
+import numpy as np
+import pytest
+from foldmatch_rs.errors import InvalidParameterError
+
+FIGURES = ["fit_to_scan", "scan_to_fit", "asymmetry", "unsupported_share", "flipped_share",
+           "collapsed_share", "edge_distortion"]
+
+
+def sheet_case():
+    return fm.folded_sheet(nx=21, ny=21, scan_points=2500, noise=0.001, seed=3)
+
+
+def test_a_good_fit_is_ok_and_its_correspondences_are_the_nearest_scan_points():
+    case = sheet_case()
+    r = fm.fit(case["template_vertices"], case["faces"], case["scan"])
+    q = r.quality
+    assert q["verdict"] == "ok", q["reasons"]
+    assert q["reasons"] == []
+    assert set(FIGURES) <= set(q) and set(q["thresholds"]) == set(FIGURES)
+    m = len(r.vertices)
+    assert r.correspondences.shape == (m,) and r.residuals.shape == (m,) and r.support.shape == (m,)
+    scan = case["scan"]
+    d = np.linalg.norm(r.vertices[:, None, :] - scan[None, :, :], axis=2)
+    np.testing.assert_array_equal(r.correspondences, d.argmin(axis=1))
+    np.testing.assert_allclose(r.residuals, d.min(axis=1), rtol=0, atol=1e-12)
+    assert r.support.all()
+    # fit_to_scan is the mean residual over the scan's bounding-box diagonal.
+    diag = np.linalg.norm(scan.max(0) - scan.min(0))
+    assert math.isclose(q["fit_to_scan"], r.residuals.mean() / diag, rel_tol=1e-12)
+    # fm.assess of the same fit gives the same figures.
+    again = fm.assess(case["template_vertices"], case["faces"], r.vertices, scan)
+    assert again["quality"] == q
+    np.testing.assert_array_equal(again["support"], r.support)
+
+
+def test_a_sheet_pulled_onto_a_strip_is_suspicious_and_its_unscanned_side_unsupported():
+    case = sheet_case()
+    tv, faces = case["template_vertices"], case["faces"]
+    strip = np.concatenate([tv + [0.004 * k, 0.003 * k, 0.0] for k in range(4)])
+    strip = strip[strip[:, 0] < tv[:, 0].min() + 0.3 * np.ptp(tv[:, 0])]
+    r = fm.fit(tv, faces, strip)
+    assert r.quality["verdict"] == "suspicious"
+    assert r.quality["reasons"]
+    # The template as given over the strip: the side beyond it is without support.
+    a = fm.assess(tv, faces, tv, strip)
+    far = tv[:, 0] > strip[:, 0].max() + a["quality"]["support_radius"]
+    near = tv[:, 0] < strip[:, 0].max() - 0.05
+    assert far.any() and not a["support"][far].any()
+    assert a["support"][near].all()
+    assert math.isclose(a["quality"]["unsupported_share"], 1 - a["support"].mean())
+
+
+def test_thresholds_can_be_replaced_and_turned_off():
+    case = sheet_case()
+    tv, faces = case["template_vertices"], case["faces"]
+    stretched = tv * [3.0, 1.0, 1.0]
+    a = fm.assess(tv, faces, stretched, case["scan"], thresholds={"edge_distortion": 2.0})
+    assert a["quality"]["thresholds"]["edge_distortion"] == 2.0
+    assert any("edge-length" in r for r in a["quality"]["reasons"])
+    off = {k: math.inf for k in FIGURES}
+    a = fm.assess(tv, faces, stretched, case["scan"], thresholds=off)
+    assert a["quality"]["verdict"] == "ok"
+    with pytest.raises(InvalidParameterError, match="thresholds"):
+        fm.assess(tv, faces, tv, case["scan"], thresholds={"no_such_figure": 1.0})
+    with pytest.raises(InvalidParameterError, match="asymmetry"):
+        fm.assess(tv, faces, tv, case["scan"], thresholds={"asymmetry": -1.0})
