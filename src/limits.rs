@@ -160,18 +160,16 @@ mod tests {
             assert!(err.starts_with(expected), "{err}");
         };
         check(
-            {
-                let mut p = FitParams::default();
-                p.iterations = 0;
-                p
+            FitParams {
+                iterations: 0,
+                ..FitParams::default()
             },
             "parameter iterations = 0: must be in 1..=1000000",
         );
         check(
-            {
-                let mut p = FitParams::default();
-                p.iterations = 1_000_000_000;
-                p
+            FitParams {
+                iterations: 1_000_000_000,
+                ..FitParams::default()
             },
             "parameter iterations = 1000000000:",
         );
@@ -181,15 +179,14 @@ mod tests {
         check(
             {
                 let mut p = FitParams::default();
-                p.model.rho = f64::NAN;
+                p.model.rho = f64::NAN; // a nested field: no struct update
                 p
             },
             "parameter rho = NaN:",
         );
-        assert!({
-            let mut p = FitParams::default();
-            p.iterations = MAX_ITERATIONS;
-            p
+        assert!(FitParams {
+            iterations: MAX_ITERATIONS,
+            ..FitParams::default()
         }
         .validate()
         .is_ok());
@@ -223,10 +220,9 @@ mod tests {
         }
         // And the fit itself refuses them before doing anything (no panic).
         let tri = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
-        let p = {
-            let mut p = FitParams::default();
-            p.iterations = 0;
-            p
+        let p = FitParams {
+            iterations: 0,
+            ..FitParams::default()
         };
         let err = crate::fit::fit(&tri, &[[0, 1, 2]], &tri, None, &p, &mut |_| true);
         assert!(matches!(err, Err(FoldMatchError::Parameter { .. })));

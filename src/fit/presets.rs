@@ -95,9 +95,10 @@ impl FitParams {
     /// iterations still fit the scan closer but drift from the truth (docs/method.md, "Beyond
     /// the paper: the default configuration").
     pub fn accurate() -> Self {
-        let mut p = Self::default();
-        p.iterations = ACCURATE_ITERATIONS;
-        p
+        Self {
+            iterations: ACCURATE_ITERATIONS,
+            ..Self::default()
+        }
     }
 
     /// One schedule instead of schedule selection's two (the `"fast"` preset), between the
