@@ -38,6 +38,7 @@ pub mod mesh;
 pub mod metrics;
 pub mod nbody;
 pub mod normalize;
+pub mod prealign;
 pub mod regularize;
 pub mod rings;
 pub mod rotation;
