@@ -553,6 +553,23 @@ def gaussian_curvature(points: Any, faces: Any = None) -> np.ndarray:
     )
 
 
+def prealign(template_vertices: Any, target: Any, motion: str = "rigid") -> dict[str, Any]:
+    """Global pre-alignment of a template onto a scan given in any orientation and position
+    (``motion="similarity"``: and scale or units), as ``fit(prealign=...)`` does first
+    (docs/method.md, "Global pre-alignment"). Returns ``rotation`` (3, 3), ``scale`` and
+    ``translation`` (3,) of ``p ↦ scale · rotation · p + translation`` (template → scan), the
+    robust two-sided distances ``identity_score`` (the placement as given) and ``score`` (after),
+    and ``searched`` (False: the placement as given was already good and was kept)."""
+    if motion not in ("rigid", "similarity"):
+        raise InvalidParameterError(
+            f"parameter motion = {motion!r}: must be \"rigid\" or \"similarity\""
+        )
+    return _core.prealign_transform(
+        _points(template_vertices, "template_vertices"), _points(target, "target"),
+        motion == "similarity",
+    )
+
+
 def deformation_gradients(
     old: Any, new: Any, faces: Any, rings: int = 2, normal_completion: float = 0.3
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -674,6 +691,7 @@ __all__ = [
     "nbody_step",
     "n_rings",
     "gaussian_curvature",
+    "prealign",
     "deformation_gradients",
     "regularize",
     "polar_decomposition",

@@ -9,14 +9,21 @@
 //! 2. Otherwise the candidates are the 24 rotations between the two principal frames
 //!    ([`axes`]: every axis order and sign), each with the centroids matched and — with scale —
 //!    the RMS radii, plus the identity; all are scored.
-//! 3. The [`REFINED`] best and the identity are refined by trimmed ICP ([`icp`]); the best
-//!    refined transform is kept, unless the identity scores within [`IDENTITY_MARGIN`] of it
-//!    (the placement as given wins ties: on a scan already in the template's frame the result
-//!    never gets worse than today's).
+//! 3. The [`REFINED`] best and the identity are refined by trimmed ICP ([`icp`]). Of the
+//!    refined placements that score within [`NEAR_TIE`] of the best, the one turned least
+//!    from the placement as given is kept (a near-tie by angle, within [`SAME_ANGLE`], goes
+//!    to the lower score): a garment that is nearly symmetric matches the scan about as well
+//!    turned 180°, and the least turn is the likelier reading of a scan that came z-up, or
+//!    turned, or already placed. When that is the identity's own basin and ICP moved it by
+//!    less than [`SMALL_ANGLE`] and [`PLACED`] of the scan's RMS radius, the placement as given
+//!    is kept exactly (the fit's rigid phase finishes it; on a scan already in the template's
+//!    frame the result does not change).
 //!
-//! What this cannot see: a garment that is nearly symmetric (a T-shirt's front and back, the
-//! left and right of a skirt) matches the scan about as well turned 180°, and the two-sided
-//! distance may prefer the turned placement; landmarks decide it.
+//! What this cannot see: a template that is symmetric (a flat square sheet, a tube skirt about
+//! its axis, a T-shirt whose front and back differ only at the neckline) matches the scan
+//! equally well in each of its symmetric placements, and only one of them has the right
+//! correspondences; turned 90° about the vertical, a front/back-symmetric garment has two
+//! equally short turns (±90°). Landmarks decide it.
 
 mod axes;
 mod icp;
@@ -26,6 +33,8 @@ mod transform;
 pub use axes::{cube_rotations, principal_axes, Axes};
 pub use matching::{Clouds, KEPT_FRACTION, SAMPLE_SIZE};
 pub use transform::{fit_pairs, Similarity};
+
+use crate::math::Mat3;
 
 /// What the pre-alignment may change.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -44,8 +53,15 @@ pub const PLACED: f64 = 0.1;
 /// How many of the best-scoring principal-axis candidates are refined by ICP.
 pub const REFINED: usize = 6;
 
-/// The identity is kept when its score is within this fraction of the best refined one's.
-pub const IDENTITY_MARGIN: f64 = 0.1;
+/// Refined placements within this fraction of the best score are near-ties.
+pub const NEAR_TIE: f64 = 0.1;
+
+/// Near-ties whose rotation angles differ by less than this (degrees) are decided by score.
+pub const SAME_ANGLE: f64 = 10.0;
+
+/// An identity-basin placement turned less than this (degrees), and moved less than
+/// [`PLACED`] of the scan's RMS radius, leaves the placement as given unchanged.
+pub const SMALL_ANGLE: f64 = 10.0;
 
 /// The result of [`align`].
 #[derive(Clone, Copy, Debug)]
@@ -102,23 +118,45 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
     candidates.sort_by(|a, b| a.1.total_cmp(&b.1));
     candidates.truncate(REFINED);
     candidates.push((identity, identity_score));
-    let best = candidates
+    let refined: Vec<(Similarity, f64)> = candidates
         .into_iter()
         .map(|(start, _)| icp::refine(&clouds, start, scaled))
-        .min_by(|a, b| a.1.total_cmp(&b.1))
-        .expect("at least the identity");
-    if identity_score <= best.1 * (1.0 + IDENTITY_MARGIN) {
+        .collect();
+    let (transform, score) = least_turned_near_tie(&refined);
+    let moved = (transform.translation + (transform.rotation - Mat3::identity()) * sa.centroid)
+        .norm()
+        .max((transform.scale - 1.0).abs() * sa.rms_radius);
+    if transform.angle_degrees() < SMALL_ANGLE && moved < PLACED * sa.rms_radius {
         return Alignment {
             searched: true,
             ..unchanged(identity_score)
         };
     }
     Alignment {
-        transform: best.0,
+        transform,
         identity_score,
-        score: best.1,
+        score,
         searched: true,
     }
+}
+
+/// Of `refined` (non-empty), the placements within [`NEAR_TIE`] of the best score; of those,
+/// the least turned (a difference under [`SAME_ANGLE`] decided by score).
+fn least_turned_near_tie(refined: &[(Similarity, f64)]) -> (Similarity, f64) {
+    let best = refined.iter().map(|r| r.1).fold(f64::INFINITY, f64::min);
+    let ties: Vec<&(Similarity, f64)> = refined
+        .iter()
+        .filter(|r| r.1 <= best * (1.0 + NEAR_TIE))
+        .collect();
+    let least = ties
+        .iter()
+        .map(|r| r.0.angle_degrees())
+        .fold(f64::INFINITY, f64::min);
+    *ties
+        .into_iter()
+        .filter(|r| r.0.angle_degrees() < least + SAME_ANGLE)
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .expect("the least-turned near-tie")
 }
 
 #[cfg(test)]
