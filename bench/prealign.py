@@ -12,10 +12,10 @@ against the moved truth; f_R is relative to the scan's diagonal, so it is unit-f
 divided by the f_R of the default's fit of the unmoved scan. A ratio above ``--limit``
 (1.25) fails::
 
-    .venv/bin/python bench/prealign.py                       # tuning set: real + small
-    .venv/bin/python bench/prealign.py --set held-out        # cases not tuned on
-    .venv/bin/python bench/prealign.py --align-only          # the transforms alone, no fits
-    .venv/bin/python bench/prealign.py --timing              # prealign="none" vs the default, placed scans
+    .venv/bin/python -m bench.prealign                       # tuning set: real + small
+    .venv/bin/python -m bench.prealign --set held-out        # cases not tuned on
+    .venv/bin/python -m bench.prealign --align-only          # the transforms alone, no fits
+    .venv/bin/python -m bench.prealign --timing              # prealign="none" vs the default, placed scans
 
 The tuning set is the harness groups ``real`` and ``small``; the held-out set is every third
 wind frame of ``samples-wind`` and the first eight random sheets of ``samples-sheet``
@@ -35,12 +35,10 @@ from typing import Any
 
 import numpy as np
 
-HERE = pathlib.Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
+from bench import cases as cases_mod
+from bench import harness, variants
 
-import cases as cases_mod  # noqa: E402
-import harness  # noqa: E402
-import variants  # noqa: E402
+HERE = pathlib.Path(__file__).resolve().parent
 
 #: A move of the scan: (points, the unmoved scan's bounding-box diagonal vector, the up axis)
 #: → moved points.

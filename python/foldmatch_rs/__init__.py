@@ -316,8 +316,13 @@ def fit(
         Stop when an iteration's mean displacement (normalized units) is below this (0: off).
     use_curvature : bool
         Use the curvature term of Eq. 2 (True).
-    prealign : {"none", "centroid"}
-        ``"centroid"`` moves the template's centroid onto the scan's first; with ``"none"`` a
+    prealign : {"rigid", "similarity", "none", "centroid"}
+        How the template is placed on the scan first (docs/method.md, "Global pre-alignment").
+        ``"rigid"`` (default) turns and moves it onto a scan in any orientation and position;
+        a template already placed is left as given. ``"similarity"`` also scales it (a scan in
+        millimetres against a template in metres, or of another size). A nearly symmetric
+        garment (a T-shirt's front and back) may be placed turned 180°: landmarks settle it.
+        ``"centroid"`` moves the template's centroid onto the scan's; with ``"none"`` a
         template more than one scan diagonal away raises :class:`InvalidInputError`.
     snapshot_every : int
         Keep the vertex positions every this many iterations (0: none).

@@ -27,7 +27,8 @@ pub enum RotationSource {
     Raw,
 }
 
-/// What to do with a template placed far from the scan.
+/// How the template is placed on the scan before the fit (docs/method.md, "Global
+/// pre-alignment").
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Prealign {
@@ -36,6 +37,13 @@ pub enum Prealign {
     None,
     /// Translate the template so its centroid lies on the scan's centroid first.
     Centroid,
+    /// The rigid motion that best places the template on a scan in any orientation and
+    /// position ([`crate::prealign::align`]); a template already placed is left as given
+    /// (default).
+    Rigid,
+    /// As [`Prealign::Rigid`], with a uniform scale too (a scan in other units, or of another
+    /// size).
+    Similarity,
 }
 
 /// Schedule selection (issue "Fidelity", docs/method.md).
@@ -329,7 +337,7 @@ impl Default for FitParams {
             normalize: true,
             tolerance: 0.0,
             use_curvature: true,
-            prealign: Prealign::None,
+            prealign: Prealign::Rigid,
             snapshot_every: 0,
             two_way: 4.5,
             two_way_trust: DEFAULT_TWO_WAY_TRUST,

@@ -8,8 +8,11 @@
 //!    scoring).
 //! 2. Otherwise the candidates are the 24 rotations between the two principal frames
 //!    ([`axes`]: every axis order and sign), each with the centroids matched and — with scale —
-//!    the RMS radii, plus the identity; all are scored.
-//! 3. The [`REFINED`] best and the identity are refined by trimmed ICP ([`icp`]). Of the
+//!    the RMS radii, plus the identity.
+//! 3. Every candidate is refined by trimmed ICP ([`icp`]) — ranking them before refining
+//!    misses the right one on folded cloth, whose principal axes are not the flat template's
+//!    (measured on a folded sheet turned 60°: the right basin was not among the 6 best
+//!    unrefined candidates). Of the
 //!    refined placements that score within [`NEAR_TIE`] of the best, the one turned least
 //!    from the placement as given is kept (a near-tie by angle, within [`SAME_ANGLE`], goes
 //!    to the lower score): a garment that is nearly symmetric matches the scan about as well
@@ -49,9 +52,6 @@ pub enum Motion {
 /// of the scan's RMS radius (a placed template: the distance is of the order of the fold
 /// depth, a turned or displaced one of the order of the radius).
 pub const PLACED: f64 = 0.1;
-
-/// How many of the best-scoring principal-axis candidates are refined by ICP.
-pub const REFINED: usize = 6;
 
 /// Refined placements within this fraction of the best score are near-ties.
 pub const NEAR_TIE: f64 = 0.1;
@@ -104,23 +104,18 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
     } else {
         1.0
     };
-    let mut candidates: Vec<(Similarity, f64)> = axes::candidate_rotations(&ta, &sa)
+    let mut starts: Vec<Similarity> = axes::candidate_rotations(&ta, &sa)
         .into_iter()
-        .map(|rotation| {
-            let t = Similarity {
-                rotation,
-                scale,
-                translation: sa.centroid - scale * (rotation * ta.centroid),
-            };
-            (t, clouds.score(&t))
+        .map(|rotation| Similarity {
+            rotation,
+            scale,
+            translation: sa.centroid - scale * (rotation * ta.centroid),
         })
         .collect();
-    candidates.sort_by(|a, b| a.1.total_cmp(&b.1));
-    candidates.truncate(REFINED);
-    candidates.push((identity, identity_score));
-    let refined: Vec<(Similarity, f64)> = candidates
+    starts.push(identity);
+    let refined: Vec<(Similarity, f64)> = starts
         .into_iter()
-        .map(|(start, _)| icp::refine(&clouds, start, scaled))
+        .map(|start| icp::refine(&clouds, start, scaled))
         .collect();
     let (transform, score) = least_turned_near_tie(&refined);
     let moved = (transform.translation + (transform.rotation - Mat3::identity()) * sa.centroid)
