@@ -12,7 +12,7 @@ _I64 = npt.NDArray[np.int64]
 
 __all__ = [
     "default_params_json", "fit_raw", "knn_query", "nbody_step", "n_rings",
-    "gaussian_curvature", "deformation_gradients", "regularize_gradients",
+    "gaussian_curvature", "prealign_transform", "deformation_gradients", "regularize_gradients",
     "polar_decomposition", "wrinkle_field", "solve_rotations", "foldmatch_update",
     "folded_sheet", "evaluate", "_mark_forked", "run_cli", "cluster_request", "RunBook",
     "FileFitter", "__version__",
