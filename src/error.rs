@@ -69,7 +69,7 @@ pub enum FoldMatchError {
     /// The template lies far from the scan (a units or placement mistake, most likely).
     #[error(
         "the template's centroid is {distance:.2} target bounding-box diagonals from the scan's \
-         centroid: check units or pre-align it (prealign = \"centroid\")"
+         centroid: check units or pre-align it (prealign = \"rigid\")"
     )]
     FarAway {
         /// Centroid distance in target diagonals.

@@ -37,6 +37,7 @@ pub mod mesh;
 pub mod metrics;
 pub mod nbody;
 pub mod normalize;
+pub mod prealign;
 pub mod quality;
 pub mod regularize;
 #[cfg(feature = "render")]

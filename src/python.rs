@@ -10,7 +10,8 @@ use crate::error::FoldMatchError;
 use crate::fit::{self, FitParams, Progress};
 use crate::math::Mat3;
 use crate::{
-    curvature, deformation, knn, metrics, nbody, regularize, rings, rotation, synthetic, wrinkle,
+    curvature, deformation, knn, metrics, nbody, prealign, regularize, rings, rotation, synthetic,
+    wrinkle,
 };
 use numpy::ndarray::{Array1, Array2, Array3};
 use numpy::{
@@ -602,6 +603,44 @@ fn gaussian_curvature<'py>(
     Ok(k.into_pyarray(py))
 }
 
+/// Global pre-alignment of a template onto a scan ([`crate::prealign::align`]): the transform
+/// `p ↦ scale · rotation · p + translation` and the two-sided distances before and after.
+#[pyfunction]
+#[pyo3(signature = (template_vertices, target, scaled=false))]
+fn prealign_transform<'py>(
+    py: Python<'py>,
+    template_vertices: PyReadonlyArray2<'py, f64>,
+    target: PyReadonlyArray2<'py, f64>,
+    scaled: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    let t = points("template_vertices", &template_vertices)?;
+    let x = points("target", &target)?;
+    crate::mesh::validate_points("template_vertices", t).map_err(to_pyerr)?;
+    crate::mesh::validate_points("target", x).map_err(to_pyerr)?;
+    let motion = if scaled {
+        prealign::Motion::Similarity
+    } else {
+        prealign::Motion::Rigid
+    };
+    let a = compute(py, None, |_| prealign::align(t, x, motion))?;
+    let r = a.transform.rotation;
+    let d = PyDict::new(py);
+    d.set_item(
+        "rotation",
+        Array2::from_shape_fn((3, 3), |(i, j)| r[(i, j)]).into_pyarray(py),
+    )?;
+    d.set_item("scale", a.transform.scale)?;
+    let tr = a.transform.translation;
+    d.set_item(
+        "translation",
+        Array1::from_vec(vec![tr.x, tr.y, tr.z]).into_pyarray(py),
+    )?;
+    d.set_item("score", a.score)?;
+    d.set_item("identity_score", a.identity_score)?;
+    d.set_item("searched", a.searched)?;
+    Ok(d)
+}
+
 /// Deformation gradients (Eq. 4) of the motion `old → new` over n-ring neighborhoods:
 /// `(gradients (M, 3, 3), degenerate (M,) bool)`.
 #[pyfunction]
@@ -927,6 +966,7 @@ fn _foldmatch_rs(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(nbody_step, m)?)?;
     m.add_function(wrap_pyfunction!(n_rings, m)?)?;
     m.add_function(wrap_pyfunction!(gaussian_curvature, m)?)?;
+    m.add_function(wrap_pyfunction!(prealign_transform, m)?)?;
     m.add_function(wrap_pyfunction!(deformation_gradients, m)?)?;
     m.add_function(wrap_pyfunction!(regularize_gradients, m)?)?;
     m.add_function(wrap_pyfunction!(polar_decomposition, m)?)?;

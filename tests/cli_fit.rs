@@ -189,8 +189,8 @@ fn fit_error_paths() {
         ),
         (&["fit", "template.ply", "empty.ply", "-o", "o.ply"], "error: empty.ply:0: empty file\n"),
         (
-            &["fit", "template.ply", "far.ply", "-o", "o.ply"],
-            "error: far.ply: the template's centroid is [..] target bounding-box diagonals from the scan's centroid: check units or pre-align it (prealign = \"centroid\")\n",
+            &["fit", "template.ply", "far.ply", "-o", "o.ply", "--prealign", "none"],
+            "error: far.ply: the template's centroid is [..] target bounding-box diagonals from the scan's centroid: check units or pre-align it (prealign = \"rigid\")\n",
         ),
         (
             &["fit", "template.ply", "scan.ply", "-o", "o.ply", "--damping", "2"],

@@ -312,10 +312,15 @@ def fit(
         n of the n-ring template neighborhoods (2).
     psi : float, optional
         ψ, the wrinkle stretch coefficient (0.05).
-    prealign : {"none", "centroid"}, optional
-        ``"centroid"`` moves the template's centroid onto the scan's first; with ``"none"``
-        (the default) a template more than one scan diagonal away raises
-        :class:`InvalidInputError`.
+    prealign : {"none", "centroid", "rigid", "similarity"}, optional
+        How the template is placed on the scan first (docs/method.md, "Global pre-alignment").
+        ``"none"`` (the default) fits as given and raises :class:`InvalidInputError` for a
+        template more than one scan diagonal away; ``"centroid"`` moves the template's
+        centroid onto the scan's; ``"rigid"`` turns and moves it onto a scan in any
+        orientation and position (a template already placed is left as given);
+        ``"similarity"`` also scales it (a scan in millimetres against a template in metres).
+        A nearly symmetric garment (a T-shirt's front and back) may be placed turned 180°:
+        landmarks settle it.
     params : FitParams or dict, optional
         Every other setting (docs/parameters.md), e.g. ``{"method": "nrga"}`` for the NRGa
         baseline or ``{"two_way": 2.0}``: a :class:`FitParams`, or a dict of settings by name
@@ -472,6 +477,23 @@ def gaussian_curvature(points: Any, faces: Any = None) -> np.ndarray:
     quadric fit for a point cloud. Returns ``(N,)`` float."""
     return _core.gaussian_curvature(
         _points(points, "points"), None if faces is None else _faces(faces, "faces")
+    )
+
+
+def prealign(template_vertices: Any, target: Any, motion: str = "rigid") -> dict[str, Any]:
+    """Global pre-alignment of a template onto a scan given in any orientation and position
+    (``motion="similarity"``: and scale or units), as ``fit(prealign=...)`` does first
+    (docs/method.md, "Global pre-alignment"). Returns ``rotation`` (3, 3), ``scale`` and
+    ``translation`` (3,) of ``p ↦ scale · rotation · p + translation`` (template → scan), the
+    robust two-sided distances ``identity_score`` (the placement as given) and ``score`` (after),
+    and ``searched`` (False: the placement as given was already good and was kept)."""
+    if motion not in ("rigid", "similarity"):
+        raise InvalidParameterError(
+            f"parameter motion = {motion!r}: must be \"rigid\" or \"similarity\""
+        )
+    return _core.prealign_transform(
+        _points(template_vertices, "template_vertices"), _points(target, "target"),
+        motion == "similarity",
     )
 
 
@@ -653,6 +675,7 @@ __all__ = [
     "nbody_step",
     "n_rings",
     "gaussian_curvature",
+    "prealign",
     "deformation_gradients",
     "regularize",
     "polar_decomposition",

@@ -13,7 +13,7 @@ _I64 = npt.NDArray[np.int64]
 __all__ = [
     "fit_params", "param_names", "param_reference", "read_mesh", "read_weights", "fit_raw",
     "knn_query", "nbody_step", "n_rings",
-    "gaussian_curvature", "deformation_gradients", "regularize_gradients",
+    "gaussian_curvature", "prealign_transform", "deformation_gradients", "regularize_gradients",
     "polar_decomposition", "wrinkle_field", "solve_rotations", "foldmatch_update",
     "folded_sheet", "evaluate", "assess_raw", "_mark_forked", "run_cli", "cluster_request",
     "RunBook", "FileFitter", "render_preview", "wrinkle_colors", "write_fitted",
@@ -54,6 +54,9 @@ def n_rings(
     faces: _I64, n_vertices: int, rings: int = 2
 ) -> tuple[npt.NDArray[np.uint64], npt.NDArray[np.uint32]]: ...
 def gaussian_curvature(points: _F64, faces: Optional[_I64] = None) -> _F64: ...
+def prealign_transform(
+    template_vertices: _F64, target: _F64, scaled: bool = False
+) -> dict[str, Any]: ...
 def deformation_gradients(
     old: _F64, new: _F64, faces: _I64, rings: int = 2, normal_completion: float = 0.3
 ) -> tuple[_F64, npt.NDArray[np.bool_]]: ...

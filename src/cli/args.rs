@@ -362,6 +362,11 @@ pub enum PrealignArg {
     None,
     /// Move the template's centroid onto the scan's first.
     Centroid,
+    /// Turn and move the template onto the scan first, in any orientation (a placed template is
+    /// left as given).
+    Rigid,
+    /// As rigid, and scale it too (a scan in other units or of another size).
+    Similarity,
 }
 
 /// Every parameter of [`FitParams`] as an optional flag. Only the flags given override the
@@ -455,7 +460,7 @@ pub struct ParamArgs {
     /// Drop the curvature term of Eq. 2 (κ = 0).
     #[arg(long)]
     pub no_curvature: bool,
-    /// Handling of a template placed far from the scan [default: none].
+    /// How the template is placed on the scan before the fit [default: rigid].
     #[arg(long, value_enum, value_name = "MODE")]
     pub prealign: Option<PrealignArg>,
     /// Any parameter by its `FitParams` name, VALUE as JSON (e.g. --set psi=0.1 --set

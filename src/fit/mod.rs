@@ -103,6 +103,8 @@ pub fn fit_weighted(
         .map(|w| (0..w.len()).filter(|&j| w[j] > 0.0).collect());
     let schedules = params.candidate_schedules();
     let clock = std::time::Instant::now();
+    let placed = prealigned(template_vertices, target, kept.as_deref(), params)?;
+    let template_vertices = placed.as_deref().unwrap_or(template_vertices);
     let prepared = Prepared::new(
         template_vertices,
         template_faces,
@@ -183,6 +185,29 @@ pub fn fit_weighted(
     let finish = clock.elapsed().as_secs_f64() - setup - iterations;
     chosen.diagnostics.wall_seconds = [setup, iterations, finish];
     Ok(chosen)
+}
+
+/// The template moved by the global pre-alignment of [`FitParams::prealign`] (`Rigid`,
+/// `Similarity`: [`crate::prealign::align`] onto the scan points that remain), so that the fit,
+/// and its result, are in the scan's frame as given; `None` when the template stays as given.
+fn prealigned(
+    template_vertices: &[[f64; 3]],
+    target: &[[f64; 3]],
+    kept: Option<&[usize]>,
+    params: &FitParams,
+) -> Result<Option<Vec<[f64; 3]>>> {
+    let motion = match params.prealign {
+        Prealign::Rigid => crate::prealign::Motion::Rigid,
+        Prealign::Similarity => crate::prealign::Motion::Similarity,
+        Prealign::None | Prealign::Centroid => return Ok(None),
+    };
+    crate::mesh::validate_points("template_vertices", template_vertices)?;
+    crate::mesh::validate_points("target", target)?;
+    let remaining: Option<Vec<[f64; 3]>> = kept.map(|k| k.iter().map(|&j| target[j]).collect());
+    let scan = remaining.as_deref().unwrap_or(target);
+    let alignment = crate::prealign::align(template_vertices, scan, motion);
+    Ok((!alignment.transform.is_identity())
+        .then(|| alignment.transform.apply_all(template_vertices)))
 }
 
 /// Checks scan weights: one per scan point, finite, non-negative, not all zero.

@@ -29,7 +29,8 @@ pub enum RotationSource {
     Raw,
 }
 
-/// What to do with a template placed far from the scan.
+/// How the template is placed on the scan before the fit (docs/method.md, "Global
+/// pre-alignment").
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Prealign {
@@ -39,6 +40,12 @@ pub enum Prealign {
     None,
     /// Translate the template so its centroid lies on the scan's centroid first.
     Centroid,
+    /// The rigid motion that best places the template on a scan in any orientation and
+    /// position ([`crate::prealign::align`]); a template already placed is left as given.
+    Rigid,
+    /// As [`Prealign::Rigid`], with a uniform scale too (a scan in other units, or of another
+    /// size).
+    Similarity,
 }
 
 /// Schedule selection (docs/method.md, "Beyond the paper: the default configuration").

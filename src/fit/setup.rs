@@ -126,7 +126,7 @@ impl Prepared {
                     distance: offset.norm() / scan_diag,
                 });
             }
-            Prealign::None => {}
+            Prealign::None | Prealign::Rigid | Prealign::Similarity => {}
         }
 
         // Target side, in space-filling-curve order ([`morton_order`]; only round-off depends

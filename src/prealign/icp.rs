@@ -1,0 +1,41 @@
+//! Trimmed iterative closest point (Chetverikov et al. 2002) with both directions' matches
+//! ([`super::matching`]) and the closed-form Umeyama step ([`super::transform::fit_pairs`]):
+//! a rigid motion, or a similarity when the scale is free.
+
+use super::matching::{score_of, Clouds};
+use super::transform::{fit_pairs, Similarity};
+
+/// Iterations at most per refinement.
+pub const MAX_ITERATIONS: usize = 40;
+
+/// The refinement stops once an iteration lowers the score by less than this fraction.
+pub const TOLERANCE: f64 = 1e-4;
+
+/// Refines `start` by trimmed ICP; returns the best transform seen and its score.
+pub fn refine(clouds: &Clouds, start: Similarity, scaled: bool) -> (Similarity, f64) {
+    let mut current = start;
+    let (mut forward, mut backward) = clouds.matches(&current);
+    let mut best = (current, score_of(&forward, &backward));
+    for _ in 0..MAX_ITERATIONS {
+        let pairs: Vec<([f64; 3], [f64; 3])> = forward
+            .iter()
+            .chain(&backward)
+            .map(|&(a, b, _)| (a, b))
+            .collect();
+        let Some(next) = fit_pairs(&pairs, scaled) else {
+            break;
+        };
+        current = next;
+        (forward, backward) = clouds.matches(&current);
+        let score = score_of(&forward, &backward);
+        let improved = score < best.1;
+        let converged = score > best.1 * (1.0 - TOLERANCE);
+        if improved {
+            best = (current, score);
+        }
+        if converged {
+            break;
+        }
+    }
+    best
+}

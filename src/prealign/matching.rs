@@ -1,0 +1,140 @@
+//! The robust two-sided distance between a transformed template and the scan, and the point
+//! pairs it is made of: the nearest scan point of every template sample and the nearest
+//! template vertex of every scan sample, each direction trimmed to its closest
+//! [`KEPT_FRACTION`] (trimmed ICP, Chetverikov et al. 2002), so that scan points the garment
+//! does not explain (a hole, another garment, a side the camera did not see) and template
+//! parts with no scan support do not decide the placement.
+
+use super::transform::Similarity;
+use crate::knn::PointIndex;
+use rayon::prelude::*;
+
+/// The share of each direction's matches that counts (the closest ones).
+pub const KEPT_FRACTION: f64 = 0.75;
+
+/// At most this many points of each side are matched per evaluation.
+pub const SAMPLE_SIZE: usize = 768;
+
+/// The template and the scan, indexed for nearest-point queries, with the samples whose
+/// matches are scored.
+pub struct Clouds {
+    template: PointIndex,
+    scan: PointIndex,
+    template_sample: Vec<[f64; 3]>,
+    scan_sample: Vec<[f64; 3]>,
+}
+
+/// A template point matched with a scan point, and their distance in the scan's units.
+pub type Match = ([f64; 3], [f64; 3], f64);
+
+/// At most `count` points of `points`, spread over the whole array: one from each of `count`
+/// equal runs, its position in the run from a fixed hash (so that a regular grid order does not
+/// alias into rows). Deterministic.
+pub fn spread_sample(points: &[[f64; 3]], count: usize) -> Vec<[f64; 3]> {
+    let n = points.len();
+    if n <= count {
+        return points.to_vec();
+    }
+    (0..count)
+        .map(|i| {
+            let (lo, hi) = (i * n / count, (i + 1) * n / count);
+            let h = (i as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 33;
+            points[lo + (h as usize) % (hi - lo)]
+        })
+        .collect()
+}
+
+impl Clouds {
+    /// Indexes both point sets (each non-empty) and draws the samples.
+    pub fn new(template: &[[f64; 3]], scan: &[[f64; 3]]) -> Self {
+        Self {
+            template: PointIndex::new(template),
+            scan: PointIndex::new(scan),
+            template_sample: spread_sample(template, SAMPLE_SIZE),
+            scan_sample: spread_sample(scan, SAMPLE_SIZE),
+        }
+    }
+
+    /// The matches under `t` (template coordinates → scan coordinates), each direction sorted
+    /// by distance and trimmed to its closest [`KEPT_FRACTION`]: (template → scan, scan →
+    /// template), every pair as (template point, scan point, distance in scan units).
+    pub fn matches(&self, t: &Similarity) -> (Vec<Match>, Vec<Match>) {
+        let inverse = t.inverse();
+        let mut forward: Vec<Match> = self
+            .template_sample
+            .par_iter()
+            .map(|y| {
+                let (j, d2) = self.scan.nearest_one(&t.apply(y));
+                (*y, *self.scan.point(j), d2.sqrt())
+            })
+            .collect();
+        let mut backward: Vec<Match> = self
+            .scan_sample
+            .par_iter()
+            .map(|x| {
+                let (j, d2) = self.template.nearest_one(&inverse.apply(x));
+                (*self.template.point(j), *x, t.scale * d2.sqrt())
+            })
+            .collect();
+        for side in [&mut forward, &mut backward] {
+            side.sort_by(|a, b| a.2.total_cmp(&b.2));
+            side.truncate(kept(side.len()));
+        }
+        (forward, backward)
+    }
+
+    /// The two-sided trimmed distance under `t`: the mean of the two directions' trimmed mean
+    /// distances, in scan units.
+    pub fn score(&self, t: &Similarity) -> f64 {
+        let (forward, backward) = self.matches(t);
+        score_of(&forward, &backward)
+    }
+}
+
+/// The mean of the two directions' mean distances.
+pub fn score_of(forward: &[Match], backward: &[Match]) -> f64 {
+    let mean = |m: &[Match]| m.iter().map(|p| p.2).sum::<f64>() / m.len().max(1) as f64;
+    0.5 * (mean(forward) + mean(backward))
+}
+
+fn kept(n: usize) -> usize {
+    ((n as f64 * KEPT_FRACTION).ceil() as usize).clamp(n.min(1), n)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn spread_sample_takes_one_point_per_run_and_everything_when_small() {
+        let points: Vec<[f64; 3]> = (0..1000).map(|i| [i as f64, 0.0, 0.0]).collect();
+        let s = spread_sample(&points, 100);
+        assert_eq!(s.len(), 100);
+        for (i, p) in s.iter().enumerate() {
+            assert!((i * 10..(i + 1) * 10).contains(&(p[0] as usize)));
+        }
+        // Not the same offset in every run (a grid's rows would alias).
+        assert!(s
+            .iter()
+            .any(|p| p[0] as usize % 10 != s[0][0] as usize % 10));
+        assert_eq!(spread_sample(&points[..50], 100).len(), 50);
+    }
+
+    #[test]
+    fn the_score_is_zero_on_a_match_and_the_offset_under_a_translation() {
+        let points: Vec<[f64; 3]> = (0..900)
+            .map(|i| [(i % 30) as f64 * 0.1, (i / 30) as f64 * 0.1, 0.0])
+            .collect();
+        let clouds = Clouds::new(&points, &points);
+        assert_eq!(clouds.score(&Similarity::identity()), 0.0);
+        // Lifted off the plane by 0.5: every match is 0.5 away in both directions.
+        let lifted = Similarity {
+            translation: crate::math::Vec3::new(0.0, 0.0, 0.5),
+            ..Similarity::identity()
+        };
+        approx::assert_relative_eq!(clouds.score(&lifted), 0.5, epsilon = 1e-12);
+        let (f, b) = clouds.matches(&lifted);
+        assert_eq!(f.len(), kept(SAMPLE_SIZE));
+        assert_eq!(b.len(), kept(SAMPLE_SIZE));
+    }
+}

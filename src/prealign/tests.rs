@@ -1,0 +1,125 @@
+//! Analytic cases: a known rotation, translation and scale recovered on an asymmetric shape;
+//! the placement as given kept on an aligned input.
+
+use super::*;
+use crate::math::{vec3, Mat3, Vec3};
+use approx::assert_relative_eq;
+use nalgebra::{Rotation3, Unit};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+/// `count` points on an asymmetric bent, bumped sheet (no symmetry of the cube group maps it
+/// onto itself): 0.8 × 0.5, bent up along x, a bump off-centre, a flap on one corner.
+fn asymmetric_surface(count: usize, noise: f64, seed: u64) -> Vec<[f64; 3]> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    (0..count)
+        .map(|_| {
+            let (u, v): (f64, f64) = (rng.random(), rng.random());
+            let x = 0.8 * u;
+            let y = 0.5 * v;
+            let bump = 0.08 * (-((x - 0.55).powi(2) + (y - 0.15).powi(2)) / 0.01).exp();
+            let flap = if u > 0.8 && v > 0.7 {
+                0.3 * (u - 0.8)
+            } else {
+                0.0
+            };
+            let z = 0.25 * u * u + bump + flap;
+            let n = |rng: &mut ChaCha8Rng| noise * (rng.random::<f64>() - 0.5);
+            [x + n(&mut rng), y + n(&mut rng), z + n(&mut rng)]
+        })
+        .collect()
+}
+
+fn rotation(axis: [f64; 3], degrees: f64) -> Mat3 {
+    *Rotation3::from_axis_angle(&Unit::new_normalize(vec3(&axis)), degrees.to_radians()).matrix()
+}
+
+fn angle_between(a: &Mat3, b: &Mat3) -> f64 {
+    Similarity {
+        rotation: a.transpose() * b,
+        ..Similarity::identity()
+    }
+    .angle_degrees()
+}
+
+#[test]
+fn a_rotated_shifted_copy_is_recovered_exactly() {
+    let template = asymmetric_surface(3000, 0.0, 1);
+    for (axis, degrees) in [
+        ([0.2, 1.0, -0.4], 150.0),
+        ([1.0, 0.0, 0.0], 90.0),
+        ([1.0, 1.0, 1.0], 60.0),
+    ] {
+        let truth = Similarity {
+            rotation: rotation(axis, degrees),
+            scale: 1.0,
+            translation: Vec3::new(0.9, -0.3, 0.4),
+        };
+        let scan = truth.apply_all(&template);
+        let got = align(&template, &scan, Motion::Rigid);
+        assert!(got.searched);
+        assert!(
+            (got.transform.rotation - truth.rotation).norm() < 1e-7,
+            "{got:?}"
+        );
+        assert_relative_eq!(got.transform.translation, truth.translation, epsilon = 1e-7);
+        assert_eq!(got.transform.scale, 1.0);
+        assert!(got.score < 1e-7 && got.identity_score > 0.1, "{got:?}");
+    }
+}
+
+#[test]
+fn a_resampled_noisy_scan_turned_and_scaled_is_recovered() {
+    let template = asymmetric_surface(2500, 0.0, 2);
+    let truth = Similarity {
+        rotation: rotation([0.5, -1.0, 0.3], 120.0),
+        scale: 1000.0, // the template in metres, the scan in millimetres
+        translation: Vec3::new(200.0, 50.0, -900.0),
+    };
+    // Another sample of the same surface, with noise of 0.5 % of its size.
+    let scan = truth.apply_all(&asymmetric_surface(4000, 0.005, 3));
+    let got = align(&template, &scan, Motion::Similarity);
+    assert!(
+        angle_between(&got.transform.rotation, &truth.rotation) < 1.0,
+        "{got:?}"
+    );
+    assert_relative_eq!(got.transform.scale, truth.scale, max_relative = 0.01);
+    // The template's points land within 1 % of its size (scan units) of the truth's.
+    for p in template.iter().step_by(50) {
+        let d = (vec3(&got.transform.apply(p)) - vec3(&truth.apply(p))).norm();
+        assert!(d < 0.01 * 1000.0, "{d}");
+    }
+    // The rigid mode cannot change the scale.
+    assert_eq!(align(&template, &scan, Motion::Rigid).transform.scale, 1.0);
+}
+
+#[test]
+fn an_aligned_scan_keeps_the_placement_as_given() {
+    let template = asymmetric_surface(2000, 0.0, 4);
+    let scan = asymmetric_surface(3000, 0.004, 5);
+    for motion in [Motion::Rigid, Motion::Similarity] {
+        let got = align(&template, &scan, motion);
+        assert!(got.transform.is_identity());
+        assert!(!got.searched);
+        assert_eq!(got.score, got.identity_score);
+    }
+    // Slightly off (3°, a small shift) is still "placed": the fit's own rigid phase finishes it.
+    let nudged = Similarity {
+        rotation: rotation([0.0, 0.0, 1.0], 3.0),
+        scale: 1.0,
+        translation: Vec3::new(0.01, 0.0, 0.0),
+    };
+    let got = align(&template, &nudged.apply_all(&scan), Motion::Rigid);
+    assert!(got.transform.is_identity() && !got.searched);
+}
+
+#[test]
+fn degenerate_inputs_give_the_identity() {
+    let scan = asymmetric_surface(100, 0.0, 6);
+    let got = align(&scan[..2], &scan, Motion::Rigid);
+    assert!(got.transform.is_identity() && !got.searched);
+    let same = vec![[1.0, 1.0, 1.0]; 10];
+    assert!(align(&same, &scan, Motion::Similarity)
+        .transform
+        .is_identity());
+}
