@@ -26,8 +26,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 mod cluster;
 mod meshes;
 mod params;
-mod render;
 mod quality;
+mod render;
 
 /// Set in a forked child (see `_mark_forked`): rayon's global pool does not survive `fork`, so
 /// the child computes in a fresh pool of its own.

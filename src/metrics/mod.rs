@@ -66,10 +66,10 @@ use serde::Serialize;
 
 use crate::error::{FoldMatchError, Result};
 
-pub use distance::{hausdorff, nearest_distances};
-pub use faces::{edge_length_spread, EdgeLengths};
 pub(crate) use distance::bbox_diagonal;
+pub use distance::{hausdorff, nearest_distances};
 pub(crate) use faces::cross_of;
+pub use faces::{edge_length_spread, EdgeLengths};
 pub(crate) use summary::percentile_linear;
 
 use distance::{rmse_of, NnIndex};
