@@ -33,7 +33,7 @@ pub(super) fn assess_raw<'py>(
         Some(given) => pythonize::depythonize(&given).map_err(|e| {
             to_pyerr(crate::FoldMatchError::parameter(
                 "thresholds",
-                &given.to_string(),
+                given.to_string(),
                 &format!("must map threshold names to numbers: {e}"),
             ))
         })?,

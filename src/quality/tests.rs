@@ -1,8 +1,11 @@
 use super::*;
 use crate::synthetic::{grid_sheet, sample_surface, SplitMix64};
 
+/// Template vertices, faces and scan points.
+type Sheet = (Vec<[f64; 3]>, Vec<[u32; 3]>, Vec<[f64; 3]>);
+
 /// A flat 1 × 1 sheet of `n × n` vertices and a dense scan of it (6 points per face).
-fn sheet(n: usize) -> (Vec<[f64; 3]>, Vec<[u32; 3]>, Vec<[f64; 3]>) {
+fn sheet(n: usize) -> Sheet {
     let (v, f) = grid_sheet(n, n, 1.0, 1.0);
     let scan = sample_surface(&v, &f, 6 * f.len(), &mut SplitMix64::new(7));
     (v, f, scan)
