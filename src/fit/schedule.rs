@@ -239,6 +239,9 @@ impl ScheduleRun {
                 phases::fine(prepared, params, fine, old, new, ws, next)
             }
         };
+        if let (Phase::Fine, Some(l)) = (phase, prepared.landmarks.as_ref()) {
+            l.pull(params.landmark_weight, &mut self.next);
+        }
         self.ws.times.update += update_start.elapsed().as_secs_f64();
         // Velocities follow the applied motion (docs/method.md, "Integration, Eq. 3");
         // displacement figures.
