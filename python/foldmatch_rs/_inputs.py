@@ -98,9 +98,10 @@ def landmarks(value: Any) -> tuple[Optional[np.ndarray], Optional[np.ndarray]]:
     if value is None:
         return None, None
     if not isinstance(value, (tuple, list)) or len(value) != 2:
+        length = f" of length {len(value)}" if isinstance(value, (tuple, list)) else ""
         raise InvalidInputError(
             "landmarks: expected (template_vertex_indices, target_positions), got "
-            f"{type(value).__name__}" + (f" of length {len(value)}" if isinstance(value, (tuple, list)) else "")
+            f"{type(value).__name__}{length}"
         )
     try:
         idx = np.asarray(value[0])
