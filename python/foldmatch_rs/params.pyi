@@ -49,9 +49,9 @@ class FitParams(Mapping[str, Any]):
         pre-alignment). In a rigid fit — the rigid phase's one fit, or a coarse-phase vertex's
         fit of its coarse ring — the landmark vertices in it pull their targets with η times
         the weight of all its scan-driven pairs together; in the FoldMatch (or NRGa)
-        iterations a landmark vertex moves to `(x + η t) / (1 + η)`, x its update and t its
-        target: a spring that closes `η / (1 + η)` of the remaining gap every iteration
-        (docs/method.md "Landmarks").
+        iterations a landmark vertex's proposal and then its update x each move to
+        `(x + η t) / (1 + η)`, t its target: a spring that closes at least `η / (1 + η)` of the
+        remaining gap every iteration (docs/method.md "Landmarks").
         """
     @property
     def snapshot_every(self) -> int:

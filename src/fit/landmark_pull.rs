@@ -131,8 +131,8 @@ impl LandmarkTargets {
         }
     }
 
-    /// The spring of the FoldMatch (or NRGa) iterations: each landmark vertex's update `x`
-    /// becomes `(x + η t) / (1 + η)`.
+    /// The spring of the FoldMatch (or NRGa) iterations, on the proposal and on the update:
+    /// each landmark vertex's `x` becomes `(x + η t) / (1 + η)`.
     pub(super) fn pull(&self, eta: f64, next: &mut [[f64; 3]]) {
         for (&u, t) in self.vertices.iter().zip(&self.targets) {
             let x = vec3(&next[u as usize]);

@@ -223,6 +223,10 @@ impl ScheduleRun {
             }
         }
         let update_start = std::time::Instant::now();
+        // The landmarks' spring on the proposal: the rings holding them see it (Eq. 4, 8).
+        if let (Phase::Fine, Some(l)) = (phase, prepared.landmarks.as_ref()) {
+            l.pull(params.landmark_weight, &mut self.attraction.proposed);
+        }
         let (old, new, next) = (&self.pos, &self.attraction.proposed, &mut self.next);
         let sample = sampled.map(|i| &self.samples[i]);
         let ws = &mut self.ws;
