@@ -37,6 +37,15 @@ pub enum FoldMatchError {
         /// Number of vertices.
         count: usize,
     },
+    /// A landmark is invalid: its vertex index is out of range or used twice, or its target
+    /// position is not finite.
+    #[error("landmark {index}: {reason}")]
+    Landmark {
+        /// The landmark's position in the given list (0-based).
+        index: usize,
+        /// What is wrong with it.
+        reason: String,
+    },
     /// A parameter is out of its valid range.
     #[error("parameter {name} = {value}: {reason}")]
     Parameter {

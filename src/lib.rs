@@ -31,6 +31,7 @@ pub mod error;
 pub mod fit;
 pub mod io;
 pub mod knn;
+pub mod landmarks;
 pub mod limits;
 pub mod math;
 pub mod mesh;

@@ -8,6 +8,7 @@
 
 use crate::error::FoldMatchError;
 use crate::fit::{self, FitParams, Progress};
+use crate::landmarks::Landmarks;
 use crate::math::Mat3;
 use crate::{
     curvature, deformation, knn, metrics, nbody, prealign, regularize, rings, rotation, synthetic,
@@ -53,6 +54,7 @@ fn to_pyerr(err: FoldMatchError) -> PyErr {
         FoldMatchError::Shape { .. }
         | FoldMatchError::NonFinite { .. }
         | FoldMatchError::FaceIndex { .. }
+        | FoldMatchError::Landmark { .. }
         | FoldMatchError::FarAway { .. } => InvalidInputError::new_err(message),
         FoldMatchError::Parameter { .. } => InvalidParameterError::new_err(message),
         FoldMatchError::Io { .. } => MeshFileError::new_err(message),
@@ -306,7 +308,7 @@ fn params_from(py: Python<'_>, given: Option<&Bound<'_, PyDict>>) -> PyResult<Fi
 
 /// Fits a template to a target; see `foldmatch_rs.fit`.
 #[pyfunction]
-#[pyo3(signature = (template_vertices, template_faces, target, target_faces, params, callback=None, threads=None, target_weights=None))]
+#[pyo3(signature = (template_vertices, template_faces, target, target_faces, params, callback=None, threads=None, target_weights=None, landmark_vertices=None, landmark_positions=None))]
 #[allow(clippy::too_many_arguments)]
 fn fit_raw<'py>(
     py: Python<'py>,
@@ -318,6 +320,8 @@ fn fit_raw<'py>(
     callback: Option<Py<PyAny>>,
     threads: Option<Bound<'py, PyAny>>,
     target_weights: Option<PyReadonlyArray1<'py, f64>>,
+    landmark_vertices: Option<PyReadonlyArray1<'py, i64>>,
+    landmark_positions: Option<PyReadonlyArray2<'py, f64>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let threads = threads_arg(threads.as_ref())?;
     let params = params::from_dict(py, params)?;
@@ -337,6 +341,25 @@ fn fit_raw<'py>(
             })
         })?),
         None => None,
+    };
+    let landmarks = match (&landmark_vertices, &landmark_positions) {
+        (Some(v), Some(p)) => {
+            let v = v.as_slice().map_err(|_| {
+                to_pyerr(FoldMatchError::shape(
+                    "landmarks",
+                    "vertex indices must be a contiguous (L,) int64 array",
+                ))
+            })?;
+            let p = points("landmarks", p)?;
+            Some(Landmarks::new(v, p, tv.len()).map_err(to_pyerr)?)
+        }
+        (None, None) => None,
+        _ => {
+            return Err(to_pyerr(FoldMatchError::shape(
+                "landmarks",
+                "need both the vertex indices and the target positions",
+            )))
+        }
     };
     let mut callback_error: Option<PyErr> = None;
     let result = {
@@ -371,7 +394,17 @@ fn fit_raw<'py>(
         };
         compute(py, threads, |cancel| {
             let mut observer = |p: &Progress| step(cancel, p);
-            fit::fit_weighted(tv, &tf, x, xf.as_deref(), weights, &params, &mut observer)
+            let landmarks = landmarks.as_ref();
+            fit::fit_with_landmarks(
+                tv,
+                &tf,
+                x,
+                xf.as_deref(),
+                weights,
+                landmarks,
+                &params,
+                &mut observer,
+            )
         })?
     };
     if let Some(e) = callback_error {

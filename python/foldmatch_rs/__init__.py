@@ -267,6 +267,7 @@ def fit(
     *,
     target_faces: Any = None,
     target_weights: Any = None,
+    landmarks: Any = None,
     preset: Optional[str] = None,
     iterations: Optional[int] = None,
     rings: Optional[int] = None,
@@ -298,6 +299,14 @@ def fit(
         fits exactly as the masked scan). A ``.npy`` path is read; another string names a
         vertex property of the target's PLY file (``"confidence"``). Wrong length, negative,
         NaN or all-zero weights raise :class:`InvalidParameterError`.
+    landmarks : tuple of (L,) int and (L, 3) float, optional
+        ``(template_vertex_indices, target_positions)``: template vertices whose positions on
+        the scan are known (clicked, detected, marked). They decide the pre-alignment (the
+        rigid fit of those vertices onto their targets moves the template first, in place of
+        ``prealign``) and pull their vertices toward the targets through every phase of the
+        fit, as hard as the setting ``landmark_weight`` says (``params={"landmark_weight": 3}``;
+        default 1; docs/guide.md "Landmarks"). An index out of range or repeated, or a
+        non-finite position, raises :class:`InvalidInputError` naming the landmark.
     preset : {"default", "accurate", "fast", "paper", "tracking"}, optional
         Where the settings not given come from (default ``"default"``): ``"default"``, the most
         accurate configuration for its cost; ``"accurate"``, the default with 150 iterations
@@ -366,12 +375,15 @@ def fit(
         )
     x, xf = _inputs.mesh(target, target_faces, "target")
     weights = _inputs.weights(target_weights, len(x), target)
+    lm_vertices, lm_positions = _inputs.landmarks(landmarks)
     values = settings.to_dict()
     if _progress.wanted(progress):
         with _progress.Bar(settings.iterations, callback) as bar:
-            raw = _core.fit_raw(tv, tf, x, xf, values, bar, threads, weights)
+            raw = _core.fit_raw(tv, tf, x, xf, values, bar, threads, weights, lm_vertices,
+                                lm_positions)
     else:
-        raw = _core.fit_raw(tv, tf, x, xf, values, callback, threads, weights)
+        raw = _core.fit_raw(tv, tf, x, xf, values, callback, threads, weights, lm_vertices,
+                            lm_positions)
     return FitResult(
         vertices=raw["vertices"],
         faces=tf,

@@ -38,6 +38,8 @@ def fit_raw(
     callback: Optional[Callable[[dict[str, Any]], Any]] = None,
     threads: Optional[int] = None,
     target_weights: Optional[_F64] = None,
+    landmark_vertices: Optional[_I64] = None,
+    landmark_positions: Optional[_F64] = None,
 ) -> dict[str, Any]: ...
 def knn_query(
     points: _F64, queries: _F64, k: int, threads: Optional[int] = None

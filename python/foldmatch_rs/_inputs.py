@@ -89,3 +89,29 @@ def weights(w: Any, n: int, target: Any) -> Optional[np.ndarray]:
     if a.ndim != 1:
         raise InvalidInputError(f"target_weights: expected shape ({n},), got {a.shape}")
     return a
+
+
+def landmarks(value: Any) -> tuple[Optional[np.ndarray], Optional[np.ndarray]]:
+    """``landmarks=(indices, positions)`` as a contiguous ``(L,)`` int64 array and an
+    ``(L, 3)`` float64 array (the checks of values — range, duplicates, finiteness — are the
+    core's)."""
+    if value is None:
+        return None, None
+    if not isinstance(value, (tuple, list)) or len(value) != 2:
+        length = f" of length {len(value)}" if isinstance(value, (tuple, list)) else ""
+        raise InvalidInputError(
+            "landmarks: expected (template_vertex_indices, target_positions), got "
+            f"{type(value).__name__}{length}"
+        )
+    try:
+        idx = np.asarray(value[0])
+        pos = np.ascontiguousarray(value[1], dtype=np.float64)
+    except (TypeError, ValueError) as e:
+        raise InvalidInputError(f"landmarks: not convertible to arrays ({e})") from None
+    if idx.ndim != 1:
+        raise InvalidInputError(f"landmarks: indices must have shape (L,), got {idx.shape}")
+    if idx.size and not np.issubdtype(idx.dtype, np.integer):
+        raise InvalidInputError(f"landmarks: indices must be integers, got {idx.dtype}")
+    if pos.ndim != 2 or pos.shape[1] != 3:
+        raise InvalidInputError(f"landmarks: positions must have shape (L, 3), got {pos.shape}")
+    return np.ascontiguousarray(idx, dtype=np.int64), pos

@@ -132,6 +132,12 @@ pub struct FitCmd {
     /// segmenter's `label` or a scanner's `confidence`; any scalar type), as --scan-weights.
     #[arg(long, value_name = "NAME")]
     pub scan_weights_property: Option<String>,
+    /// Landmarks: template vertices whose positions on the scan are known, as JSON
+    /// `{"vertices": [i, ...], "positions": [[x, y, z], ...]}` (a .json file) or CSV lines
+    /// `index,x,y,z`. They decide the pre-alignment and pull their vertices toward the
+    /// positions through the whole fit (weight: `landmark_weight` in --params).
+    #[arg(long, value_name = "FILE")]
+    pub landmarks: Option<PathBuf>,
     /// Write ASCII PLY instead of binary.
     #[arg(long)]
     pub ascii: bool,

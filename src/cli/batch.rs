@@ -523,6 +523,7 @@ pub fn batch(cmd: &BatchCmd, ctx: &Context) -> i32 {
                     start: None,
                     ascii: cmd.ascii,
                     weights: cmd.scan_weights_property.clone().map(ScanWeights::Property),
+                    landmarks: None,
                     stage: Some(stage_path(&setup.outputs[i])),
                     preview: cmd.preview.then(|| preview_path(&setup.outputs[i])),
                 };
@@ -656,6 +657,7 @@ pub fn sequence(cmd: &SequenceCmd, ctx: &Context) -> i32 {
             start: warm.as_ref().map(|w| w.0.as_slice()),
             ascii: cmd.ascii,
             weights: cmd.scan_weights_property.clone().map(ScanWeights::Property),
+            landmarks: None,
             stage: Some(stage_path(&setup.outputs[i])),
             preview: None,
         };

@@ -460,6 +460,7 @@ impl FileFitter {
                 .scan_weights_property
                 .clone()
                 .map(ScanWeights::Property),
+            landmarks: None,
             // The driver renames it into place once its report records it (`RunBook::record`).
             stage: Some(stage_path(&file.output)),
             // `--preview` conflicts with `--scheduler` (args.rs): previews are local only.

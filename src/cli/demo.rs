@@ -86,6 +86,7 @@ fn run(cmd: &DemoCmd, ctx: &Context) -> Result<i32, String> {
         ascii: false,
         weights: None,
         preview: Some(preview_path.clone()),
+        landmarks: None,
     });
     let report = FitReport {
         foldmatch_version: env!("CARGO_PKG_VERSION"),

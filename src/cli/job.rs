@@ -6,10 +6,11 @@ use super::report::{FileReport, ScanWeightsReport, Status};
 use super::ui::{Ui, Verbosity};
 use crate::error::FoldMatchError;
 use crate::fit::{
-    deformation_model, fit_weighted, validate_weights, FitParams, Progress, TemplateTopology,
+    deformation_model, fit_with_landmarks, validate_weights, FitParams, Progress, TemplateTopology,
     Workspace,
 };
 use crate::io::{fitted_mesh, read_mesh, read_npy, read_ply_property, write_mesh, MeshData};
+use crate::landmarks::Landmarks;
 use crate::mesh::{clean_faces, VertexFaces};
 use crate::metrics::{evaluate, Metrics, MetricsInput, MetricsParams};
 use crate::normalize::Frame;
@@ -167,6 +168,8 @@ pub struct Job<'a> {
     pub ascii: bool,
     /// Per-point weights of the scan, when given.
     pub weights: Option<ScanWeights>,
+    /// Landmarks on the scan, when given (`fit --landmarks`).
+    pub landmarks: Option<&'a Landmarks>,
     /// Write the fitted mesh here instead of `output` and leave it there (`batch` and
     /// `sequence` record the file in their report first, then rename it to `output`: see
     /// [`stage_path`]).
@@ -336,12 +339,13 @@ impl Runner<'_> {
         let result = self
             .pool
             .install(|| {
-                fit_weighted(
+                fit_with_landmarks(
                     start,
                     &template.faces,
                     &scan.vertices,
                     target_faces,
                     weights.as_deref(),
+                    job.landmarks,
                     self.params,
                     &mut observer,
                 )

@@ -155,9 +155,17 @@ fn fit(cmd: &FitCmd, ctx: &Context) -> i32 {
             }
         }
         let template = Template::load(&cmd.template, &params)?;
-        Ok((params, template))
+        let landmarks = match &cmd.landmarks {
+            Some(path) => Some(
+                crate::io::read_landmarks(path)
+                    .and_then(|f| f.for_template(path, template.vertices.len()))
+                    .map_err(|e| format!("landmarks {e}"))?,
+            ),
+            None => None,
+        };
+        Ok((params, template, landmarks))
     })();
-    let (params, template) = match prepared {
+    let (params, template, landmarks) = match prepared {
         Ok(p) => p,
         Err(e) => {
             ui.error(e);
@@ -184,6 +192,7 @@ fn fit(cmd: &FitCmd, ctx: &Context) -> i32 {
             (None, None) => None,
         },
         preview: cmd.preview.clone(),
+        landmarks: landmarks.as_ref(),
     });
     let entry = &outcome.report;
     let mut code = match entry.status {

@@ -14,6 +14,7 @@
 //! All per-vertex buffers are allocated once per fit ([`Workspace`]).
 
 mod attraction;
+mod landmark_pull;
 mod model;
 mod params;
 mod phases;
@@ -31,14 +32,15 @@ pub use params::{
     Acceleration, FitParams, Method, ModelConstants, Prealign, Readings, RotationSource, Schedule,
     Selection, ACCURATE_ITERATIONS, AUTO_COARSE_RINGS, AUTO_COARSE_RINGS_MAX,
     COARSE_RINGS_REFERENCE_VERTICES, COARSE_SCAN_MAX_AUTO_STRIDE, COARSE_SCAN_POINTS_PER_VERTEX,
-    DEFAULT_KNN_SLACK, DEFAULT_K_MAX, DEFAULT_RHO, DEFAULT_TWO_WAY_RIM, DEFAULT_TWO_WAY_TRUST,
-    FAR_AWAY, FAST_TWO_WAY, MAX_SCAN_SAMPLE, PAPER_K_MAX, PAPER_RHO, RIGID_SCAN_POINTS_PER_VERTEX,
-    SCHEDULE_NAMES,
+    DEFAULT_KNN_SLACK, DEFAULT_K_MAX, DEFAULT_LANDMARK_WEIGHT, DEFAULT_RHO, DEFAULT_TWO_WAY_RIM,
+    DEFAULT_TWO_WAY_TRUST, FAR_AWAY, FAST_TWO_WAY, MAX_SCAN_SAMPLE, PAPER_K_MAX, PAPER_RHO,
+    RIGID_SCAN_POINTS_PER_VERTEX, SCHEDULE_NAMES,
 };
 pub use result::{Diagnostics, FitResult, IterationRecord, Progress, StageTimes};
 pub use schedule::select_schedule;
 
 use crate::error::{FoldMatchError, Result};
+use crate::landmarks::Landmarks;
 use crate::math::vec3;
 use schedule::{drive, selection_distance, ScheduleRun};
 use setup::Prepared;
@@ -92,7 +94,42 @@ pub fn fit_weighted(
     params: &FitParams,
     observer: &mut (dyn FnMut(&Progress) -> bool + Send),
 ) -> Result<FitResult> {
+    fit_with_landmarks(
+        template_vertices,
+        template_faces,
+        target,
+        target_faces,
+        target_weights,
+        None,
+        params,
+        observer,
+    )
+}
+
+/// [`fit_weighted`] with landmarks (`landmarks`, `None`: none): template vertices whose
+/// positions on the scan are known ([`Landmarks`], validated against the template by
+/// [`Landmarks::new`]). They decide the pre-alignment — the rigid fit of the landmark vertices
+/// onto their targets moves the template first, in place of [`FitParams::prealign`] — and
+/// pull their vertices toward the targets through every phase, with
+/// [`FitParams::landmark_weight`] (docs/method.md "Landmarks"). A landmark whose vertex is not
+/// in the template is refused ([`FoldMatchError::Landmark`]).
+#[allow(clippy::too_many_arguments)]
+pub fn fit_with_landmarks(
+    template_vertices: &[[f64; 3]],
+    template_faces: &[[u32; 3]],
+    target: &[[f64; 3]],
+    target_faces: Option<&[[u32; 3]]>,
+    target_weights: Option<&[f64]>,
+    landmarks: Option<&Landmarks>,
+    params: &FitParams,
+    observer: &mut (dyn FnMut(&Progress) -> bool + Send),
+) -> Result<FitResult> {
     params.validate()?;
+    if let Some(l) = landmarks {
+        // Built against some template; checked again against this one.
+        let vertices: Vec<i64> = l.vertices.iter().map(|&v| v as i64).collect();
+        Landmarks::new(&vertices, &l.positions, template_vertices.len())?;
+    }
     if let Some(w) = target_weights {
         validate_weights(w, target.len())?;
     }
@@ -112,6 +149,7 @@ pub fn fit_weighted(
         target_faces,
         target_weights,
         kept.as_deref(),
+        landmarks,
         &schedules,
     )?;
     let mut runs: Vec<ScheduleRun> = schedules

@@ -145,6 +145,10 @@ pub const DEFAULT_K_MAX: usize = 32;
 /// kept by [`FitParams::paper`].
 pub const PAPER_K_MAX: usize = 64;
 
+/// The default [`FitParams::landmark_weight`]: the landmarks weigh as much as the scan in
+/// every rigid fit, and a landmark vertex closes half its gap to its target per iteration.
+pub const DEFAULT_LANDMARK_WEIGHT: f64 = 1.0;
+
 /// Distance (in target bounding-box diagonals) beyond which an unaligned template is refused.
 pub const FAR_AWAY: f64 = 1.0;
 
@@ -162,6 +166,15 @@ pub struct FitParams {
     pub tolerance: f64,
     /// Handling of a template placed far from the scan.
     pub prealign: Prealign,
+    /// η, the weight of the landmarks ([`crate::landmarks::Landmarks`]) against the scan,
+    /// dimensionless (default [`DEFAULT_LANDMARK_WEIGHT`]; 0: the landmarks only decide the
+    /// pre-alignment). In a rigid fit — the rigid phase's one fit, or a coarse-phase vertex's
+    /// fit of its coarse ring — the landmark vertices in it pull their targets with η times
+    /// the weight of all its scan-driven pairs together; in the FoldMatch (or NRGa)
+    /// iterations a landmark vertex's proposal and then its update x each move to
+    /// `(x + η t) / (1 + η)`, t its target: a spring that closes at least `η / (1 + η)` of the
+    /// remaining gap every iteration (docs/method.md "Landmarks").
+    pub landmark_weight: f64,
     /// Keep the vertex positions every this many iterations (0 keeps none).
     pub snapshot_every: usize,
     /// The model's constants: the paper's §4 values (n, ρ and the clamps of K, ψ, γ) and the
@@ -384,6 +397,7 @@ impl Default for FitParams {
             iterations: 100,
             tolerance: 0.0,
             prealign: Prealign::None,
+            landmark_weight: DEFAULT_LANDMARK_WEIGHT,
             snapshot_every: 0,
             model: ModelConstants::default(),
             readings: Readings::default(),

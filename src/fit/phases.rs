@@ -62,15 +62,30 @@ pub(super) fn rigid(
         ),
         None => (&prepared.all_vertices[..], old, new),
     };
-    let (c_old, c_new) = ring_centroids(all, fit_old, fit_new);
-    let r = kabsch(
-        all,
-        fit_old,
-        fit_new,
-        &c_old,
-        &c_new,
-        params.internal.matrix_series,
-    );
+    let fast = params.internal.matrix_series;
+    let (r, c_old, c_new) = match prepared.landmarks.as_ref() {
+        // The landmarks' pulls enter the one rigid fit (docs/method.md "Landmarks").
+        Some(l) if params.landmark_weight > 0.0 => {
+            let held: Vec<u32> = (0..l.vertices.len() as u32).collect();
+            l.weighted_fit(
+                all,
+                fit_old,
+                fit_new,
+                &held,
+                old,
+                params.landmark_weight,
+                fast,
+            )
+        }
+        _ => {
+            let (c_old, c_new) = ring_centroids(all, fit_old, fit_new);
+            (
+                kabsch(all, fit_old, fit_new, &c_old, &c_new, fast),
+                c_old,
+                c_new,
+            )
+        }
+    };
     next.par_iter_mut().enumerate().for_each(|(v, out)| {
         *out = transform_vertex(&r, &vec3(&old[v]), &c_old, &c_new).into();
     });
@@ -115,6 +130,12 @@ pub(super) fn coarse(
     let fast = params.internal.matrix_series;
     let moments = fast.then_some((&mut ws.moments, deltas, &mut ws.ring_sums));
     kabsch_update(rings, ring_old, ring_new, old, fast, moments, next);
+    if let Some(l) = prepared.landmarks.as_ref() {
+        let eta = params.landmark_weight;
+        if eta > 0.0 {
+            l.coarse(level, rings, ring_old, ring_new, old, eta, fast, next);
+        }
+    }
     0
 }
 

@@ -223,6 +223,10 @@ impl ScheduleRun {
             }
         }
         let update_start = std::time::Instant::now();
+        // The landmarks' spring on the proposal: the rings holding them see it (Eq. 4, 8).
+        if let (Phase::Fine, Some(l)) = (phase, prepared.landmarks.as_ref()) {
+            l.pull(params.landmark_weight, &mut self.attraction.proposed);
+        }
         let (old, new, next) = (&self.pos, &self.attraction.proposed, &mut self.next);
         let sample = sampled.map(|i| &self.samples[i]);
         let ws = &mut self.ws;
@@ -239,6 +243,9 @@ impl ScheduleRun {
                 phases::fine(prepared, params, fine, old, new, ws, next)
             }
         };
+        if let (Phase::Fine, Some(l)) = (phase, prepared.landmarks.as_ref()) {
+            l.pull(params.landmark_weight, &mut self.next);
+        }
         self.ws.times.update += update_start.elapsed().as_secs_f64();
         // Velocities follow the applied motion (docs/method.md, "Integration, Eq. 3");
         // displacement figures.

@@ -2,12 +2,14 @@
 //! the scan's k-d tree, K and curvature, the template's neighborhoods and the phases' samples.
 
 use super::attraction::{explained_points, Rim, ScanPoints, DRESSED_TRUST_FACTOR};
+use super::landmark_pull::LandmarkTargets;
 use super::model::TemplateTopology;
 use super::params::{FitParams, Method, Prealign, FAR_AWAY};
 use super::result::Diagnostics;
 use crate::curvature::{gaussian_curvature_mesh, gaussian_curvature_points};
 use crate::error::{FoldMatchError, Result};
 use crate::knn::{morton_order, neighborhood_size, PointIndex};
+use crate::landmarks::Landmarks;
 use crate::math::{vec3, Vec3};
 use crate::mesh::{clean_faces, validate_faces, validate_points, VertexFaces};
 use crate::normalize::Frame;
@@ -57,6 +59,8 @@ pub(super) struct Prepared {
     /// those the template explains where the scan holds more than the garment
     /// ([`explained_points`]); `None`: every point of positive weight.
     pub(super) garment: Option<Vec<usize>>,
+    /// The landmarks, in the normalized frame (docs/method.md "Landmarks").
+    pub(super) landmarks: Option<LandmarkTargets>,
     /// The diagnostics every run starts from.
     pub(super) diagnostics: Diagnostics,
 }
@@ -64,6 +68,7 @@ pub(super) struct Prepared {
 impl Prepared {
     /// Validates the inputs and builds the shared state; `schedules` differ at most in their
     /// schedule fields ([`FitParams::sharp_schedule`]), the first one's structure is used.
+    #[allow(clippy::too_many_arguments)] // the fit's inputs, as `fit_with_landmarks` takes them
     pub(super) fn new(
         template_vertices: &[[f64; 3]],
         template_faces: &[[u32; 3]],
@@ -71,6 +76,7 @@ impl Prepared {
         target_faces: Option<&[[u32; 3]]>,
         weights: Option<&[f64]>,
         kept: Option<&[usize]>,
+        landmarks: Option<&Landmarks>,
         schedules: &[FitParams],
     ) -> Result<Self> {
         let params = &schedules[0];
@@ -81,6 +87,13 @@ impl Prepared {
             validate_faces("target_faces", tf, target.len())?;
         }
         let m = template_vertices.len();
+        // Landmarks decide the pre-alignment: the rigid fit of their vertices onto their
+        // targets moves the template before anything else sees it.
+        let aligned = landmarks.map(|l| {
+            l.alignment(template_vertices, false)
+                .apply_all(template_vertices)
+        });
+        let template_vertices = aligned.as_deref().unwrap_or(template_vertices);
         let cleaned = clean_faces(template_faces);
         let faces = cleaned.faces;
 
@@ -116,6 +129,7 @@ impl Prepared {
         };
         let offset = centroid - scan_centroid;
         match params.prealign {
+            _ if landmarks.is_some() => {}
             Prealign::Centroid => {
                 for p in &mut start {
                     *p = (vec3(p) - offset).into();
@@ -258,6 +272,7 @@ impl Prepared {
             Vec::new()
         };
 
+        let landmarks = landmarks.map(|l| LandmarkTargets::new(l, &frame, &coarse_levels));
         let edge_length = mean_edge_length(&start, &faces);
         // The rim rule is for scans that hold more than the garment: on a garment alone, the
         // scan beyond a boundary is garment the template has yet to cover.
@@ -311,6 +326,7 @@ impl Prepared {
                     .map(|&j| kept.map_or(j as usize, |k| k[j as usize]))
                     .collect()
             }),
+            landmarks,
             diagnostics,
         })
     }

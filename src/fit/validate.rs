@@ -144,6 +144,7 @@ impl FitParams {
             ("two_way", self.schedule.two_way, NON_NEGATIVE),
             ("two_way_trust", self.schedule.two_way_trust, NON_NEGATIVE),
             ("two_way_rim", self.schedule.two_way_rim, NON_NEGATIVE),
+            ("landmark_weight", self.landmark_weight, NON_NEGATIVE),
             ("damping", p.damping, UNIT),
             ("knn_slack", self.acceleration.knn_slack, UNIT),
             ("rigid_fraction", self.schedule.rigid_fraction, UNIT),

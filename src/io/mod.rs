@@ -47,12 +47,17 @@
 
 mod colormap;
 mod fitted;
+mod landmarks;
 mod npy;
 mod obj;
 mod ply;
 
 pub use colormap::{colormap_viridis, robust_range, wrinkle_colors};
 pub use fitted::fitted_mesh;
+pub use landmarks::{
+    parse_csv as parse_landmarks_csv, parse_json as parse_landmarks_json, read_landmarks,
+    LandmarkFile,
+};
 pub use npy::{parse_npy, read_npy};
 pub use obj::{parse_obj, read_obj, write_obj, write_obj_to};
 pub use ply::{

@@ -1,0 +1,82 @@
+"""Landmarks (``fm.fit(..., landmarks=(indices, positions))``): they place the
+template, hold their vertices at their targets through the fit, and bad ones are refused
+naming the landmark."""
+
+from __future__ import annotations
+
+import foldmatch_rs as fm
+import numpy as np
+import pytest
+
+N = 21  # grid side
+
+
+@pytest.fixture(scope="module")
+def sheet():
+    """A flat square sheet (template) and, as the scan, the same sheet turned by 90° about its
+    normal: the same points, so the scan alone cannot show the turn."""
+    case = fm.folded_sheet(nx=N, ny=N, scan_points=500, noise=0.0)
+    v, f = case["template_vertices"], case["faces"]
+    c = v.mean(0)
+    truth = np.column_stack([c[0] - (v[:, 1] - c[1]), c[1] + (v[:, 0] - c[0]), v[:, 2]])
+    return v, f, truth
+
+
+def rmse(a, b):
+    return float(np.sqrt(((a - b) ** 2).sum(1).mean()))
+
+
+def test_landmarks_settle_a_turn_the_scan_cannot_show(sheet):
+    v, f, truth = sheet
+    plain = fm.fit(v, f, truth, iterations=30)
+    assert rmse(plain.vertices, truth) > 0.2 * np.ptp(v[:, 0])
+    corners = np.array([0, N - 1, N * (N - 1), N * N - 1])
+    guided = fm.fit(v, f, truth, landmarks=(corners, truth[corners]), iterations=30)
+    assert rmse(guided.vertices, truth) < 0.01 * np.ptp(v[:, 0])
+    assert guided.params["landmark_weight"] == fm.DEFAULT_PARAMS["landmark_weight"] == 1.0
+
+
+def test_landmark_vertices_end_near_their_targets_and_the_weight_sets_how_near(sheet):
+    v, f, _ = sheet
+    width = np.ptp(v[:, 0])
+    # Targets moved along the sheet by 2 % of its width from their vertices' places.
+    chosen = np.array([6 * N + 6, 6 * N + 14, 14 * N + 10])
+    targets = v[chosen] + [0.02 * width, 0.0, 0.0]
+    gap = {}
+    for w in (0.0, 1.0, 5.0):
+        r = fm.fit(v, f, v, landmarks=(chosen, targets), params={"landmark_weight": w},
+                   iterations=40)
+        gap[w] = np.linalg.norm(r.vertices[chosen] - targets, axis=1).max()
+        assert r.params["landmark_weight"] == w
+    assert gap[0.0] > 0.015 * width, gap
+    assert gap[1.0] < 0.006 * width, gap
+    assert gap[5.0] < gap[1.0], gap
+
+
+@pytest.mark.parametrize(
+    "landmarks, message",
+    [
+        (([0, N * N], [[0, 0, 0], [1, 1, 1]]), f"landmark 1: vertex {N * N} is out of range"),
+        (([-1], [[0, 0, 0]]), "landmark 0: vertex -1 is out of range"),
+        (([4, 4], [[0, 0, 0], [1, 1, 1]]), "landmark 1: vertex 4 is already constrained by landmark 0"),
+        (([3], [[0, np.nan, 0]]), r"landmark 0: non-finite target coordinate \(NaN\) for vertex 3"),
+        (([3], [[0, np.inf, 0]]), r"landmark 0: non-finite target coordinate \(inf\) for vertex 3"),
+        (([1, 2], [[0, 0, 0]]), "2 vertex indices but 1 target positions"),
+        (([1], [[0, 0]]), r"positions must have shape \(L, 3\), got \(1, 2\)"),
+        (([[1]], [[0, 0, 0]]), r"indices must have shape \(L,\)"),
+        (([1.5], [[0, 0, 0]]), "indices must be integers"),
+        (([], np.zeros((0, 3))), "no landmarks"),
+        (([1],), r"expected \(template_vertex_indices, target_positions\), got tuple of length 1"),
+    ],
+)
+def test_bad_landmarks_are_refused_naming_the_landmark(sheet, landmarks, message):
+    v, f, truth = sheet
+    with pytest.raises(fm.InvalidInputError, match=message):
+        fm.fit(v, f, truth, landmarks=landmarks, iterations=2)
+
+
+def test_a_negative_landmark_weight_is_refused(sheet):
+    v, f, truth = sheet
+    with pytest.raises(fm.InvalidParameterError, match="landmark_weight"):
+        fm.fit(v, f, truth, landmarks=([0], truth[:1]), params={"landmark_weight": -1.0},
+               iterations=2)
