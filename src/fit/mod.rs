@@ -140,7 +140,11 @@ pub fn fit_with_landmarks(
         .map(|w| (0..w.len()).filter(|&j| w[j] > 0.0).collect());
     let schedules = params.candidate_schedules();
     let clock = std::time::Instant::now();
-    let placed = prealigned(template_vertices, target, kept.as_deref(), params)?;
+    // Landmarks, when given, decide the pre-alignment (in Prepared::new) in its place.
+    let placed = match landmarks {
+        Some(_) => None,
+        None => prealigned(template_vertices, target, kept.as_deref(), params)?,
+    };
     let template_vertices = placed.as_deref().unwrap_or(template_vertices);
     let prepared = Prepared::new(
         template_vertices,

@@ -88,9 +88,11 @@ impl Prepared {
         }
         let m = template_vertices.len();
         // Landmarks decide the pre-alignment: the rigid fit of their vertices onto their
-        // targets moves the template before anything else sees it.
+        // targets moves the template before anything else sees it (with a uniform scale too
+        // when `prealign` asks for a similarity).
+        let scaled = params.prealign == super::Prealign::Similarity;
         let aligned = landmarks.map(|l| {
-            l.alignment(template_vertices, false)
+            l.alignment(template_vertices, scaled)
                 .apply_all(template_vertices)
         });
         let template_vertices = aligned.as_deref().unwrap_or(template_vertices);
