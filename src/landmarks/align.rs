@@ -1,41 +1,11 @@
-//! The least-squares rigid or similarity motion between two point sets in correspondence:
-//! Kabsch's rotation, with Umeyama's scale and reflection guard (S. Umeyama, "Least-squares
-//! estimation of transformation parameters between two point patterns", IEEE TPAMI 13(4),
-//! 1991). Landmarks use it as the global pre-alignment (docs/method.md "Landmarks").
+//! The least-squares rigid or similarity motion between two point sets in correspondence,
+//! for landmarks: Umeyama's closed form ([`crate::prealign::fit_pairs`], S. Umeyama,
+//! "Least-squares estimation of transformation parameters between two point patterns", IEEE
+//! TPAMI 13(4), 1991), with the centroids' translation alone where the pairs fix no rotation.
+//! Landmarks use it as the global pre-alignment (docs/method.md "Landmarks").
 
 use crate::math::{vec3, Mat3, Vec3};
-
-/// `p ↦ scale · rotation · p + translation`.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Similarity {
-    /// A proper rotation.
-    pub rotation: Mat3,
-    /// The uniform scale (1 for a rigid motion).
-    pub scale: f64,
-    /// Applied after the rotation and the scale.
-    pub translation: Vec3,
-}
-
-impl Similarity {
-    /// The identity.
-    pub fn identity() -> Self {
-        Self {
-            rotation: Mat3::identity(),
-            scale: 1.0,
-            translation: Vec3::zeros(),
-        }
-    }
-
-    /// The image of one point.
-    pub fn apply(&self, p: &[f64; 3]) -> [f64; 3] {
-        (self.scale * (self.rotation * vec3(p)) + self.translation).into()
-    }
-
-    /// The images of `points`.
-    pub fn apply_all(&self, points: &[[f64; 3]]) -> Vec<[f64; 3]> {
-        points.iter().map(|p| self.apply(p)).collect()
-    }
-}
+pub use crate::prealign::Similarity;
 
 /// Below this ratio of the source's second to first principal spread, its points lie on a
 /// line (or a point) and fix no rotation.
@@ -58,11 +28,9 @@ pub fn fit_similarity(from: &[[f64; 3]], to: &[[f64; 3]], scale: bool) -> Simila
     if from.len() < 3 {
         return translation_only;
     }
-    let mut cov = Mat3::zeros();
     let mut spread = Mat3::zeros();
-    for (p, q) in from.iter().zip(to) {
+    for p in from {
         let a = vec3(p) - c_from;
-        cov += (vec3(q) - c_to) * a.transpose();
         spread += a * a.transpose();
     }
     let mut eig = spread.symmetric_eigenvalues().as_slice().to_vec();
@@ -70,34 +38,8 @@ pub fn fit_similarity(from: &[[f64; 3]], to: &[[f64; 3]], scale: bool) -> Simila
     if eig[0] <= 0.0 || eig[1] <= COLLINEAR * eig[0] {
         return translation_only;
     }
-    let svd = cov.svd(true, true);
-    let (u, v_t) = (svd.u.expect("u"), svd.v_t.expect("v_t"));
-    let d = if (u * v_t).determinant() < 0.0 {
-        -1.0
-    } else {
-        1.0
-    };
-    let mut signs = Mat3::identity();
-    // The smallest singular value's direction takes the reflection (Umeyama, Eq. 39–40).
-    let smallest = (0..3)
-        .min_by(|&a, &b| svd.singular_values[a].total_cmp(&svd.singular_values[b]))
-        .expect("three");
-    signs[(smallest, smallest)] = d;
-    let rotation = u * signs * v_t;
-    let s = if scale {
-        let var_from = spread.trace();
-        (0..3)
-            .map(|i| svd.singular_values[i] * signs[(i, i)])
-            .sum::<f64>()
-            / var_from
-    } else {
-        1.0
-    };
-    Similarity {
-        rotation,
-        scale: s,
-        translation: c_to - s * (rotation * c_from),
-    }
+    let pairs: Vec<([f64; 3], [f64; 3])> = from.iter().copied().zip(to.iter().copied()).collect();
+    crate::prealign::fit_pairs(&pairs, scale).unwrap_or(translation_only)
 }
 
 #[cfg(test)]
