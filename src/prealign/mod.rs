@@ -3,13 +3,13 @@
 //! orientation, position and (with scale) unit.
 //!
 //! 1. The placement as given (the identity) is scored first by the robust two-sided distance
-//!    of [`matching`]; when it already lies within [`PLACED`] of the scan's RMS radius, it is
+//!    of `matching`; when it already lies within [`PLACED`] of the scan's RMS radius, it is
 //!    kept and nothing else runs (a scan in the template's frame costs two k-d trees and one
 //!    scoring).
 //! 2. Otherwise the candidates are the 24 rotations between the two principal frames
-//!    ([`axes`]: every axis order and sign), each with the centroids matched and — with scale —
+//!    (`axes`: every axis order and sign), each with the centroids matched and — with scale —
 //!    the RMS radii, plus the identity.
-//! 3. Every candidate is refined by trimmed ICP ([`icp`]) — ranking them before refining
+//! 3. Every candidate is refined by trimmed ICP (`icp`) — ranking them before refining
 //!    misses the right one on folded cloth, whose principal axes are not the flat template's
 //!    (measured on a folded sheet turned 60°: the right basin was not among the 6 best
 //!    unrefined candidates). Of the
