@@ -37,6 +37,7 @@ lint: venv
 	cargo clippy --all-targets --features python,cli -- -D warnings
 	RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --features python,cli --profile $(CARGO_PROFILE)
 	$(VENV)/bin/ruff check python tests $(wildcard bench)
+	$(VENV)/bin/ruff format --check python tests $(wildcard bench)
 
 ## The trimesh cross-checks of the mesh I/O run with the venv's Python.
 rust-test: venv

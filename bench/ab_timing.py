@@ -32,9 +32,7 @@ def total_seconds(binary: str, args: list[str], threads: int | None) -> float:
     env = dict(os.environ)
     if threads:
         env["RAYON_NUM_THREADS"] = str(threads)
-    out = subprocess.run(
-        [binary, *args], check=True, capture_output=True, text=True, env=env
-    ).stdout
+    out = subprocess.run([binary, *args], check=True, capture_output=True, text=True, env=env).stdout
     match = TOTAL.search(out)
     if match is None:
         raise SystemExit(f"{binary}: no 'total ...s' in its output:\n{out}")

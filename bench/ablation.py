@@ -25,8 +25,10 @@ VARIANTS = [
     ("force: plain sum over K", {"summation": "sum"}),
     ("damping: −ηv as a force", {"damping_mode": "force"}),
     ("velocity not synced after update", {"velocity_sync": False}),
-    ("all four literal N-body readings", {"numerator": "literal", "summation": "sum",
-                                          "damping_mode": "force", "velocity_sync": False}),
+    (
+        "all four literal N-body readings",
+        {"numerator": "literal", "summation": "sum", "damping_mode": "force", "velocity_sync": False},
+    ),
     ("Eq. 5: log-Euclidean mean", {"regularization": "log_euclidean"}),
     ("Eq. 5: no regularization", {"regularization": "none"}),
     ("Eq. 8 on the raw Eq. 4 gradient", {"rotation_source": "raw"}),
@@ -38,8 +40,9 @@ VARIANTS = [
 ]
 
 CASES = {
-    "sheet 41×41, 3000-pt scan": dict(nx=41, ny=41, scan_points=3000, rotation_degrees=3.0,
-                                      offset=(0, 0, 0.05)),
+    "sheet 41×41, 3000-pt scan": dict(
+        nx=41, ny=41, scan_points=3000, rotation_degrees=3.0, offset=(0, 0, 0.05)
+    ),
     "sheet 41×41, 8° + offset, noisy": dict(nx=41, ny=41, scan_points=4000, noise=0.002),
 }
 
@@ -51,28 +54,26 @@ def main() -> None:
     rows = []
     for case_name, spec in CASES.items():
         c = fm.folded_sheet(**spec)
-        oracle = fm.evaluate(c["template_vertices"], c["faces"], c["ground_truth"], c["scan"],
-                             c["ground_truth"])
-        ident = fm.evaluate(c["template_vertices"], c["faces"], c["template_vertices"], c["scan"],
-                            c["ground_truth"])
-        rows.append({"case": case_name, "variant": "identity (template as is)", **ident,
-                     "seconds": 0.0})
-        rows.append({"case": case_name, "variant": "oracle (ground truth)", **oracle,
-                     "seconds": 0.0})
+        oracle = fm.evaluate(
+            c["template_vertices"], c["faces"], c["ground_truth"], c["scan"], c["ground_truth"]
+        )
+        ident = fm.evaluate(
+            c["template_vertices"], c["faces"], c["template_vertices"], c["scan"], c["ground_truth"]
+        )
+        rows.append({"case": case_name, "variant": "identity (template as is)", **ident, "seconds": 0.0})
+        rows.append({"case": case_name, "variant": "oracle (ground truth)", **oracle, "seconds": 0.0})
         for name, opts in VARIANTS:
             t = time.perf_counter()
             try:
                 # Each literal reading is measured against the paper preset (the method as
                 # printed, with the converging readings): the fidelity options are off.
                 r = fm.fit(c["template_vertices"], c["faces"], c["scan"], preset="paper", params=opts)
-                m = fm.evaluate(c["template_vertices"], c["faces"], r.vertices, c["scan"],
-                                c["ground_truth"])
+                m = fm.evaluate(c["template_vertices"], c["faces"], r.vertices, c["scan"], c["ground_truth"])
                 if not np.isfinite(r.vertices).all():
                     raise fm.NumericalError("non-finite")
             except fm.NumericalError as e:
                 m = {"error": str(e)}
-            rows.append({"case": case_name, "variant": name, **m,
-                         "seconds": time.perf_counter() - t})
+            rows.append({"case": case_name, "variant": name, **m, "seconds": time.perf_counter() - t})
     out = pathlib.Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(rows, indent=1, default=float))
@@ -86,9 +87,11 @@ def main() -> None:
             if "error" in r:
                 print(f"| {r['variant']} | diverged | | | | | | | |")
                 continue
-            print(f"| {r['variant']} | {r['f_R']:.4f} | {r['f_F']:.3f} | {r['f_S']:.3f} | "
-                  f"{r['f_E']:.3f} | {r['f_H']:.3f} | {r['scan_to_fit_mean']:.4f} | "
-                  f"{r['f_lambda']:.3f} | {r['seconds']:.2f} |")
+            print(
+                f"| {r['variant']} | {r['f_R']:.4f} | {r['f_F']:.3f} | {r['f_S']:.3f} | "
+                f"{r['f_E']:.3f} | {r['f_H']:.3f} | {r['scan_to_fit_mean']:.4f} | "
+                f"{r['f_lambda']:.3f} | {r['seconds']:.2f} |"
+            )
 
 
 if __name__ == "__main__":

@@ -162,8 +162,9 @@ def scan_variant(
         keep = np.ones(len(pts), bool)
         for c in centers:
             keep &= np.linalg.norm(pts - c, axis=1) > 0.08 * diag
-        info.update(noise_sigma_rel=0.002, holes=4, hole_radius_rel=0.08,
-                    removed_fraction=round(1 - keep.mean(), 4))
+        info.update(
+            noise_sigma_rel=0.002, holes=4, hole_radius_rel=0.08, removed_fraction=round(1 - keep.mean(), 4)
+        )
         pts = pts[keep]
     elif variant != "clean":
         raise ValueError(f"unknown scan variant {variant!r}")
@@ -189,8 +190,11 @@ def folded_sheet(n: int, seed: int = 1, **kw: Any) -> tuple[np.ndarray, np.ndarr
     import foldmatch_rs as fm
 
     c = fm.folded_sheet(nx=n, ny=n, seed=seed, **kw)
-    return (np.asarray(c["template_vertices"], float), np.asarray(c["faces"], np.int64),
-            np.asarray(c["ground_truth"], float))
+    return (
+        np.asarray(c["template_vertices"], float),
+        np.asarray(c["faces"], np.int64),
+        np.asarray(c["ground_truth"], float),
+    )
 
 
 def pleated_skirt(
@@ -251,7 +255,7 @@ def folded_shirt(
     faces = [grid_faces(n_theta, n_z, periodic_u=True)]
 
     ph1, ph2 = rng.uniform(0, 2 * np.pi, 2)
-    waist = np.exp(-((s - 0.12) / 0.14) ** 2)  # compression folds low on the torso
+    waist = np.exp(-(((s - 0.12) / 0.14) ** 2))  # compression folds low on the torso
     d_r = 0.012 * waist * np.sin(2 * np.pi * 7 * s + 0.8 * np.cos(th) + ph1)
     diag_fold = 0.008 * np.sin(6 * th + 9 * s + ph2) * np.sin(np.pi * s)  # diagonal drape folds
     scale_r = 1 + (d_r + diag_fold) / np.hypot(a_ax * np.cos(th), b_ax * np.sin(th))
@@ -271,7 +275,7 @@ def folded_shirt(
             [x0 + side * length * tt, radius * np.cos(ph), z0 + radius * np.sin(ph)], -1
         ).reshape(-1, 3)
         # Folded: bend down about the shoulder (angle grows along the sleeve), ring wrinkles.
-        wr = radius * (1 + 0.12 * np.sin(2 * np.pi * 4.5 * tt + 0.6 * np.cos(ph)) * tt ** 0.7)
+        wr = radius * (1 + 0.12 * np.sin(2 * np.pi * 4.5 * tt + 0.6 * np.cos(ph)) * tt**0.7)
         twist = ph + 0.3 * tt
         local = np.stack([length * tt, wr * np.cos(twist), wr * np.sin(twist)], -1)
         bend = np.radians(40.0) * tt  # bend angle at each station
@@ -313,15 +317,18 @@ SHAPES = {
 SCAN_POINTS = {"small": 2000, "paper": 14400}
 
 
-def generated_cases(size: str, variants: tuple[str, ...] = ("clean", "noisy", "holes")
-                    ) -> Iterator[Case]:
+def generated_cases(size: str, variants: tuple[str, ...] = ("clean", "noisy", "holes")) -> Iterator[Case]:
     for shape in ("sheet", "skirt", "shirt"):
         v, f, gt = SHAPES[(shape, size)]()
         for i, variant in enumerate(variants):
             pts, info = scan_variant(gt, f, variant, SCAN_POINTS[size], seed=1000 + i)
             yield Case(
-                name=f"{shape}-{size}-{variant}", group=size, template_vertices=v, faces=f,
-                target=pts, ground_truth=gt,
+                name=f"{shape}-{size}-{variant}",
+                group=size,
+                template_vertices=v,
+                faces=f,
+                target=pts,
+                ground_truth=gt,
                 meta={"source": "generated (bench/cases.py)", "shape": shape, **info},
             )
 
@@ -330,8 +337,16 @@ def quick_case() -> Case:
     """The tiny CI case: a 17 × 17 sheet on 400 noisy resampled points."""
     v, f, gt = folded_sheet(17)
     pts, info = scan_variant(gt, f, "noisy", 400, seed=7)
-    return Case("sheet-tiny-noisy", "quick", v, f, pts, None, gt,
-                {"source": "generated (bench/cases.py)", "shape": "sheet", **info})
+    return Case(
+        "sheet-tiny-noisy",
+        "quick",
+        v,
+        f,
+        pts,
+        None,
+        gt,
+        {"source": "generated (bench/cases.py)", "shape": "sheet", **info},
+    )
 
 
 def sheet_samples(count: int = 24, seed: int = 500) -> Iterator[Case]:
@@ -341,15 +356,31 @@ def sheet_samples(count: int = 24, seed: int = 500) -> Iterator[Case]:
     rng = np.random.default_rng(seed)
     for i in range(count):
         v, f, gt = folded_sheet(
-            41, seed=int(seed + i), fold_amplitude=float(rng.uniform(0.03, 0.10)),
-            folds=float(rng.uniform(1.5, 4.0)), rotation_degrees=float(rng.uniform(0, 20)),
+            41,
+            seed=int(seed + i),
+            fold_amplitude=float(rng.uniform(0.03, 0.10)),
+            folds=float(rng.uniform(1.5, 4.0)),
+            rotation_degrees=float(rng.uniform(0, 20)),
             offset=tuple(float(x) for x in rng.uniform(-0.05, 0.05, 3)),
         )
         pts = sample_surface(gt, f, 2000, rng)
         pts = pts + rng.normal(scale=0.002 * bbox_diagonal(gt), size=pts.shape)
-        yield Case(f"sheet-sample-{i:02d}", "samples-sheet", v, f, pts, None, gt,
-                   {"source": "generated (bench/cases.py)", "shape": "sheet",
-                    "variant": "noisy", "noise_sigma_rel": 0.002, "resampled_points": 2000})
+        yield Case(
+            f"sheet-sample-{i:02d}",
+            "samples-sheet",
+            v,
+            f,
+            pts,
+            None,
+            gt,
+            {
+                "source": "generated (bench/cases.py)",
+                "shape": "sheet",
+                "variant": "noisy",
+                "noise_sigma_rel": 0.002,
+                "resampled_points": 2000,
+            },
+        )
 
 
 # ---- real data (../shared/data) ------------------------------------------------------------
@@ -365,7 +396,12 @@ def load_mesh(path: pathlib.Path) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _real_pair(
-    name: str, group: str, tpl: pathlib.Path, tgt: pathlib.Path, seed: int, kinds: tuple[str, ...],
+    name: str,
+    group: str,
+    tpl: pathlib.Path,
+    tgt: pathlib.Path,
+    seed: int,
+    kinds: tuple[str, ...],
     points: int = REAL_POINTS,
 ) -> Iterator[Case]:
     tv, tf = load_mesh(tpl)
@@ -378,44 +414,83 @@ def _real_pair(
         "up": 1,  # every real source is y-up (SMPL, Maya, DiffCloth)
         "source": f"../shared/data/{tgt.relative_to(SHARED_DATA)}",
         "template": f"../shared/data/{tpl.relative_to(SHARED_DATA)}",
-        "prealign": {"scale": round(s, 4),
-                     "rotation_deg": round(float(np.degrees(np.arccos(
-                         np.clip((np.trace(r) - 1) / 2, -1, 1)))), 1)},
+        "prealign": {
+            "scale": round(s, 4),
+            "rotation_deg": round(float(np.degrees(np.arccos(np.clip((np.trace(r) - 1) / 2, -1, 1)))), 1),
+        },
     }
     if "mesh" in kinds:
-        yield Case(f"{name}-mesh", group, placed, tf, gv, gf, gv,
-                   {**meta, "variant": "mesh target (vertices + faces)"})
+        yield Case(
+            f"{name}-mesh",
+            group,
+            placed,
+            tf,
+            gv,
+            gf,
+            gv,
+            {**meta, "variant": "mesh target (vertices + faces)"},
+        )
     if "points" in kinds:
         rng = np.random.default_rng(seed)
         pts = sample_surface(gv, gf, points, rng)
         pts = pts + rng.normal(scale=REAL_NOISE * bbox_diagonal(gv), size=pts.shape)
-        yield Case(f"{name}-pts", group, placed, tf, pts, None, gv,
-                   {**meta, "variant": f"{points} resampled points, noise "
-                    f"{REAL_NOISE * 100:.1f}% of diagonal", "resampled_points": points,
-                    "noise_sigma_rel": REAL_NOISE})
+        yield Case(
+            f"{name}-pts",
+            group,
+            placed,
+            tf,
+            pts,
+            None,
+            gv,
+            {
+                **meta,
+                "variant": f"{points} resampled points, noise {REAL_NOISE * 100:.1f}% of diagonal",
+                "resampled_points": points,
+                "noise_sigma_rel": REAL_NOISE,
+            },
+        )
 
 
-def real_cases(kinds: tuple[str, ...] = ("mesh", "points"), points: int = REAL_POINTS
-               ) -> Iterator[Case]:
+def real_cases(kinds: tuple[str, ...] = ("mesh", "points"), points: int = REAL_POINTS) -> Iterator[Case]:
     """The garments of ../shared/data with ground truth (arcsim T-shirt template → its 3
     wrinkled frames; the 2 skirt pairs; the T-shirt folding states from the rest shape;
     wind-sequence frames 50, 150, 250 from frame 0); `points`: the point-cloud variants' size."""
     d = SHARED_DATA
     a = d / "arcsim_smpl_vto_tshirt"
     for i, fr in enumerate(("0000", "0200", "arm")):
-        yield from _real_pair(f"vto-tshirt-{fr}", "real", a / "vto_tshirt.obj",
-                              a / f"{fr}_garment.obj", 10 + i, kinds, points)
+        yield from _real_pair(
+            f"vto-tshirt-{fr}", "real", a / "vto_tshirt.obj", a / f"{fr}_garment.obj", 10 + i, kinds, points
+        )
     g = d / "garment_pattern_generator"
-    yield from _real_pair("skirt-penetrate", "real",
-                          g / "skirt_pair_basic_vs_penetrate/skirt_maya_coords_sim.obj",
-                          g / "skirt_pair_basic_vs_penetrate/skirt_maya_penetrate_sim.obj",
-                          20, kinds, points)
-    yield from _real_pair("skirt-small", "real", g / "skirt_pair_too_small/midway.obj",
-                          g / "skirt_pair_too_small/skirt_maya_coords_small_sim.obj", 21, kinds, points)
+    yield from _real_pair(
+        "skirt-penetrate",
+        "real",
+        g / "skirt_pair_basic_vs_penetrate/skirt_maya_coords_sim.obj",
+        g / "skirt_pair_basic_vs_penetrate/skirt_maya_penetrate_sim.obj",
+        20,
+        kinds,
+        points,
+    )
+    yield from _real_pair(
+        "skirt-small",
+        "real",
+        g / "skirt_pair_too_small/midway.obj",
+        g / "skirt_pair_too_small/skirt_maya_coords_small_sim.obj",
+        21,
+        kinds,
+        points,
+    )
     f = d / "diffcloth/tshirt1900_folding"
     for i, st in enumerate(("flattened", "folding-biFolded", "folding-triFolded")):
-        yield from _real_pair(f"tshirt-{st.replace('folding-', '')}", "real",
-                              f / "tshirt1900.obj", f / f"tshirt1900-{st}.obj", 30 + i, kinds, points)
+        yield from _real_pair(
+            f"tshirt-{st.replace('folding-', '')}",
+            "real",
+            f / "tshirt1900.obj",
+            f / f"tshirt1900-{st}.obj",
+            30 + i,
+            kinds,
+            points,
+        )
     w = d / "diffcloth/tshirt1000_wind_sim/iter0"
     for i, fr in enumerate((50, 150, 250)):
         yield from _real_pair(f"wind-{fr}", "real", w / "0.obj", w / f"{fr}.obj", 40 + i, kinds, points)
@@ -427,9 +502,14 @@ def wind_samples() -> Iterator[Case]:
     base = SHARED_DATA / "diffcloth/tshirt1000_wind_sim"
     for run, frames in (("iter0", range(10, 251, 10)), ("iter17", range(50, 251, 50))):
         for fr in frames:
-            yield from _real_pair(f"wind-{run}-{fr:03d}", "samples-wind", base / run / "0.obj",
-                                  base / run / f"{fr}.obj", 1000 + fr + (7 if run == "iter17" else 0),
-                                  ("points",))
+            yield from _real_pair(
+                f"wind-{run}-{fr:03d}",
+                "samples-wind",
+                base / run / "0.obj",
+                base / run / f"{fr}.obj",
+                1000 + fr + (7 if run == "iter17" else 0),
+                ("points",),
+            )
 
 
 def real_data_missing() -> str | None:

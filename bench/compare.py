@@ -41,21 +41,34 @@ HERE = pathlib.Path(__file__).resolve().parent
 
 REPO = HERE.parent
 GROUPS = ["small", "paper", "real", "samples", "figures"]
-QUICK_METHODS = ["foldmatch", "foldmatch_paper", "nrga", "cpd_pycpd", "cpd_rustcpd",
-                 "cpd_probreg", "bcpd_probreg", "nricp_amberg", "nricp_sumner"]
+QUICK_METHODS = [
+    "foldmatch",
+    "foldmatch_paper",
+    "nrga",
+    "cpd_pycpd",
+    "cpd_rustcpd",
+    "cpd_probreg",
+    "bcpd_probreg",
+    "nricp_amberg",
+    "nricp_sumner",
+]
 GROUP_TITLES = {
     "quick": "CI case (17 × 17 sheet, 400 noisy points)",
-    "small": "Generated cases, small (≈1.6K template vertices, 2K scan points; "
-             "clean / noisy / holes)",
-    "paper": "Generated cases, paper size (≈13K template vertices, 14.4K scan points; "
-             "noisy / holes)",
+    "small": "Generated cases, small (≈1.6K template vertices, 2K scan points; clean / noisy / holes)",
+    "paper": "Generated cases, paper size (≈13K template vertices, 14.4K scan points; noisy / holes)",
     "real": "Real garments (../shared/data), mesh and point-cloud targets",
     "samples-sheet": "24 random folded sheets (box plots, Fig. 6 analogue)",
     "samples-wind": "30 wind-sequence frames, point-cloud targets (box plots)",
 }
 TRACE_CASES = ["vto-tshirt-0000-pts", "vto-tshirt-arm-pts"]
-OVERLAY_CASES = ["shirt-small-noisy", "skirt-small-holes", "sheet-paper-noisy",
-                 "vto-tshirt-0000-pts", "tshirt-biFolded-pts", "skirt-penetrate-pts"]
+OVERLAY_CASES = [
+    "shirt-small-noisy",
+    "skirt-small-holes",
+    "sheet-paper-noisy",
+    "vto-tshirt-0000-pts",
+    "tshirt-biFolded-pts",
+    "skirt-penetrate-pts",
+]
 
 
 def build_cases(group: str) -> tuple[list[cases_mod.Case], list[str]]:
@@ -107,19 +120,30 @@ def save_json(path: pathlib.Path, data: Any) -> None:
 # ---- figures --------------------------------------------------------------------------------
 
 
-def make_figures(runner: harness.Runner, results: dict, methods: list[str], figdir: pathlib.Path
-                 ) -> list[tuple[str, str]]:
+def make_figures(
+    runner: harness.Runner, results: dict, methods: list[str], figdir: pathlib.Path
+) -> list[tuple[str, str]]:
     from bench import figures
 
     made: list[tuple[str, str]] = []
     groups = results["groups"]
-    for g, fname in (("samples-sheet", "fig6_boxplots_sheets.png"),
-                     ("samples-wind", "fig6_boxplots_wind.png")):
+    for g, fname in (
+        ("samples-sheet", "fig6_boxplots_sheets.png"),
+        ("samples-wind", "fig6_boxplots_wind.png"),
+    ):
         if groups.get(g):
-            p = figures.boxplots(groups[g], methods, figdir / fname,
-                                 f"{GROUP_TITLES[g]}: every metric per method")
-            made.append((fname, (f"Box plots of every metric per method over the "
-                                f"{len(groups[g])} cases of '{g}' (paper Fig. 6).")))
+            p = figures.boxplots(
+                groups[g], methods, figdir / fname, f"{GROUP_TITLES[g]}: every metric per method"
+            )
+            made.append(
+                (
+                    fname,
+                    (
+                        f"Box plots of every metric per method over the "
+                        f"{len(groups[g])} cases of '{g}' (paper Fig. 6)."
+                    ),
+                )
+            )
             log(f"figure {p}")
     if cases_mod.real_data_missing() is None:
         real = {c.name: c for c in cases_mod.real_cases()}
@@ -131,10 +155,14 @@ def make_figures(runner: harness.Runner, results: dict, methods: list[str], figd
 
     # Fig. 4: f_λ (and f_R) per iteration, one template fitted to two scans.
     curves: dict[str, dict] = {}
-    trace_methods = {"foldmatch": {"iterations": 200}, "foldmatch_paper": {"iterations": 200},
-                     "nrga": {"iterations": 200},
-                     "cpd_rustcpd": {"maxiter": 200, "tol": 0.0},
-                     "nricp_amberg": {}, "nricp_sumner": {}}
+    trace_methods = {
+        "foldmatch": {"iterations": 200},
+        "foldmatch_paper": {"iterations": 200},
+        "nrga": {"iterations": 200},
+        "cpd_rustcpd": {"maxiter": 200, "tol": 0.0},
+        "nricp_amberg": {},
+        "nricp_sumner": {},
+    }
     for cname in TRACE_CASES:
         case = allc.get(cname)
         if case is None:
@@ -150,19 +178,26 @@ def make_figures(runner: harness.Runner, results: dict, methods: list[str], figd
                 log(f"  trace {cname} {m}: {row.get('status')} {row.get('reason') or row.get('error')}")
                 continue
             ev = [harness.evaluate(arrays, np.asarray(t, dtype=np.float64)) for t in tr]
-            curves[cname][m] = {"f_lambda": [e["f_lambda"] for e in ev],
-                                "f_R": [e["f_R"] for e in ev]}
-            log(f"  trace {cname} {m}: {len(tr) - 1} iterations, final f_lambda "
-                f"{ev[-1]['f_lambda']:.4f}")
+            curves[cname][m] = {"f_lambda": [e["f_lambda"] for e in ev], "f_R": [e["f_R"] for e in ev]}
+            log(f"  trace {cname} {m}: {len(tr) - 1} iterations, final f_lambda {ev[-1]['f_lambda']:.4f}")
         o = harness.evaluate(arrays, case.ground_truth)
         curves[cname]["oracle"] = {"f_lambda": [o["f_lambda"]], "f_R": [o["f_R"]]}
     if any(len(v) > 1 for v in curves.values()):
-        figures.traces(curves, figdir / "fig4_flambda_per_iteration.png",
-                       "One smooth T-shirt template fitted to two wrinkled frames "
-                       "(5K noisy points): f_λ and f_R per iteration")
-        made.append(("fig4_flambda_per_iteration.png",
-                     ("f_λ (top) and f_R (bottom) per iteration (paper Fig. 4); FoldMatch and "
-                     "NRGa 200 iterations, CPD (rustcpd) 200 EM iterations, NRICP per solve.")))
+        figures.traces(
+            curves,
+            figdir / "fig4_flambda_per_iteration.png",
+            "One smooth T-shirt template fitted to two wrinkled frames "
+            "(5K noisy points): f_λ and f_R per iteration",
+        )
+        made.append(
+            (
+                "fig4_flambda_per_iteration.png",
+                (
+                    "f_λ (top) and f_R (bottom) per iteration (paper Fig. 4); FoldMatch and "
+                    "NRGa 200 iterations, CPD (rustcpd) 200 EM iterations, NRICP per solve."
+                ),
+            )
+        )
         results["traces"] = curves
         log("figure fig4")
 
@@ -175,25 +210,52 @@ def make_figures(runner: harness.Runner, results: dict, methods: list[str], figd
         ringstats = {}
         arrays = harness.case_arrays(case)
         for n in (1, 2, 3, 4):
-            r = fm.fit(case.template_vertices, case.faces, case.target,
-                       target_faces=case.target_faces, rings=n)
+            r = fm.fit(
+                case.template_vertices, case.faces, case.target, target_faces=case.target_faces, rings=n
+            )
             fits[n] = (r.vertices, case.faces, r.wvf_accumulated_magnitude)
             e = harness.evaluate(arrays, r.vertices)
-            ringstats[n] = {"f_R": e["f_R"], "f_lambda": e["f_lambda"], "f_F": e["f_F"],
-                            "wvf_acc_mag_p5_p95": np.percentile(
-                                r.wvf_accumulated_magnitude, [5, 95]).tolist()}
-        figures.rings(case.target, case.target_faces, fits, figdir / "fig5_wvf_rings.png",
-                      f"FoldMatch on {case.name}: accumulated wrinkle-field magnitude, "
-                      f"1- to 4-ring template neighborhoods", up=case.meta.get("up", 2))
+            ringstats[n] = {
+                "f_R": e["f_R"],
+                "f_lambda": e["f_lambda"],
+                "f_F": e["f_F"],
+                "wvf_acc_mag_p5_p95": np.percentile(r.wvf_accumulated_magnitude, [5, 95]).tolist(),
+            }
+        figures.rings(
+            case.target,
+            case.target_faces,
+            fits,
+            figdir / "fig5_wvf_rings.png",
+            f"FoldMatch on {case.name}: accumulated wrinkle-field magnitude, "
+            f"1- to 4-ring template neighborhoods",
+            up=case.meta.get("up", 2),
+        )
         results["rings"] = {"case": case.name, "stats": ringstats}
-        made.append(("fig5_wvf_rings.png",
-                     (f"Accumulated WVF magnitude on the fitted mesh of {case.name} for 1-, 2-, "
-                     f"3- and 4-ring neighborhoods (paper Fig. 5), shared color scale.")))
+        made.append(
+            (
+                "fig5_wvf_rings.png",
+                (
+                    f"Accumulated WVF magnitude on the fitted mesh of {case.name} for 1-, 2-, "
+                    f"3- and 4-ring neighborhoods (paper Fig. 5), shared color scale."
+                ),
+            )
+        )
         log("figure fig5")
 
     # Before/after overlays.
-    show = [m for m in ("foldmatch", "foldmatch_paper", "nrga", "cpd_rustcpd", "cpd_pycpd",
-                        "nricp_amberg", "nricp_sumner") if m in methods]
+    show = [
+        m
+        for m in (
+            "foldmatch",
+            "foldmatch_paper",
+            "nrga",
+            "cpd_rustcpd",
+            "cpd_pycpd",
+            "nricp_amberg",
+            "nricp_sumner",
+        )
+        if m in methods
+    ]
     for cname in OVERLAY_CASES:
         case = allc.get(cname)
         if case is None:
@@ -211,8 +273,15 @@ def make_figures(runner: harness.Runner, results: dict, methods: list[str], figd
         if fits:
             fname = f"overlay_{cname}.png"
             figures.overlay(case, fits, stats, figdir / fname, up=case.meta.get("up", 2))
-            made.append((fname, (f"Before/after on {cname}: template and scan points, the "
-                                f"truth, and each fit colored by its distance to the truth.")))
+            made.append(
+                (
+                    fname,
+                    (
+                        f"Before/after on {cname}: template and scan points, the "
+                        f"truth, and each fit colored by its distance to the truth."
+                    ),
+                )
+            )
             log(f"figure {fname}")
     return made
 
@@ -227,34 +296,53 @@ text around them is written by hand.
 """
 
 
-def render_report(results: dict, methods: list[str], status: dict, command: str,
-                  figures_made: list[tuple[str, str]], figrel: str) -> dict[str, str]:
+def render_report(
+    results: dict,
+    methods: list[str],
+    status: dict,
+    command: str,
+    figures_made: list[tuple[str, str]],
+    figrel: str,
+) -> dict[str, str]:
     blocks: dict[str, str] = {}
     v = results.get("versions", {})
     mach = results.get("machine", {})
-    blocks["header"] = "\n".join([
-        f"Generated {results.get('date', '?')} by `{command}`.",
-        "",
-        (f"- Machine: {mach.get('Model name', '?')}, {mach.get('CPU(s)', mach.get('cpus'))} "
-        f"CPUs ({mach.get('Hypervisor vendor', 'bare metal')} VM), "
-        f"{mach.get('memory_gib', '?')} GiB RAM, {mach.get('platform', '')}; load average at "
-        f"start {', '.join(f'{x:.1f}' for x in mach.get('loadavg_at_start', []))} "
-        f"(the machine is shared: wall times are indicative, ±30 %)."),
-        "- Versions: " + ", ".join(f"{k} {val}" for k, val in v.items()) + ".",
-        f"- Code: {results.get('code', '?')}.",
-        "- FoldMatch parameters (`fm.DEFAULT_PARAMS`): `"
-        + json.dumps(results.get("foldmatch_defaults", {})) + "`.",
-        "- FoldMatch (paper preset) parameters (`fm.PAPER_PARAMS`): `"
-        + json.dumps(results.get("foldmatch_paper_params", {})) + "`.",
-    ])
+    blocks["header"] = "\n".join(
+        [
+            f"Generated {results.get('date', '?')} by `{command}`.",
+            "",
+            (
+                f"- Machine: {mach.get('Model name', '?')}, {mach.get('CPU(s)', mach.get('cpus'))} "
+                f"CPUs ({mach.get('Hypervisor vendor', 'bare metal')} VM), "
+                f"{mach.get('memory_gib', '?')} GiB RAM, {mach.get('platform', '')}; load average at "
+                f"start {', '.join(f'{x:.1f}' for x in mach.get('loadavg_at_start', []))} "
+                f"(the machine is shared: wall times are indicative, ±30 %)."
+            ),
+            "- Versions: " + ", ".join(f"{k} {val}" for k, val in v.items()) + ".",
+            f"- Code: {results.get('code', '?')}.",
+            "- FoldMatch parameters (`fm.DEFAULT_PARAMS`): `"
+            + json.dumps(results.get("foldmatch_defaults", {}))
+            + "`.",
+            "- FoldMatch (paper preset) parameters (`fm.PAPER_PARAMS`): `"
+            + json.dumps(results.get("foldmatch_paper_params", {}))
+            + "`.",
+        ]
+    )
     rows = []
     for m in methods:
         spec = peers.METHODS[m]
         st = status.get(m)
-        rows.append([spec["label"], "skipped: " + st if st else "run",
-                     "`" + json.dumps(spec["params"]).replace("|", "/") + "`", spec["note"]])
-    blocks["methods"] = report.table(["method", "status here", "parameters", "notes"], rows,
-                                     ["l", "l", "l", "l"])
+        rows.append(
+            [
+                spec["label"],
+                "skipped: " + st if st else "run",
+                "`" + json.dumps(spec["params"]).replace("|", "/") + "`",
+                spec["note"],
+            ]
+        )
+    blocks["methods"] = report.table(
+        ["method", "status here", "parameters", "notes"], rows, ["l", "l", "l", "l"]
+    )
     groups = results["groups"]
     order = ["quick", "small", "paper", "real", "samples-sheet", "samples-wind"]
     summ, per_case = [], []
@@ -262,21 +350,39 @@ def render_report(results: dict, methods: list[str], status: dict, command: str,
         recs = groups.get(g)
         if not recs:
             continue
-        summ += [f"### {GROUP_TITLES.get(g, g)}", "",
-                 ("Medians over the cases (peak RSS: maximum); ratios are medians of per-case "
-                 "ratios to FoldMatch."), "", report.summary_table(recs, methods), "",
-                 report.wins_table(recs, methods), ""]
+        summ += [
+            f"### {GROUP_TITLES.get(g, g)}",
+            "",
+            (
+                "Medians over the cases (peak RSS: maximum); ratios are medians of per-case "
+                "ratios to FoldMatch."
+            ),
+            "",
+            report.summary_table(recs, methods),
+            "",
+            report.wins_table(recs, methods),
+            "",
+        ]
         if g.startswith("samples"):
             continue
         per_case += [f"### {GROUP_TITLES.get(g, g)}", ""]
         for rec in recs:
             meta = rec.get("meta", {})
-            desc = ", ".join(f"{k}={val}" for k, val in meta.items()
-                             if k not in ("source", "up"))
-            per_case += [(f"<details><summary><b>{rec['name']}</b> — M={rec['template_vertices']},"
-                         f" N={rec['target_points']}{' (mesh target)' if rec['target_is_mesh'] else ''}"
-                         f"</summary>"), "", f"Source: {meta.get('source', '?')}; {desc}", "",
-                         report.case_table(rec, methods), "", "</details>", ""]
+            desc = ", ".join(f"{k}={val}" for k, val in meta.items() if k not in ("source", "up"))
+            per_case += [
+                (
+                    f"<details><summary><b>{rec['name']}</b> — M={rec['template_vertices']},"
+                    f" N={rec['target_points']}{' (mesh target)' if rec['target_is_mesh'] else ''}"
+                    f"</summary>"
+                ),
+                "",
+                f"Source: {meta.get('source', '?')}; {desc}",
+                "",
+                report.case_table(rec, methods),
+                "",
+                "</details>",
+                "",
+            ]
     notes = results.get("notes", {})
     if notes:
         summ += ["Notes: " + "; ".join(f"{k}: {'; '.join(n)}" for k, n in notes.items() if n)]
@@ -285,14 +391,18 @@ def render_report(results: dict, methods: list[str], status: dict, command: str,
     q = []
     for g in ("samples-sheet", "samples-wind"):
         if groups.get(g):
-            q += [(f"**{GROUP_TITLES[g]}**: third quartile (Q3) of every metric over the "
-                  f"samples; ratios are to FoldMatch's Q3 (f_λ, f_R) and maximum (f_λ)."), "",
-                  report.quantile_table(groups[g], methods,
-                                        ["f_H", "f_S", "f_E", "f_F", "f_R", "f_lambda"]), ""]
+            q += [
+                (
+                    f"**{GROUP_TITLES[g]}**: third quartile (Q3) of every metric over the "
+                    f"samples; ratios are to FoldMatch's Q3 (f_λ, f_R) and maximum (f_λ)."
+                ),
+                "",
+                report.quantile_table(groups[g], methods, ["f_H", "f_S", "f_E", "f_F", "f_R", "f_lambda"]),
+                "",
+            ]
     blocks["paper-claims"] = "\n".join(q) if q else "_samples not run yet_"
     if figures_made:
-        blocks["figures"] = "\n\n".join(f"![{n}]({figrel}/{n})\n\n*{cap}*"
-                                        for n, cap in figures_made)
+        blocks["figures"] = "\n\n".join(f"![{n}]({figrel}/{n})\n\n*{cap}*" for n, cap in figures_made)
     return blocks
 
 
@@ -307,22 +417,37 @@ def print_summary(results: dict, methods: list[str]) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--cases", default="small",
-                    help="comma-separated groups: quick, small, paper, real, samples, figures, "
-                         "all (default: small)")
-    ap.add_argument("--methods", default=",".join(peers.ALL_METHODS),
-                    help=f"comma-separated, from {', '.join(peers.ALL_METHODS)}")
+    ap = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    ap.add_argument(
+        "--cases",
+        default="small",
+        help="comma-separated groups: quick, small, paper, real, samples, figures, all (default: small)",
+    )
+    ap.add_argument(
+        "--methods",
+        default=",".join(peers.ALL_METHODS),
+        help=f"comma-separated, from {', '.join(peers.ALL_METHODS)}",
+    )
     ap.add_argument("--out", default=str(HERE / "out"), help="JSON and run cache (bench/out)")
-    ap.add_argument("--quick", action="store_true",
-                    help="the CI case: a tiny sheet, every method that imports; report and JSON "
-                         "under --out, docs/ untouched")
-    ap.add_argument("--report", default=None,
-                    help="Markdown report to update (default docs/notes/comparison-full-run.md; with --quick "
-                         "OUT/results.md)")
-    ap.add_argument("--figures-dir", default=None,
-                    help="where figures go (default docs/figures; with --quick OUT/figures)")
+    ap.add_argument(
+        "--quick",
+        action="store_true",
+        help="the CI case: a tiny sheet, every method that imports; report and JSON "
+        "under --out, docs/ untouched",
+    )
+    ap.add_argument(
+        "--report",
+        default=None,
+        help="Markdown report to update (default docs/notes/comparison-full-run.md; with --quick "
+        "OUT/results.md)",
+    )
+    ap.add_argument(
+        "--figures-dir",
+        default=None,
+        help="where figures go (default docs/figures; with --quick OUT/figures)",
+    )
     ap.add_argument("--no-report", action="store_true", help="only the JSON")
     ap.add_argument("--force", action="store_true", help="rerun cached runs")
     ap.add_argument("--timeout", type=float, default=1800, help="per run, seconds (1800)")
@@ -339,15 +464,24 @@ def main(argv: list[str] | None = None) -> int:
     for g in groups:
         if g not in GROUPS + ["quick"]:
             ap.error(f"unknown case group {g!r}")
-    methods = ([m.strip() for m in args.methods.split(",")]
-               if args.methods != ",".join(peers.ALL_METHODS) else default_methods)
+    methods = (
+        [m.strip() for m in args.methods.split(",")]
+        if args.methods != ",".join(peers.ALL_METHODS)
+        else default_methods
+    )
     for m in methods:
         if m not in peers.METHODS:
             ap.error(f"unknown method {m!r} (known: {', '.join(peers.METHODS)})")
-    report_path = pathlib.Path(args.report) if args.report else (
-        out / "results.md" if args.quick else REPO / "docs" / "notes" / "comparison-full-run.md")
-    figdir = pathlib.Path(args.figures_dir) if args.figures_dir else (
-        out / "figures" if args.quick else REPO / "docs" / "figures")
+    report_path = (
+        pathlib.Path(args.report)
+        if args.report
+        else (out / "results.md" if args.quick else REPO / "docs" / "notes" / "comparison-full-run.md")
+    )
+    figdir = (
+        pathlib.Path(args.figures_dir)
+        if args.figures_dir
+        else (out / "figures" if args.quick else REPO / "docs" / "figures")
+    )
 
     import foldmatch_rs as fm
 
@@ -359,14 +493,21 @@ def main(argv: list[str] | None = None) -> int:
     results = load_results(results_path)
     results.update(
         date=datetime.datetime.now().isoformat(timespec="seconds"),
-        machine=harness.machine(), versions=peers.versions(),
+        machine=harness.machine(),
+        versions=peers.versions(),
         foldmatch_defaults=fm.DEFAULT_PARAMS,
         foldmatch_paper_params=getattr(fm, "PAPER_PARAMS", None),
         code=harness.code_version(),
-        methods={m: {"label": peers.METHODS[m]["label"], "params": peers.METHODS[m]["params"],
-                     "note": peers.METHODS[m]["note"],
-                     "status": "skipped" if status.get(m) else "available",
-                     "reason": status.get(m)} for m in methods},
+        methods={
+            m: {
+                "label": peers.METHODS[m]["label"],
+                "params": peers.METHODS[m]["params"],
+                "note": peers.METHODS[m]["note"],
+                "status": "skipped" if status.get(m) else "available",
+                "reason": status.get(m),
+            }
+            for m in methods
+        },
         mesh_targets_for_nricp=status.get("_rtree") or "available",
     )
     runner = harness.Runner(out, timeout=args.timeout, force=args.force, status=status)

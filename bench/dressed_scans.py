@@ -67,13 +67,13 @@ OUT = HERE / "out" / "dressed"
 
 #: Scanner settings, in metres (converted with each source's units).
 SCANNER = {
-    "rings": 3,             # camera heights
-    "azimuths": 8,          # cameras per height
-    "radius": 2.0,          # horizontal distance of the cameras from the body's vertical axis
+    "rings": 3,  # camera heights
+    "azimuths": 8,  # cameras per height
+    "radius": 2.0,  # horizontal distance of the cameras from the body's vertical axis
     "heights": (-0.75, 0.0, 0.7),  # camera heights relative to the body's bbox centre
-    "pixel": 0.0035,        # pixel footprint at the body's centre
-    "voxel": 0.006,         # fusion grid: one point per voxel
-    "noise": 0.0015,        # σ of the Gaussian noise, per coordinate
+    "pixel": 0.0035,  # pixel footprint at the body's centre
+    "voxel": 0.006,  # fusion grid: one point per voxel
+    "noise": 0.0015,  # σ of the Gaussian noise, per coordinate
     "holes": 2,
     "hole_radius": 0.06,
 }
@@ -82,8 +82,7 @@ VERSION = 3
 
 TUNE = ("tshirt-0000", "tshirt-arm", "skirt-penetrate")
 HELD_OUT = ("tshirt-0200", "skirt-small", "two-garment")
-SOURCES = ("tshirt-0000", "tshirt-0200", "tshirt-arm", "skirt-penetrate", "skirt-small",
-           "two-garment")
+SOURCES = ("tshirt-0000", "tshirt-0200", "tshirt-arm", "skirt-penetrate", "skirt-small", "two-garment")
 
 
 # ---- geometry ---------------------------------------------------------------------------------
@@ -104,8 +103,9 @@ def vertex_normals(v: np.ndarray, f: np.ndarray) -> np.ndarray:
     return out / (np.linalg.norm(out, axis=1, keepdims=True) + 1e-300)
 
 
-def closest_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray
-                         ) -> tuple[np.ndarray, np.ndarray]:
+def closest_on_triangles(
+    p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Closest points of triangles ``(a, b, c)`` to points ``p`` (row-wise; Ericson,
     Real-Time Collision Detection 5.1.5): the points and their barycentrics ``(u, v, w)``."""
     ab, ac, ap = b - a, c - a, p - a
@@ -143,8 +143,9 @@ def closest_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndar
     return q, bary
 
 
-def closest_on_mesh(points: np.ndarray, v: np.ndarray, f: np.ndarray, k: int = 24
-                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def closest_on_mesh(
+    points: np.ndarray, v: np.ndarray, f: np.ndarray, k: int = 24
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Closest point of the mesh ``(v, f)`` to each point, among the ``k`` triangles with the
     nearest centroids: (triangle index, barycentrics, closest point)."""
     from scipy.spatial import cKDTree
@@ -160,20 +161,18 @@ def closest_on_mesh(points: np.ndarray, v: np.ndarray, f: np.ndarray, k: int = 2
     return tri[rows], bary[rows], q[rows]
 
 
-def winding_numbers(points: np.ndarray, v: np.ndarray, f: np.ndarray, chunk: int = 128
-                    ) -> np.ndarray:
+def winding_numbers(points: np.ndarray, v: np.ndarray, f: np.ndarray, chunk: int = 128) -> np.ndarray:
     """Generalized winding number of a closed mesh at each point (≈1 inside, ≈0 outside;
     van Oosterom & Strackee's solid angle)."""
     out = np.empty(len(points))
     a0, b0, c0 = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
     for s in range(0, len(points), chunk):
-        p = points[s:s + chunk, None, :]
+        p = points[s : s + chunk, None, :]
         a, b, c = a0 - p, b0 - p, c0 - p
         la, lb, lc = (np.linalg.norm(x, axis=-1) for x in (a, b, c))
         det = (a * np.cross(b, c)).sum(-1)
-        den = (la * lb * lc + (a * b).sum(-1) * lc + (b * c).sum(-1) * la
-               + (c * a).sum(-1) * lb)
-        out[s:s + chunk] = np.arctan2(det, den).sum(1) / (2 * np.pi)
+        den = la * lb * lc + (a * b).sum(-1) * lc + (b * c).sum(-1) * la + (c * a).sum(-1) * lb
+        out[s : s + chunk] = np.arctan2(det, den).sum(1) / (2 * np.pi)
     return out
 
 
@@ -195,8 +194,9 @@ def components(n_vertices: int, f: np.ndarray) -> np.ndarray:
 # ---- the scanner ------------------------------------------------------------------------------
 
 
-def cameras(center: np.ndarray, up: int, units: float, rng: np.random.Generator,
-            settings: dict[str, Any] = SCANNER) -> list[tuple[np.ndarray, np.ndarray]]:
+def cameras(
+    center: np.ndarray, up: int, units: float, rng: np.random.Generator, settings: dict[str, Any] = SCANNER
+) -> list[tuple[np.ndarray, np.ndarray]]:
     """(position, look-at point) of every camera: ``rings`` heights × ``azimuths`` around the
     ``up`` axis, each ring staggered by half a step, the rig turned by a random angle and each
     camera jittered by a few centimetres (``rng``)."""
@@ -215,8 +215,9 @@ def cameras(center: np.ndarray, up: int, units: float, rng: np.random.Generator,
     return out
 
 
-def render_view(v: np.ndarray, f: np.ndarray, eye: np.ndarray, look: np.ndarray, up: int,
-                pixel: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def render_view(
+    v: np.ndarray, f: np.ndarray, eye: np.ndarray, look: np.ndarray, up: int, pixel: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """One pinhole camera at ``eye`` looking at ``look``; ``pixel``: the pixel footprint at
     the look-at distance. Returns, per pixel that sees the mesh, the first surface hit (world
     coordinates), the triangle hit and the pixel's (row, column)."""
@@ -275,13 +276,18 @@ def render_view(v: np.ndarray, f: np.ndarray, eye: np.ndarray, look: np.ndarray,
 
 @dataclass
 class Scan:
-    points: np.ndarray          # (N, 3)
-    labels: np.ndarray          # (N,) 0 = body, k = garment k
+    points: np.ndarray  # (N, 3)
+    labels: np.ndarray  # (N,) 0 = body, k = garment k
     info: dict[str, Any] = field(default_factory=dict)
 
 
-def scan(meshes: list[tuple[np.ndarray, np.ndarray, int]], units: float, seed: int, up: int = 1,
-         settings: dict[str, Any] = SCANNER) -> Scan:
+def scan(
+    meshes: list[tuple[np.ndarray, np.ndarray, int]],
+    units: float,
+    seed: int,
+    up: int = 1,
+    settings: dict[str, Any] = SCANNER,
+) -> Scan:
     """What the scanner sees of the labelled meshes ``(vertices, faces, label)`` (label 0 = the
     body): see the module's docstring. ``units``: source units per metre."""
     rng = np.random.default_rng(seed)
@@ -313,25 +319,35 @@ def scan(meshes: list[tuple[np.ndarray, np.ndarray, int]], units: float, seed: i
     keep = np.ones(len(p), bool)
     for c in centres:
         keep &= np.linalg.norm(p - c, axis=1) > settings["hole_radius"] * units
-    info = {"cameras": settings["rings"] * settings["azimuths"], "rendered_hits": int(raw),
-            "fused_points": int(len(p)), "points": int(keep.sum()),
-            "removed_by_holes": int((~keep).sum()),
-            "hole_centres": [c.round(4).tolist() for c in centres],
-            "noise_sigma": settings["noise"] * units, "units_per_metre": units, "seed": seed,
-            "garment_points": int((lab[keep] > 0).sum())}
+    info = {
+        "cameras": settings["rings"] * settings["azimuths"],
+        "rendered_hits": int(raw),
+        "fused_points": int(len(p)),
+        "points": int(keep.sum()),
+        "removed_by_holes": int((~keep).sum()),
+        "hole_centres": [c.round(4).tolist() for c in centres],
+        "noise_sigma": settings["noise"] * units,
+        "units_per_metre": units,
+        "seed": seed,
+        "garment_points": int((lab[keep] > 0).sum()),
+    }
     return Scan(np.ascontiguousarray(p[keep]), lab[keep].astype(np.int64), info)
 
 
 # ---- previews ---------------------------------------------------------------------------------
 
 #: Colours of labels 0 (body), 1, 2, … in previews.
-COLOURS = np.array([[0.85, 0.72, 0.62], [0.25, 0.45, 0.80], [0.80, 0.30, 0.30],
-                    [0.30, 0.65, 0.35]])
+COLOURS = np.array([[0.85, 0.72, 0.62], [0.25, 0.45, 0.80], [0.80, 0.30, 0.30], [0.30, 0.65, 0.35]])
 
 
-def preview(meshes: list[tuple[np.ndarray, np.ndarray, int]], path: pathlib.Path, up: int = 1,
-            units: float = 1.0, azimuths: tuple[float, ...] = (0.0, 90.0, 180.0, 270.0),
-            points: tuple[np.ndarray, np.ndarray] | None = None) -> pathlib.Path:
+def preview(
+    meshes: list[tuple[np.ndarray, np.ndarray, int]],
+    path: pathlib.Path,
+    up: int = 1,
+    units: float = 1.0,
+    azimuths: tuple[float, ...] = (0.0, 90.0, 180.0, 270.0),
+    points: tuple[np.ndarray, np.ndarray] | None = None,
+) -> pathlib.Path:
     """A PNG of the labelled meshes seen from a few azimuths (flat shading, colour by label),
     with this module's own rasterizer (no matplotlib needed); ``points``: a scan
     ``(points, labels)`` drawn as a second row of dots."""
@@ -373,12 +389,15 @@ def preview(meshes: list[tuple[np.ndarray, np.ndarray, int]], path: pathlib.Path
                 rel = p - eye
                 z = rel @ fwd
                 focal = np.linalg.norm(center - eye) / pixel
-                pix = np.stack([np.floor(focal * (rel @ cup) / z),
-                                np.floor(focal * (rel @ right) / z)], -1).astype(int)
+                pix = np.stack(
+                    [np.floor(focal * (rel @ cup) / z), np.floor(focal * (rel @ right) / z)], -1
+                ).astype(int)
                 order = np.argsort(-z)  # far first, near overwrite
                 pix, lab_o = pix[order], lab[order]
-                rgb = COLOURS[lab_o % len(COLOURS)] * (0.6 + 0.4 * (1 - (z[order] - z.min())
-                                                                  / (np.ptp(z) + 1e-12)))[:, None]
+                rgb = (
+                    COLOURS[lab_o % len(COLOURS)]
+                    * (0.6 + 0.4 * (1 - (z[order] - z.min()) / (np.ptp(z) + 1e-12)))[:, None]
+                )
             r = size // 2 - pix[:, 0]
             c = size // 2 + pix[:, 1]
             ok = (r >= 0) & (r < size) & (c >= 0) & (c < size)
@@ -399,18 +418,30 @@ def _arcsim(fr: str) -> dict[str, Any]:
     tv, tf = cases_mod.load_mesh(a / "vto_tshirt.obj")
     gv, gf = cases_mod.load_mesh(a / f"{fr}_garment.obj")
     bv, bf = cases_mod.load_mesh(a / f"{fr}_body.obj")
-    return {"template": tv, "faces": tf, "truth": gv, "body": (bv, bf), "units": 1.0,
-            "template_labels": np.ones(len(tv), np.int64),
-            "files": {"template": "arcsim_smpl_vto_tshirt/vto_tshirt.obj",
-                      "truth": f"arcsim_smpl_vto_tshirt/{fr}_garment.obj",
-                      "body": f"arcsim_smpl_vto_tshirt/{fr}_body.obj"}}
+    return {
+        "template": tv,
+        "faces": tf,
+        "truth": gv,
+        "body": (bv, bf),
+        "units": 1.0,
+        "template_labels": np.ones(len(tv), np.int64),
+        "files": {
+            "template": "arcsim_smpl_vto_tshirt/vto_tshirt.obj",
+            "truth": f"arcsim_smpl_vto_tshirt/{fr}_garment.obj",
+            "body": f"arcsim_smpl_vto_tshirt/{fr}_body.obj",
+        },
+    }
 
 
 GPG_PAIRS = {
-    "skirt-penetrate": ("skirt_pair_basic_vs_penetrate/skirt_maya_coords_sim.obj",
-                        "skirt_pair_basic_vs_penetrate/skirt_maya_penetrate_sim.obj"),
-    "skirt-small": ("skirt_pair_too_small/midway.obj",
-                    "skirt_pair_too_small/skirt_maya_coords_small_sim.obj"),
+    "skirt-penetrate": (
+        "skirt_pair_basic_vs_penetrate/skirt_maya_coords_sim.obj",
+        "skirt_pair_basic_vs_penetrate/skirt_maya_penetrate_sim.obj",
+    ),
+    "skirt-small": (
+        "skirt_pair_too_small/midway.obj",
+        "skirt_pair_too_small/skirt_maya_coords_small_sim.obj",
+    ),
 }
 GPG_BODY = "body/f_smpl_templatex300.obj"
 #: GPG units per metre (the SMPL female template ×300).
@@ -423,15 +454,22 @@ def _gpg(name: str) -> dict[str, Any]:
     tv, tf = cases_mod.load_mesh(g / tpl)
     gv, gf = cases_mod.load_mesh(g / tru)
     bv, bf = cases_mod.load_mesh(g / GPG_BODY)
-    return {"template": tv, "faces": tf, "truth": gv, "body": (bv, bf), "units": GPG_UNITS,
-            "template_labels": np.ones(len(tv), np.int64),
-            "files": {"template": f"garment_pattern_generator/{tpl}",
-                      "truth": f"garment_pattern_generator/{tru}",
-                      "body": f"garment_pattern_generator/{GPG_BODY}"}}
+    return {
+        "template": tv,
+        "faces": tf,
+        "truth": gv,
+        "body": (bv, bf),
+        "units": GPG_UNITS,
+        "template_labels": np.ones(len(tv), np.int64),
+        "files": {
+            "template": f"garment_pattern_generator/{tpl}",
+            "truth": f"garment_pattern_generator/{tru}",
+            "body": f"garment_pattern_generator/{GPG_BODY}",
+        },
+    }
 
 
-def vertex_rotations(src: np.ndarray, dst: np.ndarray, f: np.ndarray, rings: int = 2
-                     ) -> np.ndarray:
+def vertex_rotations(src: np.ndarray, dst: np.ndarray, f: np.ndarray, rings: int = 2) -> np.ndarray:
     """Per vertex, the rotation that best maps its ``rings``-ring neighbourhood on the mesh
     ``(src, f)`` onto the same vertices of ``dst`` (Kabsch, centred on the neighbourhood)."""
     from scipy.sparse import coo_matrix, identity
@@ -455,9 +493,14 @@ def vertex_rotations(src: np.ndarray, dst: np.ndarray, f: np.ndarray, rings: int
     return u @ vt
 
 
-def transfer_to_body(points: np.ndarray, src_body: tuple[np.ndarray, np.ndarray],
-                     dst_body: tuple[np.ndarray, np.ndarray], scale: float, k: int = 64,
-                     width: float = 0.05) -> np.ndarray:
+def transfer_to_body(
+    points: np.ndarray,
+    src_body: tuple[np.ndarray, np.ndarray],
+    dst_body: tuple[np.ndarray, np.ndarray],
+    scale: float,
+    k: int = 64,
+    width: float = 0.05,
+) -> np.ndarray:
     """Carries points lying around one body onto another body with the same vertex order and
     faces (SMPL) by a smooth space deformation: each body vertex ``i`` carries the rigid map
     ``p ↦ v'_i + scale · R_i (p − v_i)`` (``R_i``: the rotation of its 2-ring neighbourhood
@@ -496,12 +539,19 @@ def _two_garment() -> dict[str, Any]:
     tpl = transfer_to_body(skirt["template"], skirt["body"], body, 1 / GPG_UNITS)
     tru = transfer_to_body(skirt["truth"], skirt["body"], body, 1 / GPG_UNITS)
     m = len(shirt["template"])
-    return {"template": np.concatenate([shirt["template"], tpl]),
-            "faces": np.concatenate([shirt["faces"], skirt["faces"] + m]),
-            "truth": np.concatenate([shirt["truth"], tru]), "body": body, "units": 1.0,
-            "template_labels": np.r_[np.ones(m, np.int64), np.full(len(tpl), 2)],
-            "files": {"shirt": shirt["files"], "skirt": skirt["files"],
-                      "skirt transferred": f"{skirt['files']['body']} → {shirt['files']['body']}"}}
+    return {
+        "template": np.concatenate([shirt["template"], tpl]),
+        "faces": np.concatenate([shirt["faces"], skirt["faces"] + m]),
+        "truth": np.concatenate([shirt["truth"], tru]),
+        "body": body,
+        "units": 1.0,
+        "template_labels": np.r_[np.ones(m, np.int64), np.full(len(tpl), 2)],
+        "files": {
+            "shirt": shirt["files"],
+            "skirt": skirt["files"],
+            "skirt transferred": f"{skirt['files']['body']} → {shirt['files']['body']}",
+        },
+    }
 
 
 def load_source(name: str) -> dict[str, Any]:
@@ -531,8 +581,9 @@ ROUGH = {"rotation_deg": 20.0, "offset_rel": 0.10, "scale": (0.8, 1.25)}
 PERTURB = {"rotation_deg": 10.0, "shift_rel": 0.05}
 
 
-def unplaced_start(name: str, template: np.ndarray, placed: np.ndarray, truth: np.ndarray,
-                   labels: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:
+def unplaced_start(
+    name: str, template: np.ndarray, placed: np.ndarray, truth: np.ndarray, labels: np.ndarray
+) -> tuple[np.ndarray, dict[str, Any]]:
     """The template as given when it lies near the garment (per component: the similarity
     onto the truth turns it by ≤ 20°, scales it by 0.8–1.25 and its centroid lies within 10 %
     of the garment's diagonal); otherwise the placed template rotated by 10° about a random
@@ -543,16 +594,24 @@ def unplaced_start(name: str, template: np.ndarray, placed: np.ndarray, truth: n
         m = labels == k
         s, r, _ = cases_mod.umeyama(template[m], truth[m])
         diag = cases_mod.bbox_diagonal(truth[m])
-        checks.append({"component": int(k), "rotation_deg": round(rotation_angle(r), 1),
-                       "scale": round(s, 3),
-                       "centroid_offset_rel": round(float(np.linalg.norm(
-                           template[m].mean(0) - truth[m].mean(0)) / diag), 3)})
-    ok = all(c["rotation_deg"] <= ROUGH["rotation_deg"]
-             and c["centroid_offset_rel"] <= ROUGH["offset_rel"]
-             and ROUGH["scale"][0] <= c["scale"] <= ROUGH["scale"][1] for c in checks)
+        checks.append(
+            {
+                "component": int(k),
+                "rotation_deg": round(rotation_angle(r), 1),
+                "scale": round(s, 3),
+                "centroid_offset_rel": round(
+                    float(np.linalg.norm(template[m].mean(0) - truth[m].mean(0)) / diag), 3
+                ),
+            }
+        )
+    ok = all(
+        c["rotation_deg"] <= ROUGH["rotation_deg"]
+        and c["centroid_offset_rel"] <= ROUGH["offset_rel"]
+        and ROUGH["scale"][0] <= c["scale"] <= ROUGH["scale"][1]
+        for c in checks
+    )
     if ok:
-        return template.copy(), {"unplaced": "the template as given in its file",
-                                 "as_given": checks}
+        return template.copy(), {"unplaced": "the template as given in its file", "as_given": checks}
     rng = np.random.default_rng(zlib.crc32(name.encode()))
     axis = rng.normal(size=3)
     rot = cases_mod.rotation_matrix(axis, PERTURB["rotation_deg"])
@@ -561,10 +620,13 @@ def unplaced_start(name: str, template: np.ndarray, placed: np.ndarray, truth: n
     shift = PERTURB["shift_rel"] * cases_mod.bbox_diagonal(truth) * direction
     c = placed.mean(0)
     out = (placed - c) @ rot.T + c + shift
-    return out, {"unplaced": f"the placed template turned by {PERTURB['rotation_deg']:g}° "
-                             f"about a random axis and shifted by {PERTURB['shift_rel']:.0%} "
-                             "of the truth's diagonal (the file's own placement is not a "
-                             "rough one)", "as_given": checks}
+    return out, {
+        "unplaced": f"the placed template turned by {PERTURB['rotation_deg']:g}° "
+        f"about a random axis and shifted by {PERTURB['shift_rel']:.0%} "
+        "of the truth's diagonal (the file's own placement is not a "
+        "rough one)",
+        "as_given": checks,
+    }
 
 
 def inside_share(points: np.ndarray, body: tuple[np.ndarray, np.ndarray]) -> float:
@@ -614,28 +676,41 @@ def build_source(name: str, seed: int = 0, cache: bool = True) -> dict[str, Any]
     placed = place(src["template"], src["truth"], tl)
     unplaced, how = unplaced_start(name, src["template"], placed, src["truth"], tl)
     bv, bf = src["body"]
-    meshes = [(bv, bf, 0)] + [(src["truth"], src["faces"][tl[src["faces"][:, 0]] == k], int(k))
-                              for k in np.unique(tl)]
+    meshes = [(bv, bf, 0)] + [
+        (src["truth"], src["faces"][tl[src["faces"][:, 0]] == k], int(k)) for k in np.unique(tl)
+    ]
     sc = scan(meshes, src["units"], seed=zlib.crc32(f"{name}/{seed}".encode()))
     split = "tune" if name in TUNE else "held-out"
     if seed != 0:
         split = "held-out (seed)"
-    meta = {"source": name, "split": split, "units_per_metre": src["units"],
-            "files": src["files"], "scan": sc.info, **how,
-            "garment_inside_body": round(inside_share(src["truth"], src["body"]), 4)}
+    meta = {
+        "source": name,
+        "split": split,
+        "units_per_metre": src["units"],
+        "files": src["files"],
+        "scan": sc.info,
+        **how,
+        "garment_inside_body": round(inside_share(src["truth"], src["body"]), 4),
+    }
     if name == "two-garment":
         for key in ("template", "truth"):  # the carried skirt's vertices inside the body
-            meta[f"skirt_{key}_inside_body"] = round(inside_share(src[key][tl == 2],
-                                                                  src["body"]), 4)
+            meta[f"skirt_{key}_inside_body"] = round(inside_share(src[key][tl == 2], src["body"]), 4)
     meta["build_s"] = round(time.perf_counter() - t0, 2)
-    out = {"template": src["template"], "faces": src["faces"], "truth": src["truth"],
-           "placed": placed, "unplaced": unplaced, "template_labels": tl,
-           "scan": sc.points, "labels": sc.labels, "meta": meta}
+    out = {
+        "template": src["template"],
+        "faces": src["faces"],
+        "truth": src["truth"],
+        "placed": placed,
+        "unplaced": unplaced,
+        "template_labels": tl,
+        "scan": sc.points,
+        "labels": sc.labels,
+        "meta": meta,
+    }
     if cache:
         OUT.mkdir(parents=True, exist_ok=True)
         tmp = path.with_suffix(".tmp.npz")
-        np.savez(tmp, **{k: v for k, v in out.items() if k != "meta"},
-                 meta=np.array(json.dumps(meta)))
+        np.savez(tmp, **{k: v for k, v in out.items() if k != "meta"}, meta=np.array(json.dumps(meta)))
         tmp.replace(path)
         for stale in OUT.glob(f"{name}-seed{seed}-*.npz"):  # other settings' scans
             if stale != path:
@@ -644,25 +719,33 @@ def build_source(name: str, seed: int = 0, cache: bool = True) -> dict[str, Any]
 
 
 #: Case variants: (scan, start).
-VARIANTS = {"whole": ("whole", "placed"), "body-free": ("body-free", "placed"),
-            "whole-unplaced": ("whole", "unplaced"),
-            "body-free-unplaced": ("body-free", "unplaced")}
+VARIANTS = {
+    "whole": ("whole", "placed"),
+    "body-free": ("body-free", "placed"),
+    "whole-unplaced": ("whole", "unplaced"),
+    "body-free-unplaced": ("body-free", "unplaced"),
+}
 
 
-def make_case(name: str, built: dict[str, Any], variant: str, group: str = "dressed"
-              ) -> DressedCase:
+def make_case(name: str, built: dict[str, Any], variant: str, group: str = "dressed") -> DressedCase:
     scan_kind, start = VARIANTS[variant]
     keep = slice(None) if scan_kind == "whole" else built["labels"] > 0
     return DressedCase(
-        name=f"dressed-{name}-{variant}", group=group,
-        template_vertices=np.ascontiguousarray(built[start]), faces=built["faces"],
-        target=np.ascontiguousarray(built["scan"][keep]), ground_truth=built["truth"],
+        name=f"dressed-{name}-{variant}",
+        group=group,
+        template_vertices=np.ascontiguousarray(built[start]),
+        faces=built["faces"],
+        target=np.ascontiguousarray(built["scan"][keep]),
+        ground_truth=built["truth"],
         meta={**built["meta"], "variant": variant, "start": start, "scan_kind": scan_kind},
-        labels=built["labels"][keep], template_labels=built["template_labels"])
+        labels=built["labels"][keep],
+        template_labels=built["template_labels"],
+    )
 
 
-def dressed_cases(variants: tuple[str, ...] = ("whole",), seed: int = 0,
-                  sources: tuple[str, ...] = SOURCES) -> list[DressedCase]:
+def dressed_cases(
+    variants: tuple[str, ...] = ("whole",), seed: int = 0, sources: tuple[str, ...] = SOURCES
+) -> list[DressedCase]:
     """The dressed cases (bench/variants.py's group ``dressed``: the whole scans, placed
     template); none (and a note on stderr) when ../shared/data is missing."""
     why = cases_mod.real_data_missing()

@@ -18,10 +18,10 @@ from bench.dressed_scans import render_view
 
 AZIMUTHS_DEG = (-40.0, 0.0, 40.0)
 HEIGHTS = (-0.25, 0.25)  # in bounding-box diagonals, about the centre
-DISTANCE = 2.0           # in bounding-box diagonals
-PIXELS = 400             # across one diagonal at the look-at distance
-VOXEL = 1 / 200          # of the diagonal
-NOISE = 0.002            # of the diagonal
+DISTANCE = 2.0  # in bounding-box diagonals
+PIXELS = 400  # across one diagonal at the look-at distance
+VOXEL = 1 / 200  # of the diagonal
+NOISE = 0.002  # of the diagonal
 
 
 def front_axis(truth: np.ndarray, up: int) -> int:
@@ -31,8 +31,9 @@ def front_axis(truth: np.ndarray, up: int) -> int:
     return min(horizontal, key=lambda k: extent[k])
 
 
-def front_scan(truth: np.ndarray, faces: np.ndarray, up: int, seed: int, most: int,
-               side: int = 1) -> np.ndarray:
+def front_scan(
+    truth: np.ndarray, faces: np.ndarray, up: int, seed: int, most: int, side: int = 1
+) -> np.ndarray:
     """The points one rig on the ``side`` of the front sees of ``(truth, faces)``."""
     rng = np.random.default_rng(seed)
     diag = cases_mod.bbox_diagonal(truth)

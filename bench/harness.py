@@ -39,8 +39,13 @@ def evaluate(case_arrays: dict[str, np.ndarray], fitted: np.ndarray) -> dict[str
     """Every metric of ``fm.evaluate`` plus the distances relative to the target diagonal."""
     import foldmatch_rs as fm
 
-    e = fm.evaluate(case_arrays["template_vertices"], case_arrays["faces"], fitted,
-                    case_arrays["target"], case_arrays.get("ground_truth"))
+    e = fm.evaluate(
+        case_arrays["template_vertices"],
+        case_arrays["faces"],
+        fitted,
+        case_arrays["target"],
+        case_arrays.get("ground_truth"),
+    )
     d = e["target_diagonal"]
     e["chamfer_rel"] = e["chamfer"] / d
     e["s2f_mean_rel"] = e["scan_to_fit_mean"] / d
@@ -52,15 +57,26 @@ def evaluate(case_arrays: dict[str, np.ndarray], fitted: np.ndarray) -> dict[str
 def machine() -> dict[str, Any]:
     """The machine a run was measured on (lscpu fields, memory, load average), shared by
     compare.py and perf.py."""
-    info: dict[str, Any] = {"platform": platform.platform(), "cpus": os.cpu_count(),
-                            "nproc": os.cpu_count(), "python": sys.version.split()[0]}
+    info: dict[str, Any] = {
+        "platform": platform.platform(),
+        "cpus": os.cpu_count(),
+        "nproc": os.cpu_count(),
+        "python": sys.version.split()[0],
+    }
     try:
-        out = subprocess.run(["lscpu"], check=False, capture_output=True, text=True,
-                             timeout=10).stdout
+        out = subprocess.run(["lscpu"], check=False, capture_output=True, text=True, timeout=10).stdout
         for line in out.splitlines():
             k, _, v = line.partition(":")
-            if k.strip() in ("Model name", "CPU(s)", "Thread(s) per core", "Core(s) per socket",
-                             "Hypervisor vendor", "L2 cache", "L3 cache", "CPU max MHz"):
+            if k.strip() in (
+                "Model name",
+                "CPU(s)",
+                "Thread(s) per core",
+                "Core(s) per socket",
+                "Hypervisor vendor",
+                "L2 cache",
+                "L3 cache",
+                "CPU max MHz",
+            ):
                 info[k.strip()] = v.strip()
     except (OSError, subprocess.SubprocessError):
         pass
@@ -78,12 +94,22 @@ def code_version() -> str:
     extension was built (others rebuild it while the harness runs)."""
     repo = HERE.parent
     try:
-        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], check=False,
-                              capture_output=True,
-                              text=True, cwd=repo, timeout=10).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"],
-                               check=False,
-                               capture_output=True, text=True, cwd=repo, timeout=10).stdout
+        head = subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"],
+            check=False,
+            capture_output=True,
+            text=True,
+            cwd=repo,
+            timeout=10,
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"],
+            check=False,
+            capture_output=True,
+            text=True,
+            cwd=repo,
+            timeout=10,
+        ).stdout
     except (OSError, subprocess.SubprocessError):
         head, dirty = "?", ""
     try:
@@ -93,8 +119,7 @@ def code_version() -> str:
         built = time.strftime("%Y-%m-%d %H:%M", time.localtime(so.stat().st_mtime))
     except (StopIteration, OSError, ImportError):
         built = "?"
-    return (f"commit {head or '?'}{' + uncommitted changes' if dirty.strip() else ''}, "
-            f"extension built {built}")
+    return f"commit {head or '?'}{' + uncommitted changes' if dirty.strip() else ''}, extension built {built}"
 
 
 def method_status(methods: Iterable[str]) -> dict[str, str | None]:
@@ -102,8 +127,14 @@ def method_status(methods: Iterable[str]) -> dict[str, str | None]:
     ``_rtree`` → why mesh targets cannot be used by trimesh's NRICP."""
     methods = list(methods)
     blocked = {m for m in os.environ.get(BLOCK_ENV, "").split(",") if m}
-    out = subprocess.run([PY, "-m", "bench.peers", "--missing", *methods], check=False,
-                         capture_output=True, text=True, timeout=600, cwd=HERE.parent)
+    out = subprocess.run(
+        [PY, "-m", "bench.peers", "--missing", *methods],
+        check=False,
+        capture_output=True,
+        text=True,
+        timeout=600,
+        cwd=HERE.parent,
+    )
     try:
         status = json.loads(out.stdout.strip().splitlines()[-1])
     except (IndexError, json.JSONDecodeError):
@@ -120,8 +151,7 @@ def method_status(methods: Iterable[str]) -> dict[str, str | None]:
 
 def case_digest(case: cases_mod.Case) -> str:
     h = hashlib.sha1()
-    for a in (case.template_vertices, case.faces, case.target, case.target_faces,
-              case.ground_truth):
+    for a in (case.template_vertices, case.faces, case.target, case.target_faces, case.ground_truth):
         if a is not None:
             h.update(np.ascontiguousarray(a).tobytes())
     return h.hexdigest()[:12]
@@ -139,15 +169,19 @@ def extension_stamp() -> str:
 
 
 def _key(params: dict[str, Any], trace: bool) -> str:
-    return hashlib.sha1(json.dumps([params, trace], sort_keys=True, default=str).encode()
-                        ).hexdigest()[:10]
+    return hashlib.sha1(json.dumps([params, trace], sort_keys=True, default=str).encode()).hexdigest()[:10]
 
 
 class Runner:
     """Runs (case, method) pairs into ``out/runs/<case>/<method>[-tag].{npz,json}``."""
 
-    def __init__(self, out: pathlib.Path, timeout: float = 1800, force: bool = False,
-                 status: dict[str, str | None] | None = None):
+    def __init__(
+        self,
+        out: pathlib.Path,
+        timeout: float = 1800,
+        force: bool = False,
+        status: dict[str, str | None] | None = None,
+    ):
         self.out = out
         self.timeout = timeout
         self.force = force
@@ -161,8 +195,14 @@ class Runner:
             self._saved.add(p)
         return p
 
-    def run(self, case: cases_mod.Case, method: str, trace: bool = False,
-            overrides: dict[str, Any] | None = None, tag: str = "") -> dict[str, Any]:
+    def run(
+        self,
+        case: cases_mod.Case,
+        method: str,
+        trace: bool = False,
+        overrides: dict[str, Any] | None = None,
+        tag: str = "",
+    ) -> dict[str, Any]:
         """One run: a result row with status ok / failed / timeout / skipped, the metrics,
         wall time and memory."""
         spec = peers.METHODS[method]
@@ -173,8 +213,7 @@ class Runner:
         if reason is None and method.startswith("nricp") and case.target_faces is not None:
             reason = self.status.get("_rtree")
         if reason is None:
-            reason = peers.size_skip_reason(method, len(case.template_vertices),
-                                            len(case.target), case.group)
+            reason = peers.size_skip_reason(method, len(case.template_vertices), len(case.target), case.group)
         if reason is not None:
             row.update(status="skipped", reason=reason)
             return row
@@ -193,8 +232,9 @@ class Runner:
                 cached = json.loads(meta.read_text())
             except json.JSONDecodeError:
                 cached = None
-            if cached is not None and (cached.get("key") != key or
-                                       cached.get("status") not in ("ok", "failed", "timeout")):
+            if cached is not None and (
+                cached.get("key") != key or cached.get("status") not in ("ok", "failed", "timeout")
+            ):
                 cached = None
         if cached is None:
             for p in (npz, meta):
@@ -207,22 +247,41 @@ class Runner:
             env = {**os.environ, "PYTHONWARNINGS": "ignore"}
             t0 = time.perf_counter()
             try:
-                proc = subprocess.run(cmd, check=False, capture_output=True, text=True,
-                                      timeout=self.timeout,
-                                      env=env, cwd=HERE.parent)
+                proc = subprocess.run(
+                    cmd,
+                    check=False,
+                    capture_output=True,
+                    text=True,
+                    timeout=self.timeout,
+                    env=env,
+                    cwd=HERE.parent,
+                )
                 if meta.exists():
                     cached = json.loads(meta.read_text())
                 else:
-                    cached = {"status": "failed",
-                              "error": f"worker exited {proc.returncode}: {proc.stderr[-500:]}"}
+                    cached = {
+                        "status": "failed",
+                        "error": f"worker exited {proc.returncode}: {proc.stderr[-500:]}",
+                    }
             except subprocess.TimeoutExpired:
-                cached = {"status": "timeout",
-                          "error": f"no result within {self.timeout:.0f} s (killed)"}
+                cached = {"status": "timeout", "error": f"no result within {self.timeout:.0f} s (killed)"}
             cached["process_s"] = round(time.perf_counter() - t0, 2)
             cached["key"] = key
             meta.write_text(json.dumps(cached))
-        row.update({k: cached.get(k) for k in ("status", "error", "wall_s", "peak_rss_mb",
-                                                "baseline_rss_mb", "iterations", "process_s")})
+        row.update(
+            {
+                k: cached.get(k)
+                for k in (
+                    "status",
+                    "error",
+                    "wall_s",
+                    "peak_rss_mb",
+                    "baseline_rss_mb",
+                    "iterations",
+                    "process_s",
+                )
+            }
+        )
         row["params"] = params
         if cached.get("status") == "ok":
             with np.load(npz) as z:
@@ -233,34 +292,52 @@ class Runner:
 
 
 def reference_rows(case: cases_mod.Case, arrays: dict[str, np.ndarray]) -> dict[str, Any]:
-    rows = {"identity": {"method": "identity", "label": "identity (template as is)",
-                         "status": "ok", **evaluate(arrays, case.template_vertices)}}
+    rows = {
+        "identity": {
+            "method": "identity",
+            "label": "identity (template as is)",
+            "status": "ok",
+            **evaluate(arrays, case.template_vertices),
+        }
+    }
     if case.ground_truth is not None:
-        rows["oracle"] = {"method": "oracle", "label": "oracle (ground truth)", "status": "ok",
-                          **evaluate(arrays, case.ground_truth)}
+        rows["oracle"] = {
+            "method": "oracle",
+            "label": "oracle (ground truth)",
+            "status": "ok",
+            **evaluate(arrays, case.ground_truth),
+        }
     else:
-        rows["oracle"] = {"method": "oracle", "label": "oracle (ground truth)",
-                          "status": "skipped", "reason": "no ground truth for this case"}
+        rows["oracle"] = {
+            "method": "oracle",
+            "label": "oracle (ground truth)",
+            "status": "skipped",
+            "reason": "no ground truth for this case",
+        }
     return rows
 
 
 def case_arrays(case: cases_mod.Case) -> dict[str, np.ndarray]:
-    a = {"template_vertices": case.template_vertices, "faces": case.faces,
-         "target": case.target}
+    a = {"template_vertices": case.template_vertices, "faces": case.faces, "target": case.target}
     if case.ground_truth is not None:
         a["ground_truth"] = case.ground_truth
     return a
 
 
-def run_case(runner: Runner, case: cases_mod.Case, methods: list[str], keep_fits: bool = False,
-             verbose: bool = True) -> dict[str, Any]:
+def run_case(
+    runner: Runner, case: cases_mod.Case, methods: list[str], keep_fits: bool = False, verbose: bool = True
+) -> dict[str, Any]:
     """Every method (+ identity and oracle) on one case: the JSON record of the case."""
     arrays = case_arrays(case)
     rec: dict[str, Any] = {
-        "name": case.name, "group": case.group, "template_vertices": len(case.template_vertices),
-        "template_faces": len(case.faces), "target_points": len(case.target),
+        "name": case.name,
+        "group": case.group,
+        "template_vertices": len(case.template_vertices),
+        "template_faces": len(case.faces),
+        "target_points": len(case.target),
         "target_is_mesh": case.target_faces is not None,
-        "ground_truth": case.ground_truth is not None, "meta": case.meta,
+        "ground_truth": case.ground_truth is not None,
+        "meta": case.meta,
         "rows": reference_rows(case, arrays),
     }
     fits = {}
@@ -275,12 +352,13 @@ def run_case(runner: Runner, case: cases_mod.Case, methods: list[str], keep_fits
         rec["rows"][m] = row
         if verbose:
             if row["status"] == "ok":
-                log(f"  {case.name:28s} {m:14s} f_R={_fmt(row.get('f_R'))} "
+                log(
+                    f"  {case.name:28s} {m:14s} f_R={_fmt(row.get('f_R'))} "
                     f"s2f_p95={_fmt(row['s2f_p95_rel'])} f_lambda={_fmt(row['f_lambda'])} "
-                    f"{row['wall_s']:.2f}s {row['peak_rss_mb']:.0f}MB")
+                    f"{row['wall_s']:.2f}s {row['peak_rss_mb']:.0f}MB"
+                )
             else:
-                log(f"  {case.name:28s} {m:14s} {row['status']}: "
-                    f"{row.get('reason') or row.get('error')}")
+                log(f"  {case.name:28s} {m:14s} {row['status']}: {row.get('reason') or row.get('error')}")
     if keep_fits:
         rec["_fits"] = fits
     return rec

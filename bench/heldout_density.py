@@ -49,8 +49,11 @@ def dense_cases(points: int = POINTS):
     rng = np.random.default_rng(900)
     for i in range(8):
         v, f, gt = cases_mod.folded_sheet(
-            81, seed=900 + i, fold_amplitude=float(rng.uniform(0.03, 0.10)),
-            folds=float(rng.uniform(1.5, 4.0)), rotation_degrees=float(rng.uniform(0, 20)),
+            81,
+            seed=900 + i,
+            fold_amplitude=float(rng.uniform(0.03, 0.10)),
+            folds=float(rng.uniform(1.5, 4.0)),
+            rotation_degrees=float(rng.uniform(0, 20)),
             offset=tuple(float(x) for x in rng.uniform(-0.05, 0.05, 3)),
         )
         pts = cases_mod.sample_surface(gt, f, points, rng)
@@ -63,10 +66,14 @@ def main(argv: list[str] | None = None) -> int:
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--points", type=int, default=POINTS, help="scan points per case")
-    ap.add_argument("--against", default=json.dumps(PAPER_NEIGHBOURHOODS),
-                    help="JSON parameters the default is compared with (default: the paper's ρ, k_max)")
-    ap.add_argument("--peers", default="",
-                    help="comma-separated bench/peers.py methods to score both against")
+    ap.add_argument(
+        "--against",
+        default=json.dumps(PAPER_NEIGHBOURHOODS),
+        help="JSON parameters the default is compared with (default: the paper's ρ, k_max)",
+    )
+    ap.add_argument(
+        "--peers", default="", help="comma-separated bench/peers.py methods to score both against"
+    )
     args = ap.parse_args(argv)
     against = json.loads(args.against)
     methods = [m for m in args.peers.split(",") if m]
@@ -78,18 +85,31 @@ def main(argv: list[str] | None = None) -> int:
         methods.remove(m)
     ratios = []
     wins = {"against": [0, 0], "default": [0, 0]}
-    print(f"{args.points:,} points; the default against {against}"
-          + (f"; peers {', '.join(methods)}" if methods else ""))
-    print(f"{'case':<26} {'K':>7}  {'f_R against → default':>24}  {'f_λ against → default':>24}"
-          + ("  best peer f_R / f_λ" if methods else ""))
+    print(
+        f"{args.points:,} points; the default against {against}"
+        + (f"; peers {', '.join(methods)}" if methods else "")
+    )
+    print(
+        f"{'case':<26} {'K':>7}  {'f_R against → default':>24}  {'f_λ against → default':>24}"
+        + ("  best peer f_R / f_λ" if methods else "")
+    )
     for case in dense_cases(args.points):
-        arrays = {"template_vertices": case.template_vertices, "faces": case.faces,
-                  "target": case.target, "ground_truth": case.ground_truth}
+        arrays = {
+            "template_vertices": case.template_vertices,
+            "faces": case.faces,
+            "target": case.target,
+            "ground_truth": case.ground_truth,
+        }
         row = []
         for extra in (against, {}):
             settings = dict(extra)
-            r = fm.fit(case.template_vertices, case.faces, case.target,
-                       preset=settings.pop("preset", None), params=settings)
+            r = fm.fit(
+                case.template_vertices,
+                case.faces,
+                case.target,
+                preset=settings.pop("preset", None),
+                params=settings,
+            )
             e = harness.evaluate(arrays, np.asarray(r.vertices))
             row.append((e["f_R"], e["f_lambda"], r.diagnostics["target_neighbours"]))
         (ra, la, ka), (rb, lb, kb) = row
@@ -104,12 +124,13 @@ def main(argv: list[str] | None = None) -> int:
         print(line, flush=True)
     gm = [math.exp(sum(math.log(r[i]) for r in ratios) / len(ratios)) for i in (0, 1)]
     better = sum(r[0] < 1 for r in ratios)
-    print(f"geometric mean, default ÷ against: f_R ×{gm[0]:.3f}, f_λ ×{gm[1]:.3f}; "
-          f"f_R lower on {better} of {len(ratios)}")
+    print(
+        f"geometric mean, default ÷ against: f_R ×{gm[0]:.3f}, f_λ ×{gm[1]:.3f}; "
+        f"f_R lower on {better} of {len(ratios)}"
+    )
     if methods:
         for name, (w_r, w_l) in wins.items():
-            print(f"{name}: the lowest f_R of all on {w_r} of {len(ratios)}, "
-                  f"the lowest f_λ on {w_l}")
+            print(f"{name}: the lowest f_R of all on {w_r} of {len(ratios)}, the lowest f_λ on {w_l}")
     return 0
 
 
@@ -124,8 +145,9 @@ def peer_best(case, arrays, methods: list[str]) -> tuple[float, float]:
             continue
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            fitted, _, _ = spec["run"](case.template_vertices, case.faces, case.target, None,
-                                       False, **spec["params"])
+            fitted, _, _ = spec["run"](
+                case.template_vertices, case.faces, case.target, None, False, **spec["params"]
+            )
         e = harness.evaluate(arrays, np.asarray(fitted, dtype=np.float64))
         found.append((e["f_R"], e["f_lambda"]))
     if not found:

@@ -60,8 +60,16 @@ def landmarks_of(built: dict[str, Any], count: int, seed: int) -> tuple[np.ndarr
     return idx, targets
 
 
-def fit_case(name: str, built: dict[str, Any], start: str, count: int, weight: float | None,
-             kw: dict[str, Any], seed: int, log: Any) -> dict[str, Any]:
+def fit_case(
+    name: str,
+    built: dict[str, Any],
+    start: str,
+    count: int,
+    weight: float | None,
+    kw: dict[str, Any],
+    seed: int,
+    log: Any,
+) -> dict[str, Any]:
     import foldmatch_rs as fm
 
     truth, faces, scan = built["truth"], built["faces"], built["scan"]
@@ -69,9 +77,13 @@ def fit_case(name: str, built: dict[str, Any], start: str, count: int, weight: f
     idx, targets = landmarks_of(built, count, seed)
     sigma = built["meta"]["scan"]["noise_sigma"]
     lm = (idx, targets) if weight is None else (idx, targets, weight)
-    row: dict[str, Any] = {"case": name, "start": start, "landmarks": idx.tolist(),
-                           "noise_rms_length": sigma * np.sqrt(3),
-                           "units_per_metre": built["meta"]["units_per_metre"]}
+    row: dict[str, Any] = {
+        "case": name,
+        "start": start,
+        "landmarks": idx.tolist(),
+        "noise_rms_length": sigma * np.sqrt(3),
+        "units_per_metre": built["meta"]["units_per_metre"],
+    }
     for label, extra in (("without", {}), ("with", {"landmarks": lm})):
         t0 = time.perf_counter()
         r = fm.fit(built[start], faces, scan, **kw, **extra)
@@ -80,20 +92,29 @@ def fit_case(name: str, built: dict[str, Any], start: str, count: int, weight: f
         row[f"seconds_{label}"] = round(time.perf_counter() - t0, 1)
         gap = np.linalg.norm(fitted[idx] - targets, axis=1)
         row[f"landmark_gap_{label}"] = {"mean": float(gap.mean()), "max": float(gap.max())}
-        row[f"landmark_to_truth_{label}"] = float(np.linalg.norm(fitted[idx] - truth[idx],
-                                                                 axis=1).mean())
+        row[f"landmark_to_truth_{label}"] = float(np.linalg.norm(fitted[idx] - truth[idx], axis=1).mean())
     row["ratio"] = row["f_R_with"] / row["f_R_without"]
-    log(f"  {name:16s} {start:9s} f_R {100 * row['f_R_without']:.3f} % → "
+    log(
+        f"  {name:16s} {start:9s} f_R {100 * row['f_R_without']:.3f} % → "
         f"{100 * row['f_R_with']:.3f} % (×{row['ratio']:.2f}); landmark gap mean "
         f"{row['landmark_gap_with']['mean'] / sigma:.2f} σ, max "
-        f"{row['landmark_gap_with']['max'] / sigma:.2f} σ")
+        f"{row['landmark_gap_with']['max'] / sigma:.2f} σ"
+    )
     return row
 
 
 def render(rows: list[dict[str, Any]]) -> str:
-    header = ["case", "start", "f_R without", "f_R with", "with ÷ without",
-              "landmark → target, mean / max (mm)", "noise σ√3 (mm)",
-              "landmark → target without (mm, mean)", "s (without / with)"]
+    header = [
+        "case",
+        "start",
+        "f_R without",
+        "f_R with",
+        "with ÷ without",
+        "landmark → target, mean / max (mm)",
+        "noise σ√3 (mm)",
+        "landmark → target without (mm, mean)",
+        "s (without / with)",
+    ]
     out = ["| " + " | ".join(header) + " |", "| :--- | :--- |" + " ---: |" * (len(header) - 2)]
     for r in rows:
         mm = 1000 / r["units_per_metre"]
@@ -101,25 +122,36 @@ def render(rows: list[dict[str, Any]]) -> str:
         mark = ""
         if r["case"] == "tshirt-0200":
             mark = " ✓" if r["ratio"] < TARGET_RATIO else " ✗"
-        out.append(f"| {r['case']} | {r['start']} | {100 * r['f_R_without']:.3f} % | "
-                   f"{100 * r['f_R_with']:.3f} % | {r['ratio']:.2f}{mark} | "
-                   f"{g['mean'] * mm:.1f} / {g['max'] * mm:.1f} | "
-                   f"{r['noise_rms_length'] * mm:.1f} | {g0['mean'] * mm:.1f} | "
-                   f"{r['seconds_without']:.1f} / {r['seconds_with']:.1f} |")
+        out.append(
+            f"| {r['case']} | {r['start']} | {100 * r['f_R_without']:.3f} % | "
+            f"{100 * r['f_R_with']:.3f} % | {r['ratio']:.2f}{mark} | "
+            f"{g['mean'] * mm:.1f} / {g['max'] * mm:.1f} | "
+            f"{r['noise_rms_length'] * mm:.1f} | {g0['mean'] * mm:.1f} | "
+            f"{r['seconds_without']:.1f} / {r['seconds_with']:.1f} |"
+        )
     return "\n".join(out)
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--cases", default="*", help="shell pattern(s), comma-separated, on "
-                    f"the dressed sources ({', '.join(SOURCES)})")
-    ap.add_argument("--starts", default="placed,unplaced",
-                    help="bench/dressed_scans.py's starts (placed, unplaced)")
+    ap.add_argument(
+        "--cases",
+        default="*",
+        help=f"shell pattern(s), comma-separated, on the dressed sources ({', '.join(SOURCES)})",
+    )
+    ap.add_argument(
+        "--starts", default="placed,unplaced", help="bench/dressed_scans.py's starts (placed, unplaced)"
+    )
     ap.add_argument("--count", type=int, default=8, help="landmarks per case (8)")
     ap.add_argument("--weight", type=float, help="landmark_weight (default: the library's)")
     ap.add_argument("--seed", type=int, default=0, help="seed of the landmarks' noise")
-    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                    help="another fit parameter (JSON value), repeatable")
+    ap.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="another fit parameter (JSON value), repeatable",
+    )
     ap.add_argument("--json", metavar="OUT", help="write every figure as JSON")
     ap.add_argument("--quiet", action="store_true")
     args = ap.parse_args()
@@ -144,8 +176,10 @@ def main() -> int:
         built = build_source(n, 0)
         for start in [s for s in args.starts.split(",") if s]:
             rows.append(fit_case(n, built, start, args.count, args.weight, kw, args.seed, log))
-    print(f"# Landmarks on the dressed scans: {args.count} landmarks, weight "
-          f"{'default' if args.weight is None else args.weight}, {json.dumps(kw) or '{}'}\n")
+    print(
+        f"# Landmarks on the dressed scans: {args.count} landmarks, weight "
+        f"{'default' if args.weight is None else args.weight}, {json.dumps(kw) or '{}'}\n"
+    )
     print(render(rows))
     lm = [r for r in rows if r["case"] == "tshirt-0200"]
     if lm:

@@ -51,23 +51,35 @@ def rows_of(groups: list[str], kw: dict[str, Any]) -> list[dict[str, Any]]:
             up = int(case.meta.get("up", 1))
             seed = int(hashlib.sha256(case.name.encode()).hexdigest()[:8], 16)
             half = front_scan(case.ground_truth, case.faces, up, seed, most=len(case.target))
-            whole = fm.fit(case.template_vertices, case.faces, case.target,
-                           target_faces=case.target_faces, **kw)
+            whole = fm.fit(
+                case.template_vertices, case.faces, case.target, target_faces=case.target_faces, **kw
+            )
             part = fm.fit(case.template_vertices, case.faces, half, **kw)
-            f_whole = fm.evaluate(case.template_vertices, case.faces, whole.vertices, case.target,
-                                  case.ground_truth)["f_R"]
+            f_whole = fm.evaluate(
+                case.template_vertices, case.faces, whole.vertices, case.target, case.ground_truth
+            )["f_R"]
             # f_R of both relative to the whole scan's diagonal (the same truth, one scale).
-            f_half = fm.evaluate(case.template_vertices, case.faces, part.vertices, case.target,
-                                 case.ground_truth)["f_R"]
-            row = {"group": group, "case": case.name, "split": split_of(case.name),
-                   "f_R_whole": f_whole, "f_R_half": f_half, "ratio": f_half / f_whole,
-                   "unsupported": float(1 - np.mean(part.support)),
-                   "unseen": unseen_share(case.ground_truth, half),
-                   "verdict": part.quality["verdict"]}
+            f_half = fm.evaluate(
+                case.template_vertices, case.faces, part.vertices, case.target, case.ground_truth
+            )["f_R"]
+            row = {
+                "group": group,
+                "case": case.name,
+                "split": split_of(case.name),
+                "f_R_whole": f_whole,
+                "f_R_half": f_half,
+                "ratio": f_half / f_whole,
+                "unsupported": float(1 - np.mean(part.support)),
+                "unseen": unseen_share(case.ground_truth, half),
+                "verdict": part.quality["verdict"],
+            }
             rows.append(row)
-            print(f"| {case.name} | {row['split']} | {f_whole:.4f} | {f_half:.4f} "
-                  f"| {row['ratio']:.2f} | {row['unsupported']:.1%} | {row['unseen']:.1%} "
-                  f"| {row['verdict']} |", flush=True)
+            print(
+                f"| {case.name} | {row['split']} | {f_whole:.4f} | {f_half:.4f} "
+                f"| {row['ratio']:.2f} | {row['unsupported']:.1%} | {row['unseen']:.1%} "
+                f"| {row['verdict']} |",
+                flush=True,
+            )
     return rows
 
 
@@ -89,8 +101,10 @@ def main() -> int:
         if not part:
             continue
         ratios = np.array([r["ratio"] for r in part])
-        print(f"{split}: {len(part)} cases, half ÷ whole median {np.median(ratios):.2f}, "
-              f"max {ratios.max():.2f}, within 2×: {int((ratios <= 2).sum())} of {len(part)}")
+        print(
+            f"{split}: {len(part)} cases, half ÷ whole median {np.median(ratios):.2f}, "
+            f"max {ratios.max():.2f}, within 2×: {int((ratios <= 2).sum())} of {len(part)}"
+        )
     return 0
 
 

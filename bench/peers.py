@@ -51,8 +51,7 @@ RUSTCPD_PARAMS = {**CPD_PARAMS, "low_rank": 300}
 #: 1, so the width β is set by scaling the normalized coordinates by 1/β (β < 1 collapsed the
 #: template in trials; the sweep's score is erratic in λ: 0.20, 0.14, 0.27, 0.084 for λ = 2, 8,
 #: 32, 128). 40 EM iterations (≈2.5 s each at M = 1.7K).
-BCPD_PARAMS = {"lmd": 128.0, "gamma": 1.0, "k": 1e20, "beta": 1.0, "w": 0.05, "maxiter": 40,
-               "tol": 1e-6}
+BCPD_PARAMS = {"lmd": 128.0, "gamma": 1.0, "k": 1e20, "beta": 1.0, "w": 0.05, "maxiter": 40, "tol": 1e-6}
 #: trimesh nricp_amberg: a decreasing stiffness schedule (ws, wl, wn, max_iter) per step,
 #: Amberg et al.'s recipe, from 10 down to 0.01, 20 iterations per step, no normal weighting;
 #: correspondences farther than `distance_threshold` (template-normalized units) ignored.
@@ -64,8 +63,7 @@ AMBERG_PARAMS = {
 #: trimesh nricp_sumner: (wc, wi, ws, wl, wn) per step: correspondence weight 1 → 1000,
 #: identity 0.001, smoothness 3 (trimesh's default: wc up to 100, ws = 1).
 SUMNER_PARAMS = {
-    "steps": [[1, 0.001, 3.0, 0, 0], [1, 0.001, 3.0, 0, 0], [10, 0.001, 3.0, 0, 0],
-              [1000, 0.001, 3.0, 0, 0]],
+    "steps": [[1, 0.001, 3.0, 0, 0], [1, 0.001, 3.0, 0, 0], [10, 0.001, 3.0, 0, 0], [1000, 0.001, 3.0, 0, 0]],
     "distance_threshold": 0.3,
 }
 FOLDMATCH_PARAMS: dict[str, Any] = {}  # the library defaults (fm.DEFAULT_PARAMS)
@@ -98,8 +96,7 @@ def run_nrga(v, f, x, xf=None, trace=False, **params):
     return run_foldmatch(v, f, x, xf, trace, preset="paper", method="nrga", **params)
 
 
-def run_pycpd(v, f, x, xf=None, trace=False, alpha=2.0, beta=2.0, w=0.0, maxiter=100, tol=1e-3,
-              **_):
+def run_pycpd(v, f, x, xf=None, trace=False, alpha=2.0, beta=2.0, w=0.0, maxiter=100, tol=1e-3, **_):
     from pycpd import DeformableRegistration
 
     yn, xn, back = normalize(v, x)
@@ -109,14 +106,14 @@ def run_pycpd(v, f, x, xf=None, trace=False, alpha=2.0, beta=2.0, w=0.0, maxiter
         if tr is not None:
             tr.append(np.array(Y))
 
-    reg = DeformableRegistration(X=xn, Y=yn, alpha=alpha, beta=beta, w=w,
-                                 max_iterations=int(maxiter), tolerance=tol)
+    reg = DeformableRegistration(
+        X=xn, Y=yn, alpha=alpha, beta=beta, w=w, max_iterations=int(maxiter), tolerance=tol
+    )
     ty, _ = reg.register(cb)
     return back(ty), ([back(t) for t in tr] if tr else None), {"iterations": int(reg.iteration)}
 
 
-def run_probreg_cpd(v, f, x, xf=None, trace=False, alpha=2.0, beta=2.0, w=0.0, maxiter=100,
-                    tol=1e-3, **_):
+def run_probreg_cpd(v, f, x, xf=None, trace=False, alpha=2.0, beta=2.0, w=0.0, maxiter=100, tol=1e-3, **_):
     from probreg import cpd
 
     yn, xn, back = normalize(v, x)
@@ -128,14 +125,24 @@ def run_probreg_cpd(v, f, x, xf=None, trace=False, alpha=2.0, beta=2.0, w=0.0, m
         if tr is not None:
             tr.append(t.transform(yn))
 
-    res = cpd.registration_cpd(yn, xn, tf_type_name="nonrigid", w=w, maxiter=int(maxiter),
-                               tol=tol, callbacks=[cb], beta=beta, lmd=alpha)
+    res = cpd.registration_cpd(
+        yn,
+        xn,
+        tf_type_name="nonrigid",
+        w=w,
+        maxiter=int(maxiter),
+        tol=tol,
+        callbacks=[cb],
+        beta=beta,
+        lmd=alpha,
+    )
     out = res.transformation.transform(yn)
     return back(out), ([back(t) for t in tr] if tr else None), {"iterations": count[0]}
 
 
-def run_rustcpd(v, f, x, xf=None, trace=False, alpha=2.0, beta=2.0, w=0.0, maxiter=100,
-                tol=1e-3, low_rank=300, **_):
+def run_rustcpd(
+    v, f, x, xf=None, trace=False, alpha=2.0, beta=2.0, w=0.0, maxiter=100, tol=1e-3, low_rank=300, **_
+):
     import rustcpd
 
     yn, xn, back = normalize(v, x)
@@ -148,15 +155,22 @@ def run_rustcpd(v, f, x, xf=None, trace=False, alpha=2.0, beta=2.0, w=0.0, maxit
             tr.append(np.array(state["points"]))
 
     res = rustcpd.register_deformable(
-        xn, yn, alpha=alpha, beta=beta, low_rank=(low_rank if low_rank and low_rank < len(yn)
-                                                  else None),
-        max_iterations=int(maxiter), tolerance=tol, outlier_weight=w, callback=cb)
-    return back(res.points), ([back(t) for t in tr] if tr else None), {
-        "iterations": int(res.iterations)}
+        xn,
+        yn,
+        alpha=alpha,
+        beta=beta,
+        low_rank=(low_rank if low_rank and low_rank < len(yn) else None),
+        max_iterations=int(maxiter),
+        tolerance=tol,
+        outlier_weight=w,
+        callback=cb,
+    )
+    return back(res.points), ([back(t) for t in tr] if tr else None), {"iterations": int(res.iterations)}
 
 
-def run_probreg_bcpd(v, f, x, xf=None, trace=False, lmd=2.0, gamma=1.0, k=1e20, beta=1.0, w=0.0,
-                     maxiter=50, tol=1e-3, **_):
+def run_probreg_bcpd(
+    v, f, x, xf=None, trace=False, lmd=2.0, gamma=1.0, k=1e20, beta=1.0, w=0.0, maxiter=50, tol=1e-3, **_
+):
     from probreg import bcpd
 
     yn, xn, back = normalize(v, x)
@@ -169,8 +183,9 @@ def run_probreg_bcpd(v, f, x, xf=None, trace=False, lmd=2.0, gamma=1.0, k=1e20, 
         if tr is not None:
             tr.append(t.transform(yb) * beta)
 
-    t = bcpd.registration_bcpd(yb, xb, w=w, maxiter=int(maxiter), tol=tol, callbacks=[cb],
-                               lmd=lmd, k=k, gamma=gamma)
+    t = bcpd.registration_bcpd(
+        yb, xb, w=w, maxiter=int(maxiter), tol=tol, callbacks=[cb], lmd=lmd, k=k, gamma=gamma
+    )
     out = t.transform(yb) * beta
     return back(out), ([back(t) for t in tr] if tr else None), {"iterations": count[0]}
 
@@ -217,10 +232,14 @@ def run_amberg(v, f, x, xf=None, trace=False, steps=None, distance_threshold=0.1
     src = trimesh.Trimesh(yk, fk, process=False)
     tgt, use_faces = _trimesh_target(xn, xf)
     # trimesh 5.2 needs use_faces=False for point-cloud targets (and rtree for mesh targets)
-    rec = nricp_amberg(src, tgt, steps=steps, distance_threshold=distance_threshold,
-                       use_faces=use_faces, return_records=True)
-    return back(expand(rec[-1])), ([back(expand(r)) for r in rec] if trace else None), {
-        "iterations": len(rec) - 1}
+    rec = nricp_amberg(
+        src, tgt, steps=steps, distance_threshold=distance_threshold, use_faces=use_faces, return_records=True
+    )
+    return (
+        back(expand(rec[-1])),
+        ([back(expand(r)) for r in rec] if trace else None),
+        {"iterations": len(rec) - 1},
+    )
 
 
 def run_sumner(v, f, x, xf=None, trace=False, steps=None, distance_threshold=0.1, **_):
@@ -230,55 +249,112 @@ def run_sumner(v, f, x, xf=None, trace=False, steps=None, distance_threshold=0.1
     yn, xn, back = normalize(v, x)
     src = trimesh.Trimesh(yn, f, process=False)
     tgt, use_faces = _trimesh_target(xn, xf)
-    rec = nricp_sumner(src, tgt, steps=steps, distance_threshold=distance_threshold,
-                       use_faces=use_faces, return_records=True)
-    return back(rec[-1]), ([back(r) for r in rec] if trace else None), {
-        "iterations": len(rec) - 1}
+    rec = nricp_sumner(
+        src, tgt, steps=steps, distance_threshold=distance_threshold, use_faces=use_faces, return_records=True
+    )
+    return back(rec[-1]), ([back(r) for r in rec] if trace else None), {"iterations": len(rec) - 1}
 
 
 # ---- the registry ---------------------------------------------------------------------------
 
 #: name → label, adapter, parameters, modules it needs (pip names), size limit and notes.
 METHODS: dict[str, dict[str, Any]] = {
-    "foldmatch": {"label": "FoldMatch", "run": run_foldmatch, "params": FOLDMATCH_PARAMS,
-                      "modules": ["foldmatch_rs"], "pip": [], "family": "ours",
-                      "note": "library defaults (fm.DEFAULT_PARAMS, recorded in the header): the "
-                           "paper's constants (G=1.67, ε=0.1, η=0.1, Δt=0.006, ψ=0.05, 2-ring, ξ=100) "
-                           "plus the additions of docs/method.md (ρ = 0.1 %, K ≤ 32)"},
-    "foldmatch_paper": {"label": "FoldMatch (paper preset)", "run": run_foldmatch_paper,
-                            "params": FOLDMATCH_PARAMS, "modules": ["foldmatch_rs"], "pip": [],
-                            "family": "ours",
-                            "note": "fm.fit(preset='paper'): the method as the paper prints it "
-                                 "(one-way attraction, no rigid/coarse phases), with only the "
-                                 "converging readings of docs/method.md"},
-    "nrga": {"label": "NRGa", "run": run_nrga, "params": FOLDMATCH_PARAMS, "modules": ["foldmatch_rs"],
-                 "pip": [], "family": "ours",
-                 "note": "fm.fit(preset='paper', method='nrga'): the same N-body model, per-vertex "
-                      "rigid fits of k-nearest template neighborhoods, no mesh model"},
-    "cpd_pycpd": {"label": "CPD (pycpd)", "run": run_pycpd, "params": CPD_PARAMS, "modules": ["pycpd"],
-                      "pip": ["pycpd"], "family": "cpd", "max_mn": 1.2e7, "max_m": 3000,
-                      "note": "dense kernel (M×M solve) and dense M×N×3 E-step; ~5 s per "
-                           "iteration at M=4.4K here, so M ≤ 3,000 only (rustcpd covers CPD "
-                           "beyond)"},
-    "cpd_probreg": {"label": "CPD (probreg)", "run": run_probreg_cpd, "params": CPD_PARAMS,
-                        "modules": ["probreg"], "pip": ["probreg"], "family": "cpd", "max_mn": 1.2e7,
-                        "max_m": 3000, "note": "dense kernel (M×M solve), M ≤ 3,000 only; needs "
-                                         "libusb-1.0 for open3d"},
-    "cpd_rustcpd": {"label": "CPD (rustcpd)", "run": run_rustcpd, "params": RUSTCPD_PARAMS,
-                        "modules": ["rustcpd"], "pip": ["rustcpd"], "family": "cpd",
-                        "note": "rank-300 low-rank kernel, exact E-step, Rust, parallel"},
-    "bcpd_probreg": {"label": "BCPD (probreg)", "run": run_probreg_bcpd, "params": BCPD_PARAMS,
-                         "modules": ["probreg"], "pip": ["probreg"], "family": "cpd", "max_mn": 4.0e6,
-                         "max_m": 2000, "groups": ("quick", "small"),
-                         "note": "dense (3M×3N) Kronecker products, ~2.5 s per iteration at "
-                              "M=1.7K: the small generated cases only"},
-    "nricp_amberg": {"label": "NRICP (Amberg)", "run": run_amberg, "params": AMBERG_PARAMS,
-                         "modules": ["trimesh", "scipy"], "pip": ["trimesh", "scipy"], "family": "nricp",
-                         "note": "trimesh.registration.nricp_amberg; rtree for mesh targets"},
-    "nricp_sumner": {"label": "NRICP (Sumner)", "run": run_sumner, "params": SUMNER_PARAMS,
-                         "modules": ["trimesh", "scipy"], "pip": ["trimesh", "scipy"], "family": "nricp",
-                         "note": "trimesh.registration.nricp_sumner (deformation-transfer "
-                              "energy)"},
+    "foldmatch": {
+        "label": "FoldMatch",
+        "run": run_foldmatch,
+        "params": FOLDMATCH_PARAMS,
+        "modules": ["foldmatch_rs"],
+        "pip": [],
+        "family": "ours",
+        "note": "library defaults (fm.DEFAULT_PARAMS, recorded in the header): the "
+        "paper's constants (G=1.67, ε=0.1, η=0.1, Δt=0.006, ψ=0.05, 2-ring, ξ=100) "
+        "plus the additions of docs/method.md (ρ = 0.1 %, K ≤ 32)",
+    },
+    "foldmatch_paper": {
+        "label": "FoldMatch (paper preset)",
+        "run": run_foldmatch_paper,
+        "params": FOLDMATCH_PARAMS,
+        "modules": ["foldmatch_rs"],
+        "pip": [],
+        "family": "ours",
+        "note": "fm.fit(preset='paper'): the method as the paper prints it "
+        "(one-way attraction, no rigid/coarse phases), with only the "
+        "converging readings of docs/method.md",
+    },
+    "nrga": {
+        "label": "NRGa",
+        "run": run_nrga,
+        "params": FOLDMATCH_PARAMS,
+        "modules": ["foldmatch_rs"],
+        "pip": [],
+        "family": "ours",
+        "note": "fm.fit(preset='paper', method='nrga'): the same N-body model, per-vertex "
+        "rigid fits of k-nearest template neighborhoods, no mesh model",
+    },
+    "cpd_pycpd": {
+        "label": "CPD (pycpd)",
+        "run": run_pycpd,
+        "params": CPD_PARAMS,
+        "modules": ["pycpd"],
+        "pip": ["pycpd"],
+        "family": "cpd",
+        "max_mn": 1.2e7,
+        "max_m": 3000,
+        "note": "dense kernel (M×M solve) and dense M×N×3 E-step; ~5 s per "
+        "iteration at M=4.4K here, so M ≤ 3,000 only (rustcpd covers CPD "
+        "beyond)",
+    },
+    "cpd_probreg": {
+        "label": "CPD (probreg)",
+        "run": run_probreg_cpd,
+        "params": CPD_PARAMS,
+        "modules": ["probreg"],
+        "pip": ["probreg"],
+        "family": "cpd",
+        "max_mn": 1.2e7,
+        "max_m": 3000,
+        "note": "dense kernel (M×M solve), M ≤ 3,000 only; needs libusb-1.0 for open3d",
+    },
+    "cpd_rustcpd": {
+        "label": "CPD (rustcpd)",
+        "run": run_rustcpd,
+        "params": RUSTCPD_PARAMS,
+        "modules": ["rustcpd"],
+        "pip": ["rustcpd"],
+        "family": "cpd",
+        "note": "rank-300 low-rank kernel, exact E-step, Rust, parallel",
+    },
+    "bcpd_probreg": {
+        "label": "BCPD (probreg)",
+        "run": run_probreg_bcpd,
+        "params": BCPD_PARAMS,
+        "modules": ["probreg"],
+        "pip": ["probreg"],
+        "family": "cpd",
+        "max_mn": 4.0e6,
+        "max_m": 2000,
+        "groups": ("quick", "small"),
+        "note": "dense (3M×3N) Kronecker products, ~2.5 s per iteration at "
+        "M=1.7K: the small generated cases only",
+    },
+    "nricp_amberg": {
+        "label": "NRICP (Amberg)",
+        "run": run_amberg,
+        "params": AMBERG_PARAMS,
+        "modules": ["trimesh", "scipy"],
+        "pip": ["trimesh", "scipy"],
+        "family": "nricp",
+        "note": "trimesh.registration.nricp_amberg; rtree for mesh targets",
+    },
+    "nricp_sumner": {
+        "label": "NRICP (Sumner)",
+        "run": run_sumner,
+        "params": SUMNER_PARAMS,
+        "modules": ["trimesh", "scipy"],
+        "pip": ["trimesh", "scipy"],
+        "family": "nricp",
+        "note": "trimesh.registration.nricp_sumner (deformation-transfer energy)",
+    },
 }
 ALL_METHODS = list(METHODS)
 
@@ -290,11 +366,11 @@ def size_skip_reason(method: str, m: int, n: int, group: str = "") -> str | None
     if "groups" in spec and group and group not in spec["groups"]:
         return f"run on the {'/'.join(spec['groups'])} cases only ({spec['note']})"
     if "max_m" in spec and m > spec["max_m"]:
-        return (f"too large for a dense method: M={m} > {spec['max_m']} "
-                f"({spec['note']}; ~M³ flops per iteration)")
+        return (
+            f"too large for a dense method: M={m} > {spec['max_m']} ({spec['note']}; ~M³ flops per iteration)"
+        )
     if "max_mn" in spec and m * n > spec["max_mn"]:
-        return (f"too large for a dense method: M·N={m * n:.2g} > {spec['max_mn']:.2g} "
-                f"({spec['note']})")
+        return f"too large for a dense method: M·N={m * n:.2g} > {spec['max_mn']:.2g} ({spec['note']})"
     return None
 
 
@@ -320,8 +396,19 @@ def versions() -> dict[str, str]:
     from importlib import metadata
 
     out = {"python": sys.version.split()[0]}
-    for dist in ("foldmatch-rs", "numpy", "scipy", "trimesh", "pycpd", "probreg", "open3d",
-                 "rustcpd", "rtree", "matplotlib", "psutil"):
+    for dist in (
+        "foldmatch-rs",
+        "numpy",
+        "scipy",
+        "trimesh",
+        "pycpd",
+        "probreg",
+        "open3d",
+        "rustcpd",
+        "rtree",
+        "matplotlib",
+        "psutil",
+    ):
         try:
             out[dist] = metadata.version(dist)
         except metadata.PackageNotFoundError:
@@ -388,8 +475,11 @@ if __name__ == "__main__":
         print(json.dumps(status))
         sys.exit(0)
     if len(sys.argv) < 4:
-        print("usage: peers.py CASE.npz METHOD OUT.npz [--trace] [--params JSON]\n"
-              "       peers.py --missing METHOD...", file=sys.stderr)
+        print(
+            "usage: peers.py CASE.npz METHOD OUT.npz [--trace] [--params JSON]\n"
+            "       peers.py --missing METHOD...",
+            file=sys.stderr,
+        )
         sys.exit(2)
     args = sys.argv[1:]
     tr = "--trace" in args

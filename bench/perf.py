@@ -53,8 +53,6 @@ COMMAND_FULL = ".venv/bin/python -m bench.perf"
 COMMAND_QUICK = ".venv/bin/python -m bench.perf --quick"
 
 
-
-
 def run_job(job: dict[str, Any], timeout: float) -> dict[str, Any]:
     """Runs one job in a fresh process; returns its record (status ok / failed / timeout)."""
     rec = {k: v for k, v in job.items()}
@@ -81,10 +79,6 @@ def run_job(job: dict[str, Any], timeout: float) -> dict[str, Any]:
         rec.update(status="timeout", error=f"stopped after {timeout:.0f} s")
     rec["process_s"] = round(time.perf_counter() - t0, 2)
     return rec
-
-
-
-
 
 
 def versions() -> dict[str, str]:
@@ -140,7 +134,6 @@ def git_state() -> dict[str, Any]:
         "commit": git("rev-parse", "--short", "HEAD"),
         "dirty": bool(git("status", "--porcelain", "--untracked-files=no")),
     }
-
 
 
 # ======================================================================================

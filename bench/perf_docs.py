@@ -292,8 +292,6 @@ def md_scaling(recs: list[dict[str, Any]], a: dict[str, Any]) -> str:
     return "\n".join(out)
 
 
-
-
 def md_threads(recs: list[dict[str, Any]], a: dict[str, Any]) -> str:
     rs = [r for r in recs if r["section"] == "threads"]
     if not rs:
@@ -397,19 +395,25 @@ def md_fast_closing(recs: list[dict[str, Any]], a: dict[str, Any]) -> str:
         if not (ok(fast) and ok(default)):
             continue
         x, full = fastest_peer(a, cname, "fast")
-        text = (f"{CASE_NAMES[cname]} {fast['wall_s']:.2f} s ({fast['wall_s'] / default['wall_s']:.2f}× "
-                f"the default's {default['wall_s']:.2f} s), f_R {fast['quality']['f_R']:.4f} / f_λ "
-                f"{fast['quality']['f_lambda']:.3f} (default {default['quality']['f_R']:.4f} / "
-                f"{default['quality']['f_lambda']:.3f})")
+        text = (
+            f"{CASE_NAMES[cname]} {fast['wall_s']:.2f} s ({fast['wall_s'] / default['wall_s']:.2f}× "
+            f"the default's {default['wall_s']:.2f} s), f_R {fast['quality']['f_R']:.4f} / f_λ "
+            f"{fast['quality']['f_lambda']:.3f} (default {default['quality']['f_R']:.4f} / "
+            f"{default['quality']['f_lambda']:.3f})"
+        )
         if full:
-            text += (f", {x['ratio']:.1f}× faster than {x['other']} (f_λ {x['ours_f_lambda']:.3f} vs "
-                     f"{x['other_f_lambda']:.3f})")
+            text += (
+                f", {x['ratio']:.1f}× faster than {x['other']} (f_λ {x['ours_f_lambda']:.3f} vs "
+                f"{x['other_f_lambda']:.3f})"
+            )
         parts.append(text)
     if not parts:
         return ""
-    return ("**The fast preset** (`preset=\"fast\"`: one schedule instead of the default's two, "
-            "no second run to compare), the trade of accuracy for time a user can make today, "
-            "measured in this run: " + "; ".join(parts) + "; " + FAST_PRICE + ".")
+    return (
+        '**The fast preset** (`preset="fast"`: one schedule instead of the default\'s two, '
+        "no second run to compare), the trade of accuracy for time a user can make today, "
+        "measured in this run: " + "; ".join(parts) + "; " + FAST_PRICE + "."
+    )
 
 
 def write_docs(
@@ -429,5 +433,3 @@ def write_docs(
         text = report.replace_block(text, name, body)
     DOC.parent.mkdir(parents=True, exist_ok=True)
     DOC.write_text(text)
-
-

@@ -27,8 +27,8 @@ LEVERS = {
     "template point far off the surface (height h ≫ ρ) sees all its candidates at ≈ h, so its "
     "margin d_c − d_K is tiny and it would re-query nearly every iteration; those two phases "
     "re-use the candidates while every neighbour is within (1 + σ) × the true K-th distance "
-    "(`knn_slack`, default 0.1; docs/method.md \"Approximate neighbours in the rigid and "
-    "coarse phases\"). "
+    '(`knn_slack`, default 0.1; docs/method.md "Approximate neighbours in the rigid and '
+    'coarse phases"). '
     "Re-ranking the 2K candidates is memory-bound. Re-queries and first queries are best-first "
     "searches of the box tree writing a sorted list in place (bounded by the old candidates' "
     "ball for re-queries). Closing: what is left is mostly points that moved beyond their "
@@ -46,8 +46,7 @@ LEVERS = {
     "searches skip nodes whose smallest K-th neighbour distance exceeds the best found (the "
     "same answer). Closing: the coarse "
     "phase's uncertified queries (the template still off the scan), a cheaper exact far query",
-    "nbody": "force: f64x4 SIMD over the K neighbors, neighbors' coordinates and κ gathered "
-    "once per vertex",
+    "nbody": "force: f64x4 SIMD over the K neighbors, neighbors' coordinates and κ gathered once per vertex",
     "gradient": "gradients: already closed-form eigenvalues and a direct inverse where B is "
     "well-conditioned; what is left is the ring gathers (memory-bound)",
     "regularize": "regularization (paper preset): the affine-invariant mean needs one "
@@ -66,7 +65,6 @@ LEVERS = {
     "by both schedules); the final wrinkle fields and the selection's scan distances and edge "
     "spreads",
 }
-
 
 
 # ======================================================================================
@@ -158,9 +156,11 @@ def plan(quick: bool) -> dict[str, Any]:
 #: FAST_PRICE) and the paper's method.
 PEER_PRESETS = ("default", "fast", "paper")
 #: The fast preset's price, which this script does not measure (docs/method.md "Presets").
-FAST_PRICE = ("its price is accuracy, which this run does not measure: on the comparison harness "
-              "it is farther from the truth than the default (`python -m bench.variants "
-              "--variant 'fast={\"preset\": \"fast\"}'` scores it)")
+FAST_PRICE = (
+    "its price is accuracy, which this run does not measure: on the comparison harness "
+    "it is farther from the truth than the default (`python -m bench.variants "
+    '--variant \'fast={"preset": "fast"}\'` scores it)'
+)
 
 #: Peers measured on the paper-sized and small cases (bench/peers.py adapters and tuned
 #: parameters), and how many iterations their uncapped run does at most.
@@ -197,8 +197,6 @@ def dense_skip(method: str, m: int, n: int) -> str | None:
             f"GiB allowed here; plus an O(M³) solve per iteration"
         )
     return None
-
-
 
 
 def jobs_for(p: dict[str, Any]) -> list[dict[str, Any]]:

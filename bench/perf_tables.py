@@ -43,8 +43,6 @@ def f_s(v: float | None, digits: int = 2) -> str:
     return f"{v:.3g}"
 
 
-
-
 def label(r: dict[str, Any]) -> str:
     if r["kind"] == "foldmatch":
         return f"FoldMatch ({run_name(r)})"
@@ -74,8 +72,6 @@ def status_note(r: dict[str, Any]) -> str:
     if r["kind"] in ("foldmatch", "peer") and len(r.get("walls_s", [])) > 1:
         notes.append("best of " + ", ".join(f"{w:.2f}" for w in r["walls_s"]) + " s")
     return "; ".join(notes)
-
-
 
 
 def section_table(recs: list[dict[str, Any]]) -> str:
@@ -247,5 +243,3 @@ def figure(recs: list[dict[str, Any]], a: dict[str, Any], path: pathlib.Path, qu
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
     plt.close(fig)
-
-

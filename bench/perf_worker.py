@@ -93,14 +93,17 @@ def work_foldmatch(job: dict[str, Any], case: dict[str, np.ndarray]) -> dict[str
     kw = dict(job.get("params", {}))
     cpu0 = _cpu_s()
     with ThreadSampler() as ts:
-        walls, results = timed_repeats(job, lambda: fm.fit(
-            case["template_vertices"],
-            case["faces"],
-            case["scan"],
-            preset=job["preset"],
-            threads=job.get("threads"),
-            params=kw,
-        ))
+        walls, results = timed_repeats(
+            job,
+            lambda: fm.fit(
+                case["template_vertices"],
+                case["faces"],
+                case["scan"],
+                preset=job["preset"],
+                threads=job.get("threads"),
+                params=kw,
+            ),
+        )
     cpu = _cpu_s() - cpu0
     peak = _status_kib("VmHWM") / 1024
     best = int(np.argmin(walls))
@@ -239,9 +242,9 @@ def work_peer(job: dict[str, Any], case: dict[str, np.ndarray]) -> dict[str, Any
     cpu0 = _cpu_s()
     with warnings.catch_warnings(), ThreadSampler() as ts:
         warnings.simplefilter("ignore")
-        walls, results = timed_repeats(job, lambda: run(
-            case["template_vertices"], case["faces"], case["scan"], None, False, **params
-        ))
+        walls, results = timed_repeats(
+            job, lambda: run(case["template_vertices"], case["faces"], case["scan"], None, False, **params)
+        )
     cpu = _cpu_s() - cpu0
     best = int(np.argmin(walls))
     fitted, _, extra = results[best]
@@ -301,5 +304,3 @@ def worker(job: dict[str, Any]) -> None:
     except Exception as e:  # noqa: BLE001
         info.update(status="failed", error=f"{type(e).__name__}: {str(e)[:300]}")
     print("PERF_RESULT " + json.dumps(info), flush=True)
-
-

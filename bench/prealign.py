@@ -108,8 +108,9 @@ def fit_f_r(case: cases_mod.Case, arrays: dict[str, np.ndarray], **kw: Any) -> t
     import foldmatch_rs as fm
 
     t0 = time.perf_counter()
-    r = fm.fit(arrays["template_vertices"], arrays["faces"], arrays["target"],
-               target_faces=case.target_faces, **kw)
+    r = fm.fit(
+        arrays["template_vertices"], arrays["faces"], arrays["target"], target_faces=case.target_faces, **kw
+    )
     seconds = time.perf_counter() - t0
     return harness.evaluate(arrays, r.vertices)["f_R"], seconds
 
@@ -124,9 +125,13 @@ def rotation_error(case: cases_mod.Case, arrays: dict[str, np.ndarray], motion: 
     truth = arrays["ground_truth"]
     diag = cases_mod.bbox_diagonal(arrays["target"])
     # The unmoved placement, moved: the scan's move applied to the given template.
-    return {"searched": a["searched"], "scale": a["scale"],
-            "identity_rel": a["identity_score"] / diag, "score_rel": a["score"] / diag,
-            "rms_to_truth_rel": float(np.sqrt(((placed - truth) ** 2).sum(1).mean()) / diag)}
+    return {
+        "searched": a["searched"],
+        "scale": a["scale"],
+        "identity_rel": a["identity_score"] / diag,
+        "score_rel": a["score"] / diag,
+        "rms_to_truth_rel": float(np.sqrt(((placed - truth) ** 2).sum(1).mean()) / diag),
+    }
 
 
 def run(cases: list[cases_mod.Case], align_only: bool, limit: float) -> list[dict[str, Any]]:
@@ -171,8 +176,7 @@ def summarize(rows: list[dict[str, Any]], limit: float) -> None:
         if not ratios:
             continue
         within = sum(x <= limit for x in ratios)
-        print(f"| {n} | {within} of {len(ratios)} | {max(ratios):.2f} | "
-              f"{variants.geo_mean(ratios):.3f} |")
+        print(f"| {n} | {within} of {len(ratios)} | {max(ratios):.2f} | {variants.geo_mean(ratios):.3f} |")
 
 
 def timing(cases: list[cases_mod.Case], repeats: int) -> None:
@@ -195,13 +199,16 @@ def timing(cases: list[cases_mod.Case], repeats: int) -> None:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--set", choices=("tuning", "held-out"), default="tuning")
-    ap.add_argument("--cases", help="only the cases whose name contains one of these "
-                                    "(comma-separated)")
-    ap.add_argument("--align-only", action="store_true",
-                    help="no fits: how far fm.prealign's transform puts the template from the "
-                         "truth (RMS ÷ scan diagonal), unmoved and per move")
-    ap.add_argument("--timing", action="store_true",
-                    help="time prealign=\"none\" against the default on the placed scans")
+    ap.add_argument("--cases", help="only the cases whose name contains one of these (comma-separated)")
+    ap.add_argument(
+        "--align-only",
+        action="store_true",
+        help="no fits: how far fm.prealign's transform puts the template from the "
+        "truth (RMS ÷ scan diagonal), unmoved and per move",
+    )
+    ap.add_argument(
+        "--timing", action="store_true", help='time prealign="none" against the default on the placed scans'
+    )
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--limit", type=float, default=1.25)
     ap.add_argument("--out", default=str(HERE / "out" / "prealign.json"))

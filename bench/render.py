@@ -66,8 +66,14 @@ def draw_mesh(
         rgb = rgb * (0.55 + 0.45 * shade[:, None])
     else:
         rgb = np.asarray(color)[None, :] * shade[:, None]
-    coll = Poly3DCollection(tri, facecolors=np.clip(rgb, 0, 1), edgecolors=edgecolor,
-                            linewidths=0.0, alpha=alpha, antialiased=False)
+    coll = Poly3DCollection(
+        tri,
+        facecolors=np.clip(rgb, 0, 1),
+        edgecolors=edgecolor,
+        linewidths=0.0,
+        alpha=alpha,
+        antialiased=False,
+    )
     ax.add_collection3d(coll)
     ax.view_init(elev=elev, azim=azim)
 
@@ -83,5 +89,6 @@ def frame_axes(ax, points: np.ndarray, margin: float = 0.02) -> None:
 
 
 def draw_points(ax, points: np.ndarray, color="k", size: float = 0.3, alpha: float = 0.5) -> None:
-    ax.scatter(points[:, 0], points[:, 1], points[:, 2], s=size, c=color, alpha=alpha,
-               depthshade=False, linewidths=0)
+    ax.scatter(
+        points[:, 0], points[:, 1], points[:, 2], s=size, c=color, alpha=alpha, depthshade=False, linewidths=0
+    )

@@ -16,9 +16,17 @@ import numpy as np
 from bench import peers
 
 NAMES = {
-    "f_R": "f_R", "s2f_mean_rel": "scan→fit mean", "s2f_p95_rel": "scan→fit p95",
-    "chamfer_rel": "Chamfer", "f_H": "f_H", "f_S": "f_S", "f_E": "f_E", "f_F": "f_F",
-    "f_lambda": "f_λ", "wall_s": "time (s)", "peak_rss_mb": "peak RSS (MB)",
+    "f_R": "f_R",
+    "s2f_mean_rel": "scan→fit mean",
+    "s2f_p95_rel": "scan→fit p95",
+    "chamfer_rel": "Chamfer",
+    "f_H": "f_H",
+    "f_S": "f_S",
+    "f_E": "f_E",
+    "f_F": "f_F",
+    "f_lambda": "f_λ",
+    "wall_s": "time (s)",
+    "peak_rss_mb": "peak RSS (MB)",
 }
 REF = ("identity", "oracle")
 
@@ -75,8 +83,19 @@ def write_blocks(path: pathlib.Path, blocks: dict[str, str], skeleton: str) -> N
 
 def case_table(rec: dict[str, Any], methods: list[str]) -> str:
     """Every metric for every method of one case, reference rows first."""
-    keys = ["f_R", "s2f_mean_rel", "s2f_p95_rel", "chamfer_rel", "f_H", "f_S", "f_E", "f_F",
-            "f_lambda", "wall_s", "peak_rss_mb"]
+    keys = [
+        "f_R",
+        "s2f_mean_rel",
+        "s2f_p95_rel",
+        "chamfer_rel",
+        "f_H",
+        "f_S",
+        "f_E",
+        "f_F",
+        "f_lambda",
+        "wall_s",
+        "peak_rss_mb",
+    ]
     fm_row = rec["rows"].get("foldmatch", {})
     header = ["method"] + [NAMES[k] for k in keys] + ["f_R ÷ FM", "time ÷ FM"]
     rows = []
@@ -114,8 +133,18 @@ def _vals(records: list[dict], method: str, key: str) -> list[float]:
 
 def summary_table(records: list[dict], methods: list[str]) -> str:
     """Medians over the cases of a group (peak RSS: the maximum)."""
-    keys = ["f_R", "s2f_mean_rel", "s2f_p95_rel", "f_H", "f_S", "f_E", "f_F", "f_lambda",
-            "wall_s", "peak_rss_mb"]
+    keys = [
+        "f_R",
+        "s2f_mean_rel",
+        "s2f_p95_rel",
+        "f_H",
+        "f_S",
+        "f_E",
+        "f_F",
+        "f_lambda",
+        "wall_s",
+        "peak_rss_mb",
+    ]
     header = ["method", "cases"] + [NAMES[k] for k in keys] + ["f_R ÷ FM", "time ÷ FM"]
     rows = []
     for m in list(REF) + methods:
@@ -165,8 +194,11 @@ def wins_table(records: list[dict], methods: list[str]) -> str:
             win = tot = 0
             for rec in records:
                 a, b = rec["rows"].get("foldmatch", {}), rec["rows"].get(m, {})
-                if a.get("status") == b.get("status") == "ok" and a.get(k) is not None \
-                        and b.get(k) is not None:
+                if (
+                    a.get("status") == b.get("status") == "ok"
+                    and a.get(k) is not None
+                    and b.get(k) is not None
+                ):
                     tot += 1
                     win += a[k] < b[k]
             cells.append(f"{win}/{tot}" if tot else "—")
@@ -178,8 +210,7 @@ def quantile_table(records: list[dict], methods: list[str], keys: Iterable[str])
     """Third quartile and maximum of every metric over a sample set, and their ratio to
     FoldMatch's (the paper's Fig. 6 statistic)."""
     keys = list(keys)
-    header = ["method"] + [f"{NAMES[k]} Q3" for k in keys] + ["f_λ Q3 ÷ FM", "f_R Q3 ÷ FM",
-                                                               "f_λ max ÷ FM"]
+    header = ["method"] + [f"{NAMES[k]} Q3" for k in keys] + ["f_λ Q3 ÷ FM", "f_R Q3 ÷ FM", "f_λ max ÷ FM"]
     q3 = {}
     mx = {}
     for m in list(REF) + methods:

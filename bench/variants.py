@@ -47,8 +47,18 @@ PRESETS: dict[str, list[tuple[str, dict[str, Any]]]] = {
     # The schedule grid behind the default of 2026-11-22 (docs/notes/method-history.md), one schedule per
     # fit; every setting spelled out.
     "schedule": [
-        (name, {"two_way": tw, "rigid_fraction": rf, "coarse_fraction": cf, "anneal": an,
-                "anneal_fraction": ai, "rings": rings, "selection": "single"})
+        (
+            name,
+            {
+                "two_way": tw,
+                "rigid_fraction": rf,
+                "coarse_fraction": cf,
+                "anneal": an,
+                "anneal_fraction": ai,
+                "rings": rings,
+                "selection": "single",
+            },
+        )
         for name, tw, rf, cf, an, ai, rings in [
             ("previous default (two-way 1, coarse 30 %, no annealing)", 1.0, 0.3, 0.3, 1.0, 0.0, 2),
             ("two-way 2, coarse 50 %, anneal ×3 over 60 % (given)", 2.0, 0.3, 0.5, 3.0, 0.6, 2),
@@ -66,9 +76,16 @@ PRESETS: dict[str, list[tuple[str, dict[str, Any]]]] = {
     # the fit closer to the scan); the last two as coarse-phase levels, for the record.
     "selection": [
         ("given schedule alone (two-way 2, coarse 50 %, annealed)", {"selection": "single"}),
-        ("sharp schedule alone (two-way 1, coarse 30 %, constant ε)",
-         {"selection": "single", "two_way": 1.0, "coarse_fraction": 0.3, "anneal": 1.0,
-          "anneal_fraction": 0.0}),
+        (
+            "sharp schedule alone (two-way 1, coarse 30 %, constant ε)",
+            {
+                "selection": "single",
+                "two_way": 1.0,
+                "coarse_fraction": 0.3,
+                "anneal": 1.0,
+                "anneal_fraction": 0.0,
+            },
+        ),
         ("both, schedule selection (default)", {}),
         ("default + 2 coarse levels (8, 4 rings)", {"coarse_levels": 2}),
         ("default + 3 coarse levels (16, 8, 4 rings)", {"coarse_levels": 3, "coarse_rings": 16}),
@@ -76,8 +93,12 @@ PRESETS: dict[str, list[tuple[str, dict[str, Any]]]] = {
     # Schedule selection's near-tie margin (docs/notes/method-history.md, eighth round): the previous rule
     # (0, the closer fit alone) first, so the per-case block compares every other value with it.
     "margin": [
-        (f"selection_margin {m}" + (" (default)" if m == 0.06 else "")
-         + (" (previous default)" if m == 0.0 else ""), {"selection_margin": m})
+        (
+            f"selection_margin {m}"
+            + (" (default)" if m == 0.06 else "")
+            + (" (previous default)" if m == 0.0 else ""),
+            {"selection_margin": m},
+        )
         for m in (0.0, 0.03, 0.06, 0.1)
     ],
     # The two-way pulls summed by coverage (docs/notes/method-history.md, ninth round), at the rest-shape
@@ -85,11 +106,21 @@ PRESETS: dict[str, list[tuple[str, dict[str, Any]]]] = {
     # previous default (their mean, weight 3) first, so the per-case block compares every
     # other row with it.
     "pull": [
-        (f"{pull}, two-way {w}" + {("mean", 3.0): " (previous default)",
-                                   ("coverage", 4.5): " (the default's pull)"}.get((pull, w), ""),
-         {"two_way_pull": pull, "two_way": w, "rest_rigidity": 0.5})
-        for pull, w in [("mean", 3.0), ("mean", 4.5), ("coverage", 2.0), ("coverage", 3.0),
-                        ("coverage", 4.5), ("coverage", 6.0)]
+        (
+            f"{pull}, two-way {w}"
+            + {("mean", 3.0): " (previous default)", ("coverage", 4.5): " (the default's pull)"}.get(
+                (pull, w), ""
+            ),
+            {"two_way_pull": pull, "two_way": w, "rest_rigidity": 0.5},
+        )
+        for pull, w in [
+            ("mean", 3.0),
+            ("mean", 4.5),
+            ("coverage", 2.0),
+            ("coverage", 3.0),
+            ("coverage", 4.5),
+            ("coverage", 6.0),
+        ]
     ],
     # Rest-shape rigidity (docs/notes/method-history.md, seventh round; re-tuned in the ninth): the rule
     # before it (0) first, so the per-case block compares every other value with it.
@@ -102,8 +133,13 @@ METRICS = ("f_R", "f_lambda", "f_H", "f_E", "f_F", "s2f_mean_rel")
 
 
 #: variants.py group → (bench/compare.py group that builds it, the cases' own group tag).
-GROUPS = {"real": ("real", "real"), "small": ("small", "small"), "paper": ("paper", "paper"),
-          "sheets": ("samples", "samples-sheet"), "wind": ("samples", "samples-wind")}
+GROUPS = {
+    "real": ("real", "real"),
+    "small": ("small", "small"),
+    "paper": ("paper", "paper"),
+    "sheets": ("samples", "samples-sheet"),
+    "wind": ("samples", "samples-wind"),
+}
 
 
 def group_cases(group: str) -> list[cases_mod.Case]:
@@ -157,8 +193,10 @@ _MD_COLUMNS = {"f_R": "f_R", "f_lambda": "f_λ", "s2f_mean_rel": "scan→fit mea
 
 
 def _best(rows: list[dict[str, float]], truth_f_f: float) -> dict[str, float]:
-    return {**{m: min(r[m] for r in rows) for m in ("f_R", "f_lambda", "s2f_mean_rel")},
-            "truth_f_F": truth_f_f}
+    return {
+        **{m: min(r[m] for r in rows) for m in ("f_R", "f_lambda", "s2f_mean_rel")},
+        "truth_f_F": truth_f_f,
+    }
 
 
 def best_peers(results: pathlib.Path) -> Best:
@@ -166,8 +204,7 @@ def best_peers(results: pathlib.Path) -> Best:
     best = {}
     for cases in json.loads(results.read_text())["groups"].values():
         for c in cases:
-            ok = [c["rows"][p] for p in PEERS
-                  if isinstance(c["rows"].get(p), dict) and "f_R" in c["rows"][p]]
+            ok = [c["rows"][p] for p in PEERS if isinstance(c["rows"].get(p), dict) and "f_R" in c["rows"][p]]
             oracle = c["rows"].get("oracle") or {}
             if ok:
                 best[c["name"]] = _best(ok, float(oracle.get("f_F", float("nan"))))
@@ -215,9 +252,12 @@ def verdict(row: dict[str, Any], best: dict[str, float]) -> dict[str, Any]:
     own f_F + 1 point (None without ground truth), a mean scan→fit distance no worse than the
     best peer's."""
     truth_f_f = best["truth_f_F"]
-    return {"f_R": row["f_R"] <= best["f_R"], "f_lambda": row["f_lambda"] <= best["f_lambda"],
-            "flips": None if truth_f_f != truth_f_f else row["f_F"] <= truth_f_f + 0.01,
-            "s2f": row["s2f_mean_rel"] <= best["s2f_mean_rel"]}
+    return {
+        "f_R": row["f_R"] <= best["f_R"],
+        "f_lambda": row["f_lambda"] <= best["f_lambda"],
+        "flips": None if truth_f_f != truth_f_f else row["f_F"] <= truth_f_f + 0.01,
+        "s2f": row["s2f_mean_rel"] <= best["s2f_mean_rel"],
+    }
 
 
 def against_peers(rows: list[dict[str, Any]], best: Best, source: str) -> None:
@@ -226,10 +266,11 @@ def against_peers(rows: list[dict[str, Any]], best: Best, source: str) -> None:
     its mean scan→fit distance is no worse than the best peer's; and the geometric mean over
     the cases of its f_R ÷ the best peer's (overall and in its worst group)."""
     groups = list(dict.fromkeys(r["group"] for r in rows))
-    print(f"\nagainst the best peer of each case ({source}): wins f_R / f_λ / flips ≤ truth + "
-          "1 pt / scan→fit ≤ best peer\n")
-    print("| variant | " + " | ".join(groups)
-          + " | f_R ÷ best (geo. mean) | worst group | f_λ ÷ best |")
+    print(
+        f"\nagainst the best peer of each case ({source}): wins f_R / f_λ / flips ≤ truth + "
+        "1 pt / scan→fit ≤ best peer\n"
+    )
+    print("| variant | " + " | ".join(groups) + " | f_R ÷ best (geo. mean) | worst group | f_λ ÷ best |")
     print("| :--- |" + " ---: |" * (len(groups) + 3))
     for v in dict.fromkeys(r["variant"] for r in rows):
         sel = [r for r in rows if r["variant"] == v and r["case"] in best]
@@ -244,17 +285,25 @@ def against_peers(rows: list[dict[str, Any]], best: Best, source: str) -> None:
                 continue
             vs = [verdict(r, b) for r, b in gs]
             flips = [v["flips"] for v in vs if v["flips"] is not None]
-            cells.append(f"{sum(v['f_R'] for v in vs)} / {sum(v['f_lambda'] for v in vs)} / "
-                         f"{sum(flips)} of {len(flips)} / "
-                         f"{sum(v['s2f'] for v in vs)} of {len(gs)}")
+            cells.append(
+                f"{sum(v['f_R'] for v in vs)} / {sum(v['f_lambda'] for v in vs)} / "
+                f"{sum(flips)} of {len(flips)} / "
+                f"{sum(v['s2f'] for v in vs)} of {len(gs)}"
+            )
 
         def geo(rs: list[dict[str, Any]], m: str) -> float:
             return geo_mean(r[m] / best[r["case"]][m] for r in rs)
 
-        worst = max(geo([r for r in sel if r["group"] == g], "f_R") for g in groups
-                    if any(r["group"] == g for r in sel))
-        print(f"| {v} | " + " | ".join(cells)
-              + f" | {geo(sel, 'f_R'):.3f} | {worst:.3f} | {geo(sel, 'f_lambda'):.3f} |")
+        worst = max(
+            geo([r for r in sel if r["group"] == g], "f_R")
+            for g in groups
+            if any(r["group"] == g for r in sel)
+        )
+        print(
+            f"| {v} | "
+            + " | ".join(cells)
+            + f" | {geo(sel, 'f_R'):.3f} | {worst:.3f} | {geo(sel, 'f_lambda'):.3f} |"
+        )
 
 
 def against_first(rows: list[dict[str, Any]]) -> None:
@@ -265,23 +314,26 @@ def against_first(rows: list[dict[str, Any]]) -> None:
         return
     first = {r["case"]: r for r in rows if r["variant"] == variants[0]}
     groups = list(dict.fromkeys(r["group"] for r in rows)) + ["all"]
-    print(f"\ncase by case against {variants[0]!r}: geometric mean of f_R / f_λ / f_H ratios, "
-          "cases with a lower f_R, mean f_F (first → variant)\n")
+    print(
+        f"\ncase by case against {variants[0]!r}: geometric mean of f_R / f_λ / f_H ratios, "
+        "cases with a lower f_R, mean f_F (first → variant)\n"
+    )
     print("| variant | " + " | ".join(groups) + " |")
     print("| :--- |" + " ---: |" * len(groups))
+
     def geo(rs: list[dict[str, Any]], m: str) -> float:
         return geo_mean(r[m] / first[r["case"]][m] for r in rs)
 
     for v in variants[1:]:
         cells = []
         for g in groups:
-            rs = [r for r in rows if r["variant"] == v and r["case"] in first
-                  and g in ("all", r["group"])]
+            rs = [r for r in rows if r["variant"] == v and r["case"] in first and g in ("all", r["group"])]
             lower = sum(r["f_R"] < first[r["case"]]["f_R"] for r in rs)
-            f_f = [np.mean([x["f_F"] for x in sel]) for sel in
-                   ([first[r["case"]] for r in rs], rs)]
-            cells.append(f"{geo(rs, 'f_R'):.3f} / {geo(rs, 'f_lambda'):.3f} / {geo(rs, 'f_H'):.3f}, "
-                         f"{lower} of {len(rs)}, f_F {f_f[0]:.4f} → {f_f[1]:.4f}")
+            f_f = [np.mean([x["f_F"] for x in sel]) for sel in ([first[r["case"]] for r in rs], rs)]
+            cells.append(
+                f"{geo(rs, 'f_R'):.3f} / {geo(rs, 'f_lambda'):.3f} / {geo(rs, 'f_H'):.3f}, "
+                f"{lower} of {len(rs)}, f_F {f_f[0]:.4f} → {f_f[1]:.4f}"
+            )
         print(f"| {v} | " + " | ".join(cells) + " |")
 
 
@@ -298,8 +350,11 @@ def summary(rows: list[dict[str, Any]]) -> None:
     print("| variant | " + " | ".join(groups) + " |")
     print("| :--- |" + " ---: |" * len(groups))
     for v in variants:
-        print(f"| {v} | " + " | ".join(f"{med(v, g, 'f_R'):.4f} / {med(v, g, 'f_lambda'):.3f}"
-                                      for g in groups) + " |")
+        print(
+            f"| {v} | "
+            + " | ".join(f"{med(v, g, 'f_R'):.4f} / {med(v, g, 'f_lambda'):.3f}" for g in groups)
+            + " |"
+        )
     for g in groups:
         print(f"\nmedians, {g}: " + " | ".join(METRICS) + " | s")
         for v in variants:
@@ -338,8 +393,9 @@ def load_best(names: list[str] | None) -> tuple[Best, str]:
 EXACT = "exact answer"
 
 
-def fit_rows(groups: list[str], variants: list[tuple[str, dict[str, Any]]],
-             truth: bool = False) -> list[dict[str, Any]]:
+def fit_rows(
+    groups: list[str], variants: list[tuple[str, dict[str, Any]]], truth: bool = False
+) -> list[dict[str, Any]]:
     """Every variant (name, keyword arguments of ``fm.fit``) fitted on every case of
     `groups`: one row per case and variant (group, case, variant, seconds and :data:`METRICS`),
     each case's f_R / f_λ printed as a markdown row as it comes. With `truth`, also a row
@@ -357,18 +413,37 @@ def fit_rows(groups: list[str], variants: list[tuple[str, dict[str, Any]]],
             for name, kw in variants:
                 t0 = time.perf_counter()
                 settings = dict(kw)
-                r = fm.fit(case.template_vertices, case.faces, case.target,
-                           target_faces=case.target_faces, preset=settings.pop("preset", None),
-                           params=settings)
+                r = fm.fit(
+                    case.template_vertices,
+                    case.faces,
+                    case.target,
+                    target_faces=case.target_faces,
+                    preset=settings.pop("preset", None),
+                    params=settings,
+                )
                 seconds = time.perf_counter() - t0
                 e = harness.evaluate(arrays, r.vertices)
-                rows.append({"group": group, "case": case.name, "variant": name,
-                             "seconds": seconds, **{m: e[m] for m in METRICS}})
+                rows.append(
+                    {
+                        "group": group,
+                        "case": case.name,
+                        "variant": name,
+                        "seconds": seconds,
+                        **{m: e[m] for m in METRICS},
+                    }
+                )
                 cells.append(f"{e['f_R']:.4f} / {e['f_lambda']:.3f}")
             if truth and case.ground_truth is not None:
                 e = harness.evaluate(arrays, case.ground_truth)
-                rows.append({"group": group, "case": case.name, "variant": EXACT,
-                             "seconds": 0.0, **{m: e[m] for m in METRICS}})
+                rows.append(
+                    {
+                        "group": group,
+                        "case": case.name,
+                        "variant": EXACT,
+                        "seconds": 0.0,
+                        **{m: e[m] for m in METRICS},
+                    }
+                )
             print(f"| {case.name} | " + " | ".join(cells) + " |", flush=True)
     return rows
 
@@ -380,24 +455,40 @@ def main() -> int:
     ap.add_argument("--preset", choices=sorted(PRESETS))
     ap.add_argument("--out", default=str(HERE / "out" / "variants.json"))
     ap.add_argument("--from-json", metavar="FILE", help="print the summary of an earlier run")
-    ap.add_argument("--peers", metavar="FILE", action="append", default=None,
-                    help="the peers to score against: a bench/compare.py results.json, or the "
-                         "report it generated (docs/notes/comparison-full-run.md, its per-case "
-                         "tables); repeat "
-                         "to merge several (a later file's cases replace an earlier's); "
-                         "default bench/out/results.json if present, else bench/peer_figures.json, "
-                         "else docs/notes/comparison-full-run.md")
-    ap.add_argument("--save-peers", metavar="FILE",
-                    help="write the merged best-peer figures (JSON, per case) and exit; "
-                         "bench/peer_figures.json is read by default when present")
+    ap.add_argument(
+        "--peers",
+        metavar="FILE",
+        action="append",
+        default=None,
+        help="the peers to score against: a bench/compare.py results.json, or the "
+        "report it generated (docs/notes/comparison-full-run.md, its per-case "
+        "tables); repeat "
+        "to merge several (a later file's cases replace an earlier's); "
+        "default bench/out/results.json if present, else bench/peer_figures.json, "
+        "else docs/notes/comparison-full-run.md",
+    )
+    ap.add_argument(
+        "--save-peers",
+        metavar="FILE",
+        help="write the merged best-peer figures (JSON, per case) and exit; "
+        "bench/peer_figures.json is read by default when present",
+    )
     args = ap.parse_args()
     best, source = load_best(args.peers)
     if args.save_peers:
-        pathlib.Path(args.save_peers).write_text(json.dumps(
-            {"about": "per case, the lowest f_R, f_lambda and s2f_mean_rel of the peers "
-                      f"({', '.join(PEERS)}) and the truth's f_F; written by "
-                      "python -m bench.variants --save-peers from " + source,
-             "cases": best}, indent=1, sort_keys=True) + "\n")
+        pathlib.Path(args.save_peers).write_text(
+            json.dumps(
+                {
+                    "about": "per case, the lowest f_R, f_lambda and s2f_mean_rel of the peers "
+                    f"({', '.join(PEERS)}) and the truth's f_F; written by "
+                    "python -m bench.variants --save-peers from " + source,
+                    "cases": best,
+                },
+                indent=1,
+                sort_keys=True,
+            )
+            + "\n"
+        )
         return 0
 
     def report(rows: list[dict[str, Any]]) -> None:

@@ -44,8 +44,15 @@ from bench.front_scan import front_scan
 
 HERE = pathlib.Path(__file__).resolve().parent
 
-FIGURES = ("fit_to_scan", "scan_to_fit", "asymmetry", "unsupported_share", "flipped_share",
-           "collapsed_share", "edge_distortion")
+FIGURES = (
+    "fit_to_scan",
+    "scan_to_fit",
+    "asymmetry",
+    "unsupported_share",
+    "flipped_share",
+    "collapsed_share",
+    "edge_distortion",
+)
 WRONG_RATIO = 3.0
 
 
@@ -66,11 +73,11 @@ def conditions(case: cases_mod.Case) -> list[tuple[str, np.ndarray, np.ndarray, 
     c = scan.mean(0)
     out = [("placed", scan, truth, {})]
     for deg in (90.0, 180.0):
-        out.append((f"turn{int(deg)}", turned(scan, up, deg, c), turned(truth, up, deg, c),
-                    {"prealign": "centroid"}))
+        out.append(
+            (f"turn{int(deg)}", turned(scan, up, deg, c), turned(truth, up, deg, c), {"prealign": "centroid"})
+        )
     if up == 1:  # y-up → z-up: a quarter turn about x
-        out.append(("z-up", turned(scan, 0, 90.0, c), turned(truth, 0, 90.0, c),
-                    {"prealign": "centroid"}))
+        out.append(("z-up", turned(scan, 0, 90.0, c), turned(truth, 0, 90.0, c), {"prealign": "centroid"}))
     out.append(("few-iterations", scan, truth, {"iterations": 4}))
     seed = int(hashlib.sha256(case.name.encode()).hexdigest()[:8], 16)
     half = front_scan(truth, case.faces, up, seed, most=len(scan))
@@ -97,12 +104,24 @@ def fit_rows(groups: list[str], best: dict[str, dict[str, float]]) -> list[dict[
                 f_r = e["f_R"] * cases_mod.bbox_diagonal(scan) / cases_mod.bbox_diagonal(case.target)
                 q = fm.assess(case.template_vertices, case.faces, r.vertices, scan)["quality"]
                 ratio = f_r / best[case.name]["f_R"]
-                rows.append({"group": group, "case": case.name, "condition": name,
-                             "split": split_of(case.name), "f_R": f_r, "ratio": ratio,
-                             "wrong": bool(ratio > WRONG_RATIO), "seconds": seconds,
-                             **{k: q[k] for k in FIGURES}})
-                print(f"{case.name:32s} {name:15s} f_R {f_r:.4f} ×{ratio:6.2f} "
-                      + " ".join(f"{q[k]:.3f}" for k in FIGURES), flush=True)
+                rows.append(
+                    {
+                        "group": group,
+                        "case": case.name,
+                        "condition": name,
+                        "split": split_of(case.name),
+                        "f_R": f_r,
+                        "ratio": ratio,
+                        "wrong": bool(ratio > WRONG_RATIO),
+                        "seconds": seconds,
+                        **{k: q[k] for k in FIGURES},
+                    }
+                )
+                print(
+                    f"{case.name:32s} {name:15s} f_R {f_r:.4f} ×{ratio:6.2f} "
+                    + " ".join(f"{q[k]:.3f}" for k in FIGURES),
+                    flush=True,
+                )
     # Another garment's template (the first of each kind of garment on another's scan).
     kinds = {}
     for case in real:
@@ -114,17 +133,25 @@ def fit_rows(groups: list[str], best: dict[str, dict[str, float]]) -> list[dict[
             continue
         r = fm.fit(other.template_vertices, other.faces, case.target, prealign="centroid")
         q = fm.assess(other.template_vertices, other.faces, r.vertices, case.target)["quality"]
-        rows.append({"group": "real", "case": case.name, "condition": f"other-garment ({other.name})",
-                     "split": split_of(case.name), "f_R": math.nan, "ratio": math.inf,
-                     "wrong": True, "seconds": 0.0, **{k: q[k] for k in FIGURES}})
-        print(f"{case.name:32s} other-garment   " + " ".join(f"{q[k]:.3f}" for k in FIGURES),
-              flush=True)
+        rows.append(
+            {
+                "group": "real",
+                "case": case.name,
+                "condition": f"other-garment ({other.name})",
+                "split": split_of(case.name),
+                "f_R": math.nan,
+                "ratio": math.inf,
+                "wrong": True,
+                "seconds": 0.0,
+                **{k: q[k] for k in FIGURES},
+            }
+        )
+        print(f"{case.name:32s} other-garment   " + " ".join(f"{q[k]:.3f}" for k in FIGURES), flush=True)
     return rows
 
 
 def flagged(row: dict[str, Any], thresholds: dict[str, float]) -> list[str]:
-    return [k for k in FIGURES
-            if (abs(row[k]) if k == "asymmetry" else row[k]) > thresholds[k]]
+    return [k for k in FIGURES if (abs(row[k]) if k == "asymmetry" else row[k]) > thresholds[k]]
 
 
 #: The least thresholds of the face shares: a right fit may collapse or fold a few faces in a
@@ -136,9 +163,10 @@ def calibrate(rows: list[dict[str, Any]], margin: float) -> dict[str, float]:
     """Each figure's threshold: the largest value among the tuning half's right fits × margin,
     at least its :data:`FLOORS`."""
     right = [r for r in rows if r["split"] == "tune" and not r["wrong"]]
-    return {k: max(FLOORS.get(k, 0.0),
-                   margin * max(abs(r[k]) if k == "asymmetry" else r[k] for r in right))
-            for k in FIGURES}
+    return {
+        k: max(FLOORS.get(k, 0.0), margin * max(abs(r[k]) if k == "asymmetry" else r[k] for r in right))
+        for k in FIGURES
+    }
 
 
 def table(rows: list[dict[str, Any]], thresholds: dict[str, float]) -> None:
@@ -150,32 +178,41 @@ def table(rows: list[dict[str, Any]], thresholds: dict[str, float]) -> None:
         right = [r for r in part if not r["wrong"]]
         wf = sum(bool(flagged(r, thresholds)) for r in wrong)
         rf = sum(bool(flagged(r, thresholds)) for r in right)
-        print(f"| {split} | {len(part)} | {len(wrong)} | {wf} | {len(right)} | {rf} "
-              f"({rf / max(len(right), 1):.1%}) |")
+        print(
+            f"| {split} | {len(part)} | {len(wrong)} | {wf} | {len(right)} | {rf} "
+            f"({rf / max(len(right), 1):.1%}) |"
+        )
     print("\n| condition | fits | wrong | wrong flagged | right flagged |")
     print("| :--- | ---: | ---: | ---: | ---: |")
     for cond in sorted({r["condition"].split(" (")[0] for r in rows}):
         part = [r for r in rows if r["condition"].split(" (")[0] == cond]
         wrong = [r for r in part if r["wrong"]]
         right = [r for r in part if not r["wrong"]]
-        print(f"| {cond} | {len(part)} | {len(wrong)} "
-              f"| {sum(bool(flagged(r, thresholds)) for r in wrong)} "
-              f"| {sum(bool(flagged(r, thresholds)) for r in right)} / {len(right)} |")
+        print(
+            f"| {cond} | {len(part)} | {len(wrong)} "
+            f"| {sum(bool(flagged(r, thresholds)) for r in wrong)} "
+            f"| {sum(bool(flagged(r, thresholds)) for r in right)} / {len(right)} |"
+        )
     missed = [r for r in rows if r["wrong"] and not flagged(r, thresholds)]
     false = [r for r in rows if not r["wrong"] and flagged(r, thresholds)]
     for title, part in (("wrong and not flagged", missed), ("right and flagged", false)):
         print(f"\n{title}: {len(part)}")
         for r in part:
-            print(f"  {r['split']:8s} {r['case']:32s} {r['condition']:15s} ×{r['ratio']:.2f} "
-                  + " ".join(f"{k}={r[k]:.3f}" for k in FIGURES)
-                  + (f"  [{', '.join(flagged(r, thresholds))}]" if title.startswith("right") else ""))
+            print(
+                f"  {r['split']:8s} {r['case']:32s} {r['condition']:15s} ×{r['ratio']:.2f} "
+                + " ".join(f"{k}={r[k]:.3f}" for k in FIGURES)
+                + (f"  [{', '.join(flagged(r, thresholds))}]" if title.startswith("right") else "")
+            )
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--groups", default="real,small")
-    ap.add_argument("--calibrate", action="store_true",
-                    help="choose the thresholds on the tuning half and report under them")
+    ap.add_argument(
+        "--calibrate",
+        action="store_true",
+        help="choose the thresholds on the tuning half and report under them",
+    )
     ap.add_argument("--margin", type=float, default=1.25)
     ap.add_argument("--out", type=pathlib.Path, default=HERE / "out" / "verdict.json")
     ap.add_argument("--from-json", type=pathlib.Path)

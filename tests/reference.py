@@ -10,10 +10,21 @@ from collections import deque
 import numpy as np
 
 DEFAULTS = dict(
-    gravity=1.67, softening=0.1, damping=0.1, time_step=0.006, template_mass=1.0,
-    target_mass=1.0, alpha_floor=0.1, numerator="centered", summation="mean",
-    damping_mode="fraction", psi=0.05, normal_completion=0.3, rings=2,
-    regularization="affine_invariant", rotation_source="regularized",
+    gravity=1.67,
+    softening=0.1,
+    damping=0.1,
+    time_step=0.006,
+    template_mass=1.0,
+    target_mass=1.0,
+    alpha_floor=0.1,
+    numerator="centered",
+    summation="mean",
+    damping_mode="fraction",
+    psi=0.05,
+    normal_completion=0.3,
+    rings=2,
+    regularization="affine_invariant",
+    rotation_source="regularized",
 )
 
 
@@ -140,8 +151,9 @@ def foldmatch_update(old, new, faces, **kw):
     m = len(old)
     rings = n_rings(faces, m, p["rings"])
     n_old, n_new = vertex_normals(old, faces), vertex_normals(new, faces)
-    raw = [deformation_gradient(k, rings[k], old, new, n_old, n_new, p["normal_completion"])
-           for k in range(m)]
+    raw = [
+        deformation_gradient(k, rings[k], old, new, n_old, n_new, p["normal_completion"]) for k in range(m)
+    ]
     rot, stretch = zip(*(polar(h) for h in raw))
     out = np.empty_like(old)
     wvf = np.empty_like(old)

@@ -17,9 +17,7 @@ import pytest
 ENV = {**os.environ, "FOLDMATCH_NO_PROGRESS": "1", "COLUMNS": "100"}
 
 
-def run(
-    *args: str, cwd: pathlib.Path, exe: tuple[str, ...] = (sys.executable, "-m", "foldmatch_rs")
-):
+def run(*args: str, cwd: pathlib.Path, exe: tuple[str, ...] = (sys.executable, "-m", "foldmatch_rs")):
     return subprocess.run(
         [*exe, *args], check=False, cwd=cwd, env=ENV, capture_output=True, text=True, timeout=120
     )
@@ -56,9 +54,7 @@ def write_labelled_ply(path: pathlib.Path, vertices: np.ndarray, labels: np.ndar
         f"property uchar {name}",
         "end_header",
     ]
-    lines += [
-        " ".join(repr(float(c)) for c in v) + f" {int(label)}" for v, label in zip(vertices, labels)
-    ]
+    lines += [" ".join(repr(float(c)) for c in v) + f" {int(label)}" for v, label in zip(vertices, labels)]
     path.write_text("\n".join(lines) + "\n")
 
 
@@ -128,9 +124,7 @@ def test_batch_partial_failure_exit_code(tmp_path, case):
     scans.mkdir()
     shutil.copy(tmp_path / "scan.ply", scans / "good.ply")
     (scans / "empty.ply").write_bytes(b"")
-    out = run(
-        "-q", "batch", "template.ply", "scans", "-o", "out", "--iterations", "2", cwd=tmp_path
-    )
+    out = run("-q", "batch", "template.ply", "scans", "-o", "out", "--iterations", "2", cwd=tmp_path)
     assert out.returncode == 2, out.stderr
     report = json.loads((tmp_path / "out" / "report.json").read_text())
     assert {f["name"]: f["status"] for f in report["files"]} == {

@@ -19,18 +19,47 @@ import sys
 import pytest
 
 REPO = pathlib.Path(__file__).resolve().parent.parent
-METHODS = ["foldmatch", "foldmatch_paper", "nrga", "cpd_pycpd", "cpd_rustcpd", "cpd_probreg", "bcpd_probreg",
-           "nricp_amberg", "nricp_sumner"]
-METRICS = ["f_H", "f_S", "f_E", "f_F", "f_R", "f_lambda", "f_lambda_terms", "chamfer",
-           "scan_to_fit_mean", "scan_to_fit_p95", "chamfer_rel", "s2f_mean_rel", "s2f_p95_rel"]
+METHODS = [
+    "foldmatch",
+    "foldmatch_paper",
+    "nrga",
+    "cpd_pycpd",
+    "cpd_rustcpd",
+    "cpd_probreg",
+    "bcpd_probreg",
+    "nricp_amberg",
+    "nricp_sumner",
+]
+METRICS = [
+    "f_H",
+    "f_S",
+    "f_E",
+    "f_F",
+    "f_R",
+    "f_lambda",
+    "f_lambda_terms",
+    "chamfer",
+    "scan_to_fit_mean",
+    "scan_to_fit_p95",
+    "chamfer_rel",
+    "s2f_mean_rel",
+    "s2f_p95_rel",
+]
 
 pytest.importorskip("trimesh")
 
 
 def run_quick(out: pathlib.Path, *extra: str, env: dict | None = None) -> dict:
     cmd = [sys.executable, "-m", "bench.compare", "--quick", "--out", str(out), *extra]
-    proc = subprocess.run(cmd, check=False, capture_output=True, text=True, timeout=300,
-                          env={**os.environ, **(env or {})}, cwd=REPO)
+    proc = subprocess.run(
+        cmd,
+        check=False,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env={**os.environ, **(env or {})},
+        cwd=REPO,
+    )
     assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
     return json.loads((out / "results-quick.json").read_text())
 
@@ -59,8 +88,13 @@ def test_every_method_has_a_row(quick):
         assert r[m]["status"] in ("ok", "skipped"), (m, r[m])
         if r[m]["status"] == "skipped":
             assert r[m]["reason"], m
-    for m in ("foldmatch", "foldmatch_paper", "nrga", "nricp_amberg",
-              "nricp_sumner"):  # their dependencies are in requirements-dev.txt
+    for m in (
+        "foldmatch",
+        "foldmatch_paper",
+        "nrga",
+        "nricp_amberg",
+        "nricp_sumner",
+    ):  # their dependencies are in requirements-dev.txt
         assert r[m]["status"] == "ok", (m, r[m])
 
 
@@ -97,8 +131,7 @@ def test_report_written(quick_out):
 
 
 def test_missing_peer_is_skipped(tmp_path):
-    res = run_quick(tmp_path, "--methods", "foldmatch,cpd_pycpd",
-                    env={"FOLDMATCH_BENCH_BLOCK": "pycpd"})
+    res = run_quick(tmp_path, "--methods", "foldmatch,cpd_pycpd", env={"FOLDMATCH_BENCH_BLOCK": "pycpd"})
     r = rows(res)
     assert r["foldmatch"]["status"] == "ok"
     assert r["cpd_pycpd"]["status"] == "skipped"

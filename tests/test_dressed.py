@@ -45,8 +45,7 @@ def test_scan_is_dense_and_labelled(tshirt):
     pick = np.random.default_rng(0).choice(len(pts), 15_000, replace=False)
     pts, lab = pts[pick], lab[pick]
     on_body = np.linalg.norm(pts - dressed_scans.closest_on_mesh(pts, bv, bf)[2], axis=1)
-    on_shirt = np.linalg.norm(
-        pts - dressed_scans.closest_on_mesh(pts, src["truth"], src["faces"])[2], axis=1)
+    on_shirt = np.linalg.norm(pts - dressed_scans.closest_on_mesh(pts, src["truth"], src["faces"])[2], axis=1)
     garment = lab > 0
     # ≤ 5σ from its own surface (isotropic noise: the normal component is N(0, σ²))
     assert np.mean(np.where(garment, on_shirt, on_body) < 5 * SIGMA) > 0.995
@@ -57,7 +56,8 @@ def test_scan_is_dense_and_labelled(tshirt):
     # The template / starts are the source's, placed onto the truth.
     assert built["placed"].shape == built["truth"].shape == src["template"].shape
     assert dressed_scans.rms(built["placed"], built["truth"]) < dressed_scans.rms(
-        built["unplaced"], built["truth"])
+        built["unplaced"], built["truth"]
+    )
 
 
 def test_skin_under_the_shirt_is_not_scanned(tshirt):

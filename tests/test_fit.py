@@ -162,8 +162,13 @@ def test_literal_readings_stay_reachable(case):
         case["faces"],
         case["scan"],
         iterations=5,
-        params=dict(numerator="literal", summation="sum", damping_mode="force",
-                    velocity_sync=False, regularization="log_euclidean"),
+        params=dict(
+            numerator="literal",
+            summation="sum",
+            damping_mode="force",
+            velocity_sync=False,
+            regularization="log_euclidean",
+        ),
     )
     assert r.params["numerator"] == "literal" and r.params["velocity_sync"] is False
 
@@ -184,8 +189,7 @@ SMALL = fm.folded_sheet(nx=6, ny=6)
 
 
 def small(**over):
-    args = {"template": SMALL["template_vertices"], "template_faces": SMALL["faces"],
-            "target": SMALL["scan"]}
+    args = {"template": SMALL["template_vertices"], "template_faces": SMALL["faces"], "target": SMALL["scan"]}
     args.update(over)
     return args
 
@@ -218,8 +222,17 @@ def test_nan_names_the_row():
 
 @pytest.mark.parametrize(
     "param, value",
-    [("iterations", -1), ("rings", 0), ("rings", 9), ("rho", 0.0), ("damping", 1.5),
-     ("softening", -1.0), ("psi", float("nan")), ("method", "cpd"), ("k_min", 0)],
+    [
+        ("iterations", -1),
+        ("rings", 0),
+        ("rings", 9),
+        ("rho", 0.0),
+        ("damping", 1.5),
+        ("softening", -1.0),
+        ("psi", float("nan")),
+        ("method", "cpd"),
+        ("k_min", 0),
+    ],
 )
 def test_parameters_out_of_range(param, value):
     with pytest.raises(fm.InvalidParameterError):
@@ -284,8 +297,7 @@ def test_similarity_prealign_fits_a_scan_in_millimetres():
     v, f, g = case["template_vertices"], case["faces"], case["ground_truth"]
     shift = np.array([300.0, -200.0, 50.0])
     base = fm.fit(v, f, g, iterations=60)
-    mm = fm.fit(v, f, 1000.0 * _turned(g, [1, 2, -1.5], 60, shift), prealign="similarity",
-                iterations=60)
+    mm = fm.fit(v, f, 1000.0 * _turned(g, [1, 2, -1.5], 60, shift), prealign="similarity", iterations=60)
     err = np.sqrt(((base.vertices - g) ** 2).sum(1).mean())
     back = _turned(mm.vertices / 1000.0 - shift, [1, 2, -1.5], -60, 0.0)
     err_mm = np.sqrt(((back - g) ** 2).sum(1).mean())
@@ -310,14 +322,16 @@ def test_knn_slack_spares_queries_in_the_early_phases_only():
     """knn_slack (default 0.1) makes the rigid and coarse phases' neighbourhoods
     (1 + σ)-approximate: fewer fresh k-d tree queries there, the same fit quality, and with
     no rigid or coarse phase (the paper preset: FoldMatch iterations only) nothing changes."""
-    far = fm.folded_sheet(nx=N, ny=N, scan_points=3000, rotation_degrees=10.0,
-                          offset=(0.05, 0, 0.3))
+    far = fm.folded_sheet(nx=N, ny=N, scan_points=3000, rotation_degrees=10.0, offset=(0.05, 0, 0.3))
     args = (far["template_vertices"], far["faces"], far["scan"])
     assert fm.DEFAULT_PARAMS["knn_slack"] == 0.1
     exact = fm.fit(*args, params=dict(selection="single", knn_slack=0.0))
     slack = {s: fm.fit(*args, params=dict(selection="single", knn_slack=s)) for s in (0.1, 0.5)}
-    assert (exact.diagnostics["knn_queries"] > slack[0.1].diagnostics["knn_queries"]
-            > slack[0.5].diagnostics["knn_queries"])
+    assert (
+        exact.diagnostics["knn_queries"]
+        > slack[0.1].diagnostics["knn_queries"]
+        > slack[0.5].diagnostics["knn_queries"]
+    )
     for r in slack.values():
         assert not np.array_equal(r.vertices, exact.vertices)
         assert rmse(r.vertices, far["ground_truth"]) < 1.2 * rmse(exact.vertices, far["ground_truth"])
@@ -367,10 +381,12 @@ def test_wide_selection_selects_among_three_schedules(case):
     single = fm.FitParams(iterations=20, selection="single", rigid_sample=1)
     alone = [
         fm.fit(v, f, x, params=single),
-        fm.fit(v, f, x, params=single.replace(two_way=1.0, coarse_fraction=0.3, anneal=1.0,
-                                              anneal_fraction=0.0)),
-        fm.fit(v, f, x, params=single.replace(two_way=fm.DEFAULT_PARAMS["two_way"] / 1.5,
-                                              anneal_fraction=0.8)),
+        fm.fit(
+            v, f, x, params=single.replace(two_way=1.0, coarse_fraction=0.3, anneal=1.0, anneal_fraction=0.0)
+        ),
+        fm.fit(
+            v, f, x, params=single.replace(two_way=fm.DEFAULT_PARAMS["two_way"] / 1.5, anneal_fraction=0.8)
+        ),
     ]
 
     d = [scan_distance(x, a.vertices) for a in alone]
@@ -470,12 +486,16 @@ def test_selection_keeps_the_closer_schedule_or_on_a_near_tie_the_less_stretched
     assert chosen.params["selection_margin"] == 0.06
     picks = set()
     for margin in (0.06, 0.0, 0.1):
-        result = chosen if margin == 0.06 else fm.fit(
-            v,
-            f,
-            x,
-            iterations=30,
-            params=dict(selection_margin=margin),
+        result = (
+            chosen
+            if margin == 0.06
+            else fm.fit(
+                v,
+                f,
+                x,
+                iterations=30,
+                params=dict(selection_margin=margin),
+            )
         )
         k = selected(want, spreads, margin)
         assert result.diagnostics["schedule"] == ("given", "sharp")[k]
@@ -529,8 +549,7 @@ def test_rigid_scan_sample_strides_only_dense_scans(case):
     dargs = (dense["template_vertices"], dense["faces"], dense["scan"])
 
     def f_r(vertices):
-        return fm.evaluate(*dargs[:2], vertices, dense["scan"],
-                           ground_truth=dense["ground_truth"])["f_R"]
+        return fm.evaluate(*dargs[:2], vertices, dense["scan"], ground_truth=dense["ground_truth"])["f_R"]
 
     strided, full = fm.fit(*dargs), fm.fit(*dargs, params=dict(rigid_scan_sample=1))
     assert np.abs(strided.vertices - full.vertices).max() > 1e-9
@@ -558,14 +577,16 @@ def test_coarse_scan_sample_halves_only_dense_scans(case):
         dargs = (dense["template_vertices"], dense["faces"], dense["scan"])
 
         def f_r(vertices, dense=dense, dargs=dargs):
-            return fm.evaluate(*dargs[:2], vertices, dense["scan"],
-                               ground_truth=dense["ground_truth"])["f_R"]
+            return fm.evaluate(*dargs[:2], vertices, dense["scan"], ground_truth=dense["ground_truth"])["f_R"]
 
         halved, full = fm.fit(*dargs), fm.fit(*dargs, params=dict(coarse_scan_sample=1))
-        np.testing.assert_array_equal(halved.vertices, fm.fit(
-            *dargs,
-            params=dict(coarse_scan_sample=2),
-        ).vertices)
+        np.testing.assert_array_equal(
+            halved.vertices,
+            fm.fit(
+                *dargs,
+                params=dict(coarse_scan_sample=2),
+            ).vertices,
+        )
         assert np.abs(halved.vertices - full.vertices).max() > 1e-9
         assert f_r(halved.vertices) < 0.5 * f_r(dense["template_vertices"])
         ratios.append(f_r(halved.vertices) / f_r(full.vertices))
@@ -607,8 +628,14 @@ def test_fast_preset_is_one_schedule_between_the_default_s_two(case):
     4.5); the same fit as asking for those parameters, and not either candidate's fit."""
     v, f, x = case["template_vertices"], case["faces"], case["scan"]
     r = fm.fit(v, f, x, preset="fast", iterations=30)
-    mine = {"selection": "single", "two_way": 3.0, "coarse_fraction": 0.3, "anneal": 1.0,
-            "anneal_fraction": 0.0, "iterations": 30}
+    mine = {
+        "selection": "single",
+        "two_way": 3.0,
+        "coarse_fraction": 0.3,
+        "anneal": 1.0,
+        "anneal_fraction": 0.0,
+        "iterations": 30,
+    }
     assert r.params == {**fm.DEFAULT_PARAMS, **mine}
     np.testing.assert_array_equal(r.vertices, fm.fit(v, f, x, params=mine).vertices)
     both = fm.fit(v, f, x, iterations=30)
@@ -619,15 +646,19 @@ def test_fast_preset_is_one_schedule_between_the_default_s_two(case):
 def test_target_weights_mask_equals_the_masked_scan_and_bad_weights_are_refused():
     case = fm.folded_sheet(nx=15, ny=15, scan_points=600, noise=0.002)
     v, f, x = case["template_vertices"], case["faces"], case["scan"]
-    mask = (np.arange(len(x)) % 4 != 0)
+    mask = np.arange(len(x)) % 4 != 0
     masked = fm.fit(v, f, x, target_weights=mask, iterations=20)
     subset = fm.fit(v, f, x[mask], iterations=20)
     np.testing.assert_array_equal(masked.vertices, subset.vertices)
     plain = fm.fit(v, f, x, iterations=20)
     equal = fm.fit(v, f, x, target_weights=np.full(len(x), 2.5), iterations=20)
     np.testing.assert_array_equal(equal.vertices, plain.vertices)
-    for bad, where in [(np.ones(3), "one weight per scan point"), (-np.ones(len(x)), "target_weights[0]"),
-                       (np.zeros(len(x)), "all zero"), (np.full(len(x), np.nan), "target_weights[0]")]:
+    for bad, where in [
+        (np.ones(3), "one weight per scan point"),
+        (-np.ones(len(x)), "target_weights[0]"),
+        (np.zeros(len(x)), "all zero"),
+        (np.full(len(x), np.nan), "target_weights[0]"),
+    ]:
         with pytest.raises(fm.errors.InvalidParameterError, match=re.escape(where)):
             fm.fit(v, f, x, target_weights=bad)
     with pytest.raises(fm.errors.InvalidInputError, match="target_weights"):

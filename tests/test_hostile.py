@@ -79,8 +79,14 @@ def test_hostile_cases_through_the_cli_in_process(folder, capfd):
 
 
 def _fit(sheet: dict, threads=None, callback=None, **settings):
-    return fm.fit(sheet["template_vertices"], sheet["faces"], sheet["scan"], threads=threads,
-                  callback=callback, params=settings)
+    return fm.fit(
+        sheet["template_vertices"],
+        sheet["faces"],
+        sheet["scan"],
+        threads=threads,
+        callback=callback,
+        params=settings,
+    )
 
 
 def _huge_snapshots(_sheet: dict):
@@ -111,7 +117,8 @@ API_CASES = {
     "n_rings n=1e12": (lambda s: fm.n_rings(s["faces"], 10**12, 2), "parameter n_vertices = 1000000000000: "),
     "n_rings n=-1": (lambda s: fm.n_rings(s["faces"], -1, 2), "parameter n_vertices = -1: "),
     "n_rings rings=1e12": (
-        lambda s: fm.n_rings(s["faces"], 225, 10**12), "parameter rings = 1000000000000: "
+        lambda s: fm.n_rings(s["faces"], 225, 10**12),
+        "parameter rings = 1000000000000: ",
     ),
     "n_rings rings=0": (lambda s: fm.n_rings(s["faces"], 225, 0), "parameter rings = 0: must be in 1..=8"),
     "gradients rings=100": (
@@ -119,14 +126,16 @@ API_CASES = {
         "parameter rings = 100: must be in 1..=8",
     ),
     "sheet nx=ny=1e6": (
-        lambda s: fm.folded_sheet(nx=10**6, ny=10**6), "parameter nx = 1000000: must be in 2..=10000"
+        lambda s: fm.folded_sheet(nx=10**6, ny=10**6),
+        "parameter nx = 1000000: must be in 2..=10000",
     ),
     "sheet nx*ny": (
         lambda s: fm.folded_sheet(nx=5000, ny=5000),
         "parameter nx*ny = 25000000: must be at most 10000000",
     ),
     "sheet scan_points=1e10": (
-        lambda s: fm.folded_sheet(scan_points=10**10), "parameter scan_points = 10000000000: "
+        lambda s: fm.folded_sheet(scan_points=10**10),
+        "parameter scan_points = 10000000000: ",
     ),
     "sheet nx=-3": (lambda s: fm.folded_sheet(nx=-3), "parameter nx = -3: "),
     "sheet seed=-1": (lambda s: fm.folded_sheet(seed=-1), "parameter seed = -1: "),

@@ -44,8 +44,7 @@ def test_landmark_vertices_end_near_their_targets_and_the_weight_sets_how_near(s
     targets = v[chosen] + [0.02 * width, 0.0, 0.0]
     gap = {}
     for w in (0.0, 1.0, 5.0):
-        r = fm.fit(v, f, v, landmarks=(chosen, targets), params={"landmark_weight": w},
-                   iterations=40)
+        r = fm.fit(v, f, v, landmarks=(chosen, targets), params={"landmark_weight": w}, iterations=40)
         gap[w] = np.linalg.norm(r.vertices[chosen] - targets, axis=1).max()
         assert r.params["landmark_weight"] == w
     assert gap[0.0] > 0.015 * width, gap
@@ -78,5 +77,4 @@ def test_bad_landmarks_are_refused_naming_the_landmark(sheet, landmarks, message
 def test_a_negative_landmark_weight_is_refused(sheet):
     v, f, truth = sheet
     with pytest.raises(fm.InvalidParameterError, match="landmark_weight"):
-        fm.fit(v, f, truth, landmarks=([0], truth[:1]), params={"landmark_weight": -1.0},
-               iterations=2)
+        fm.fit(v, f, truth, landmarks=([0], truth[:1]), params={"landmark_weight": -1.0}, iterations=2)

@@ -29,14 +29,25 @@ def sheet():
 
 def cli(*args: str, cwd: pathlib.Path) -> subprocess.CompletedProcess:
     return subprocess.run(
-        [sys.executable, "-m", "foldmatch_rs", *args], cwd=cwd, env=ENV, capture_output=True,
-        text=True, timeout=120, check=False,
+        [sys.executable, "-m", "foldmatch_rs", *args],
+        cwd=cwd,
+        env=ENV,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
     )
 
 
 def write_ply(path: pathlib.Path, v: np.ndarray, f=None, prop: tuple[str, np.ndarray] | None = None):
-    lines = ["ply", "format ascii 1.0", f"element vertex {len(v)}",
-             "property double x", "property double y", "property double z"]
+    lines = [
+        "ply",
+        "format ascii 1.0",
+        f"element vertex {len(v)}",
+        "property double x",
+        "property double y",
+        "property double z",
+    ]
     if prop:
         lines.append(f"property double {prop[0]}")
     if f is not None:
@@ -76,8 +87,7 @@ def test_every_setting_reaches_the_rust_struct(sheet):
     struct (FitResult.params is read from the fit's own FitParams) with that value, and only
     it changes."""
     base = fm.FitParams(iterations=2, selection="single")
-    other = {"int": lambda v: v + 1, "float": lambda v: v / 2 if v else 0.25,
-             "bool": lambda v: not v}
+    other = {"int": lambda v: v + 1, "float": lambda v: v / 2 if v else 0.25, "bool": lambda v: not v}
     for name, s in fm.params.SETTINGS.items():
         value = base[name]
         if s["choices"]:
@@ -88,10 +98,18 @@ def test_every_setting_reaches_the_rust_struct(sheet):
             continue  # covered by the fits below
         changed = base.replace(**{name: new})
         assert changed.to_dict() == {**base.to_dict(), name: new} != base.to_dict()
-    r = fm.fit(sheet["template_vertices"], sheet["faces"], sheet["scan"],
-               params=base.replace(psi=0.125, two_way_pull="mean", velocity_sync=False, k_min=9))
+    r = fm.fit(
+        sheet["template_vertices"],
+        sheet["faces"],
+        sheet["scan"],
+        params=base.replace(psi=0.125, two_way_pull="mean", velocity_sync=False, k_min=9),
+    )
     assert (r.params.psi, r.params.two_way_pull, r.params.velocity_sync, r.params.k_min) == (
-        0.125, "mean", False, 9)
+        0.125,
+        "mean",
+        False,
+        9,
+    )
     assert r.params == base.replace(psi=0.125, two_way_pull="mean", velocity_sync=False, k_min=9)
 
 
@@ -103,8 +121,9 @@ def test_cli_takes_every_setting_by_name_with_the_same_defaults(tmp_path, sheet)
     write_ply(tmp_path / "s.ply", sheet["scan"])
     mine = fm.FitParams("paper", iterations=3, psi=0.1, two_way=1.5, k_min=9)
     sets = [a for k, v in mine.items() for a in ("--set", f"{k}={json.dumps(v)}")]
-    out = cli("fit", "t.ply", "s.ply", "-o", "o.ply", "--preset", "paper", *sets,
-              "--report", "r.json", cwd=tmp_path)
+    out = cli(
+        "fit", "t.ply", "s.ply", "-o", "o.ply", "--preset", "paper", *sets, "--report", "r.json", cwd=tmp_path
+    )
     assert out.returncode == 0, out.stderr
     report = json.loads((tmp_path / "r.json").read_text())
     assert report["params"] == mine.to_dict()
@@ -180,8 +199,9 @@ def test_unknown_preset_and_preset_with_params_are_refused(sheet):
     with pytest.raises(fm.InvalidParameterError, match="preset = best: one of default"):
         fm.FitParams("best")
     with pytest.raises(fm.InvalidParameterError, match="carries its preset"):
-        fm.fit(sheet["template_vertices"], sheet["faces"], sheet["scan"], preset="paper",
-               params=fm.FitParams())
+        fm.fit(
+            sheet["template_vertices"], sheet["faces"], sheet["scan"], preset="paper", params=fm.FitParams()
+        )
 
 
 def test_keywords_override_params_and_a_dict_goes_over_the_preset(sheet):
@@ -204,8 +224,9 @@ def test_paths_are_read_by_the_crates_readers(tmp_path, sheet):
     write_ply(tmp_path / "s.ply", x, prop=("confidence", w))
     np.save(tmp_path / "w.npy", w)
     arrays = fm.fit(v, f, x, iterations=5, target_weights=w)
-    files = fm.fit(str(tmp_path / "t.ply"), None, tmp_path / "s.ply", iterations=5,
-                   target_weights="confidence")
+    files = fm.fit(
+        str(tmp_path / "t.ply"), None, tmp_path / "s.ply", iterations=5, target_weights="confidence"
+    )
     np.testing.assert_array_equal(arrays.vertices, files.vertices)
     npy = fm.fit(tmp_path / "t.ply", None, x, iterations=5, target_weights=tmp_path / "w.npy")
     np.testing.assert_array_equal(arrays.vertices, npy.vertices)
@@ -248,8 +269,14 @@ def test_progress_bar_on_stderr_with_a_callback(sheet, capsys, monkeypatch):
     user's callback (whose False stops the fit); off by default when stderr is no terminal."""
     monkeypatch.setitem(sys.modules, "tqdm", None)  # the built-in line, whatever is installed
     seen = []
-    r = fm.fit(sheet["template_vertices"], sheet["faces"], sheet["scan"], iterations=6,
-               progress=True, callback=lambda info: seen.append(info["iteration"]) or len(seen) < 4)
+    r = fm.fit(
+        sheet["template_vertices"],
+        sheet["faces"],
+        sheet["scan"],
+        iterations=6,
+        progress=True,
+        callback=lambda info: seen.append(info["iteration"]) or len(seen) < 4,
+    )
     err = capsys.readouterr().err
     assert seen == [1, 2, 3, 4] and r.iterations == 4
     assert "fit 4/6 [" in err and err.endswith("\n")
@@ -274,9 +301,18 @@ def test_cluster_runs_take_params_like_fit(tmp_path):
 
     def request(**params):
         return distributed._request(
-            "batch", tmp_path / "t.ply", tmp_path, tmp_path / "out", resume=False,
-            preset="default", recursive=False, glob=None, format="ply", ascii=False,
-            gt_dir=None, params=params,
+            "batch",
+            tmp_path / "t.ply",
+            tmp_path,
+            tmp_path / "out",
+            resume=False,
+            preset="default",
+            recursive=False,
+            glob=None,
+            format="ply",
+            ascii=False,
+            gt_dir=None,
+            params=params,
         )
 
     r = request(params=fm.FitParams("paper", psi=0.1), iterations=7)

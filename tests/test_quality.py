@@ -8,8 +8,15 @@ import numpy as np
 import pytest
 from foldmatch_rs.errors import InvalidParameterError
 
-FIGURES = ["fit_to_scan", "scan_to_fit", "asymmetry", "unsupported_share", "flipped_share",
-           "collapsed_share", "edge_distortion"]
+FIGURES = [
+    "fit_to_scan",
+    "scan_to_fit",
+    "asymmetry",
+    "unsupported_share",
+    "flipped_share",
+    "collapsed_share",
+    "edge_distortion",
+]
 
 
 def sheet_case():

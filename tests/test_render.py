@@ -66,8 +66,7 @@ def test_render_draws_the_field_and_writes_the_same_png(case, fitted, tmp_path):
 def test_the_field_decides_the_mesh_colors(fitted):
     args = (fitted.vertices, fitted.faces)
     with_field = fm.render(*args, field=fitted.wvf_accumulated, size=PANEL, views=("front",))
-    magnitudes = fm.render(*args, field=fitted.wvf_accumulated_magnitude, size=PANEL,
-                           views=("front",))
+    magnitudes = fm.render(*args, field=fitted.wvf_accumulated_magnitude, size=PANEL, views=("front",))
     plain = fm.render(*args, size=PANEL, views=("front",))
     # A field given as vectors or as their magnitudes is drawn alike; without one the mesh
     # is gray and there is no color bar.
@@ -76,8 +75,7 @@ def test_the_field_decides_the_mesh_colors(fitted):
     assert len(colored(with_field[:, :PANEL])) > PANEL * PANEL / 20
     assert len(colored(plain)) == 0
     # A different field paints the mesh differently.
-    flipped = fm.render(*args, field=-fitted.wvf_accumulated_magnitude, size=PANEL,
-                        views=("front",))
+    flipped = fm.render(*args, field=-fitted.wvf_accumulated_magnitude, size=PANEL, views=("front",))
     assert (flipped[:, :PANEL] != with_field[:, :PANEL]).any(-1).mean() > 0.05
 
 
@@ -96,8 +94,9 @@ def ply_vertices(path):
     """The header's vertex property lines and the vertex table of a PLY file."""
     trimesh = pytest.importorskip("trimesh")
     header = path.read_bytes().split(b"end_header")[0].decode()
-    properties = [line.split()[1:] for line in header.splitlines()
-                  if line.startswith("property") and "list" not in line]
+    properties = [
+        line.split()[1:] for line in header.splitlines() if line.startswith("property") and "list" not in line
+    ]
     raw = trimesh.load(path, process=False).metadata["_ply_raw"]["vertex"]["data"]
     return properties, raw
 
@@ -107,20 +106,38 @@ def cli_fit(case, tmp_path_factory):
     """The CLI's fitted PLY of the case and a FitResult holding its vertices and field."""
     trimesh = pytest.importorskip("trimesh")
     d = tmp_path_factory.mktemp("cli")
-    trimesh.Trimesh(case["template_vertices"], case["faces"], process=False).export(
-        d / "template.ply")
+    trimesh.Trimesh(case["template_vertices"], case["faces"], process=False).export(d / "template.ply")
     trimesh.PointCloud(case["scan"]).export(d / "scan.ply")
     subprocess.run(
-        [sys.executable, "-m", "foldmatch_rs", "fit", "template.ply", "scan.ply", "-o",
-         "cli.ply", "--iterations", "10", "-q"],
-        cwd=d, check=True)
+        [
+            sys.executable,
+            "-m",
+            "foldmatch_rs",
+            "fit",
+            "template.ply",
+            "scan.ply",
+            "-o",
+            "cli.ply",
+            "--iterations",
+            "10",
+            "-q",
+        ],
+        cwd=d,
+        check=True,
+    )
     properties, cli = ply_vertices(d / "cli.ply")
     wvf = np.column_stack([cli["wvf_x"], cli["wvf_y"], cli["wvf_z"]])
     magnitude = np.ascontiguousarray(cli["wvf_magnitude"])
     result = fm.FitResult(
-        vertices=np.column_stack([cli["x"], cli["y"], cli["z"]]), faces=case["faces"],
-        wvf=wvf, wvf_magnitude=magnitude, wvf_accumulated=wvf,
-        wvf_accumulated_magnitude=magnitude, iterations=10, history={})
+        vertices=np.column_stack([cli["x"], cli["y"], cli["z"]]),
+        faces=case["faces"],
+        wvf=wvf,
+        wvf_magnitude=magnitude,
+        wvf_accumulated=wvf,
+        wvf_accumulated_magnitude=magnitude,
+        iterations=10,
+        history={},
+    )
     return d / "cli.ply", properties, cli, result
 
 
@@ -137,8 +154,7 @@ def test_to_trimesh_export_has_the_cli_properties_and_colors(cli_fit, tmp_path):
     result.to_trimesh().export(tmp_path / "py.ply")
     py_properties, py = ply_vertices(tmp_path / "py.ply")
     assert [n for _, n in py_properties if n != "alpha"] == [n for _, n in cli_properties]
-    assert [n for _, n in cli_properties][-4:] == [
-        "wvf_x", "wvf_y", "wvf_z", "wvf_magnitude"]
+    assert [n for _, n in cli_properties][-4:] == ["wvf_x", "wvf_y", "wvf_z", "wvf_magnitude"]
     for name in ("red", "green", "blue", "wvf_x", "wvf_y", "wvf_z", "wvf_magnitude"):
         np.testing.assert_array_equal(py[name], cli[name], err_msg=name)
     np.testing.assert_allclose(py["x"], cli["x"], rtol=1e-6)

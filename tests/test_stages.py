@@ -58,7 +58,7 @@ def test_n_rings_match_reference_bfs():
         offsets, members = fm.n_rings(faces, 49, rings)
         want = reference.n_rings(faces, 49, rings)
         for k in range(49):
-            got = members[offsets[k]:offsets[k + 1]]
+            got = members[offsets[k] : offsets[k + 1]]
             assert got[0] == k
             assert set(got.tolist()) == set(want[k])
 

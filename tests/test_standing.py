@@ -12,10 +12,21 @@ from bench import standing, variants
 REPO = pathlib.Path(__file__).resolve().parent.parent
 
 
-def row(case: str, group: str, variant: str, f_r: float, f_l: float, f_f: float = 0.0,
-        s2f: float = 0.01) -> dict:
-    return {"case": case, "group": group, "variant": variant, "seconds": 0.1, "f_R": f_r,
-            "f_lambda": f_l, "f_H": 0.2, "f_E": 0.0, "f_F": f_f, "s2f_mean_rel": s2f}
+def row(
+    case: str, group: str, variant: str, f_r: float, f_l: float, f_f: float = 0.0, s2f: float = 0.01
+) -> dict:
+    return {
+        "case": case,
+        "group": group,
+        "variant": variant,
+        "seconds": 0.1,
+        "f_R": f_r,
+        "f_lambda": f_l,
+        "f_H": 0.2,
+        "f_E": 0.0,
+        "f_F": f_f,
+        "s2f_mean_rel": s2f,
+    }
 
 
 BEST = {
@@ -64,19 +75,22 @@ def test_closeness_reason_says_when_the_peer_is_closer_than_the_truth():
 
 def test_render_scores_both_configurations_and_lists_the_default_s_losses():
     rows = [
-        row("sheet-a", "sheets", "default", 0.01, 0.04),            # wins both
-        row("wind-250-mesh", "real", "default", 0.0303, 0.071),     # loses both (1.68×, 1.27×)
-        row("odd-case", "real", "default", 0.02, 0.084),            # loses f_λ only (1.2×)
+        row("sheet-a", "sheets", "default", 0.01, 0.04),  # wins both
+        row("wind-250-mesh", "real", "default", 0.0303, 0.071),  # loses both (1.68×, 1.27×)
+        row("odd-case", "real", "default", 0.02, 0.084),  # loses f_λ only (1.2×)
         row("sheet-a", "sheets", "paper preset", 0.05, 0.2),
         row("wind-250-mesh", "real", "paper preset", 0.05, 0.2),
         row("odd-case", "real", "paper preset", 0.05, 0.2),
-        row("not-scored", "real", "default", 1.0, 1.0),             # no peer figures: left out
+        row("not-scored", "real", "default", 1.0, 1.0),  # no peer figures: left out
     ]
     md = standing.render(rows, BEST, "peers.json", "stamp")
     lines = md.splitlines()
     assert lines[0] == "stamp"
-    crit = {tuple(c.strip() for c in ln.strip("|").split("|")[:2]): ln for ln in lines
-            if ln.startswith("| default |") or ln.startswith("| paper preset |")}
+    crit = {
+        tuple(c.strip() for c in ln.strip("|").split("|")[:2]): ln
+        for ln in lines
+        if ln.startswith("| default |") or ln.startswith("| paper preset |")
+    }
     # real: 2 cases, sheets: 1; "all" is the last cell.
     assert crit[("default", "lowest f_R")].rstrip(" |").endswith("2 of 3")
     assert crit[("default", "lowest f_λ")].rstrip(" |").endswith("1 of 3")
@@ -97,10 +111,10 @@ def test_render_scores_both_configurations_and_lists_the_default_s_losses():
 
 def test_render_scores_the_exact_answer_and_lists_flips_and_scan_distance_losses():
     rows = [
-        row("sheet-a", "sheets", "default", 0.01, 0.04, s2f=0.012),        # scan→fit lost
+        row("sheet-a", "sheets", "default", 0.01, 0.04, s2f=0.012),  # scan→fit lost
         row("wind-250-mesh", "real", "default", 0.0303, 0.071, s2f=0.006),  # both tables
-        row("sheet-a", "sheets", variants.EXACT, 0.0, 0.055, s2f=0.011),    # truth farther
-        row("wind-250-mesh", "real", variants.EXACT, 0.0, 0.02, s2f=0.0),   # mesh target
+        row("sheet-a", "sheets", variants.EXACT, 0.0, 0.055, s2f=0.011),  # truth farther
+        row("wind-250-mesh", "real", variants.EXACT, 0.0, 0.02, s2f=0.0),  # mesh target
     ]
     md = standing.render(rows, BEST, "peers.json", "stamp")
     lines = md.splitlines()
@@ -111,7 +125,7 @@ def test_render_scores_the_exact_answer_and_lists_flips_and_scan_distance_losses
     assert "exact answer: f_λ" in md and "loses on f_R or f_λ: 1 of 2" in md
     assert "loses on flips or scan→fit: 2 of 2**" in md
     assert "on 1 of them the best peer's scan→fit distance is below the exact answer's own" in md
-    second = md[md.index("loses on flips or scan→fit"):md.index("<details>")].splitlines()
+    second = md[md.index("loses on flips or scan→fit") : md.index("<details>")].splitlines()
     sheet = next(ln for ln in second if ln.startswith("| sheet-a |"))
     wind = next(ln for ln in second if ln.startswith("| wind-250-mesh |"))
     assert standing.S2F_BELOW_TRUTH.format(peer="0.91", ours="1.09") in sheet
@@ -119,6 +133,9 @@ def test_render_scores_the_exact_answer_and_lists_flips_and_scan_distance_losses
     # Largest scan→fit loss first (sheet-a 1.3× before wind-250-mesh 1.2×).
     rows[0] = row("sheet-a", "sheets", "default", 0.01, 0.04, s2f=0.013)
     md = standing.render(rows, BEST, "p", "s")
-    order = [ln.split("|")[1].strip() for ln in md[md.index("loses on flips"):].splitlines()
-             if ln.startswith("| sheet-a |") or ln.startswith("| wind-250-mesh |")]
+    order = [
+        ln.split("|")[1].strip()
+        for ln in md[md.index("loses on flips") :].splitlines()
+        if ln.startswith("| sheet-a |") or ln.startswith("| wind-250-mesh |")
+    ]
     assert order[:2] == ["sheet-a", "wind-250-mesh"]

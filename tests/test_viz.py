@@ -36,7 +36,8 @@ def archetype(kind):
 
 
 SDK = types.SimpleNamespace(
-    Scalars=archetype("Scalars"), Points3D=archetype("Points3D"), Mesh3D=archetype("Mesh3D"))
+    Scalars=archetype("Scalars"), Points3D=archetype("Points3D"), Mesh3D=archetype("Mesh3D")
+)
 
 
 @pytest.fixture(scope="module")
@@ -48,8 +49,7 @@ def test_callback_logs_the_displacements_while_the_fit_runs(case):
     rec = Recording()
     seen = []
     callback = viz.rerun_callback(rec, every=4, sdk=SDK, then=lambda info: seen.append(info))
-    fm.fit(case["template_vertices"], case["faces"], case["scan"], iterations=10,
-           callback=callback)
+    fm.fit(case["template_vertices"], case["faces"], case["scan"], iterations=10, callback=callback)
     assert len(seen) == 10
     times = sorted({t for t, *_ in rec.logged})
     assert times == [4, 8, 10]
@@ -70,11 +70,11 @@ def test_callback_passes_on_a_stop():
 
 
 def test_log_fit_logs_the_scan_the_snapshots_and_the_colored_fit(case):
-    result = fm.fit(case["template_vertices"], case["faces"], case["scan"], iterations=10,
-                    params={"snapshot_every": 5})
+    result = fm.fit(
+        case["template_vertices"], case["faces"], case["scan"], iterations=10, params={"snapshot_every": 5}
+    )
     rec = Recording()
-    viz.log_fit(result, scan=case["scan"], template=case["template_vertices"], recording=rec,
-                sdk=SDK)
+    viz.log_fit(result, scan=case["scan"], template=case["template_vertices"], recording=rec, sdk=SDK)
     scan = [(t, a, s) for t, p, a, s in rec.logged if p == "fit/scan"]
     assert len(scan) == 1 and scan[0][2] is True
     np.testing.assert_array_equal(scan[0][1].args[0], case["scan"])
@@ -89,12 +89,17 @@ def test_log_fit_logs_the_scan_the_snapshots_and_the_colored_fit(case):
 
 
 def test_with_rerun_sdk_installed(case, tmp_path):
-    rr = pytest.importorskip(
-        "rerun", reason="rerun-sdk is not installed (pip install rerun-sdk)")
+    rr = pytest.importorskip("rerun", reason="rerun-sdk is not installed (pip install rerun-sdk)")
     rec = rr.RecordingStream("foldmatch-test")
     rec.save(str(tmp_path / "fit.rrd"))
-    result = fm.fit(case["template_vertices"], case["faces"], case["scan"], iterations=4,
-                    callback=viz.rerun_callback(rec), params={"snapshot_every": 2})
+    result = fm.fit(
+        case["template_vertices"],
+        case["faces"],
+        case["scan"],
+        iterations=4,
+        callback=viz.rerun_callback(rec),
+        params={"snapshot_every": 2},
+    )
     viz.log_fit(result, scan=case["scan"], recording=rec)
     rec.flush()
     assert (tmp_path / "fit.rrd").stat().st_size > 1000

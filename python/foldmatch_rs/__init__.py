@@ -69,9 +69,7 @@ def _whole(name: str, value: Any) -> int:
     try:
         n = int(value)
     except (TypeError, ValueError):
-        raise InvalidParameterError(
-            f"parameter {name} = {value!r}: must be a whole number"
-        ) from None
+        raise InvalidParameterError(f"parameter {name} = {value!r}: must be a whole number") from None
     if not 0 <= n < 2**64:
         raise InvalidParameterError(f"parameter {name} = {n}: must be a whole number in 0..2^64")
     return n
@@ -134,16 +132,19 @@ class FitResult:
     residuals: np.ndarray = field(default_factory=lambda: np.zeros(0))
     support: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
 
-    def save(self, path: str | os.PathLike[str], accumulated: bool = True,
-             ascii: bool = False) -> None:
+    def save(self, path: str | os.PathLike[str], accumulated: bool = True, ascii: bool = False) -> None:
         """Writes the fitted mesh as ``foldmatch fit`` does, with the same Rust writer (byte for
         byte the same file for the same vertices and field): ``.ply`` with vertex colors (the
         wrinkle-field magnitude, viridis over its 2nd–98th percentiles) and the properties
         ``wvf_x``, ``wvf_y``, ``wvf_z``, ``wvf_magnitude``; ``.obj`` with the colors only.
         Written atomically."""
         _core.write_fitted(
-            os.fspath(path), _points(self.vertices, "vertices"), _faces(self.faces, "faces"),
-            _points(self.wvf_accumulated if accumulated else self.wvf, "field"), ascii)
+            os.fspath(path),
+            _points(self.vertices, "vertices"),
+            _faces(self.faces, "faces"),
+            _points(self.wvf_accumulated if accumulated else self.wvf, "field"),
+            ascii,
+        )
 
     def __repr__(self) -> str:
         """A line: the sizes, iterations, the schedule that won and the last step."""
@@ -188,8 +189,15 @@ class FitResult:
         The mesh is colored by ``wvf_accumulated``; give the ``scan`` (points or a trimesh
         object) to add the scan row and the distance-to-scan row. Returns the
         ``(H, W, 3)`` uint8 image and writes it as a PNG when ``path`` is given."""
-        return render(self.vertices, self.faces, scan=scan, field=self.wvf_accumulated, path=path,
-                      size=size, views=views)
+        return render(
+            self.vertices,
+            self.faces,
+            scan=scan,
+            field=self.wvf_accumulated,
+            path=path,
+            size=size,
+            views=views,
+        )
 
 
 def render(
@@ -365,25 +373,19 @@ def fit(
     """
     if target is None:
         raise InvalidInputError("target: missing (pass the scan as the third argument)")
-    settings = _settings(
-        preset, params, iterations=iterations, rings=rings, psi=psi, prealign=prealign
-    )
+    settings = _settings(preset, params, iterations=iterations, rings=rings, psi=psi, prealign=prealign)
     tv, tf = _inputs.mesh(template, template_faces, "template_vertices")
     if tf is None:
-        raise InvalidInputError(
-            "template_faces: missing (pass faces, a mesh object or a mesh file)"
-        )
+        raise InvalidInputError("template_faces: missing (pass faces, a mesh object or a mesh file)")
     x, xf = _inputs.mesh(target, target_faces, "target")
     weights = _inputs.weights(target_weights, len(x), target)
     lm_vertices, lm_positions = _inputs.landmarks(landmarks)
     values = settings.to_dict()
     if _progress.wanted(progress):
         with _progress.Bar(settings.iterations, callback) as bar:
-            raw = _core.fit_raw(tv, tf, x, xf, values, bar, threads, weights, lm_vertices,
-                                lm_positions)
+            raw = _core.fit_raw(tv, tf, x, xf, values, bar, threads, weights, lm_vertices, lm_positions)
     else:
-        raw = _core.fit_raw(tv, tf, x, xf, values, callback, threads, weights, lm_vertices,
-                            lm_positions)
+        raw = _core.fit_raw(tv, tf, x, xf, values, callback, threads, weights, lm_vertices, lm_positions)
     return FitResult(
         vertices=raw["vertices"],
         faces=tf,
@@ -471,17 +473,19 @@ def nbody_step(
     nb = np.ascontiguousarray(np.asarray(neighbours), dtype=np.int64)
     kappa = np.ascontiguousarray(np.asarray(curvature), dtype=np.float64)
     return _core.nbody_step(
-        _points(positions, "positions"), _points(velocities, "velocities"),
-        _points(target, "target"), nb, kappa, _stage_settings(params),
+        _points(positions, "positions"),
+        _points(velocities, "velocities"),
+        _points(target, "target"),
+        nb,
+        kappa,
+        _stage_settings(params),
     )
 
 
 def n_rings(faces: Any, n_vertices: int, rings: int = 2) -> tuple[np.ndarray, np.ndarray]:
     """n-ring neighborhoods Γᵏ_Y as CSR arrays ``(offsets (M+1,), members)``; row k lists
     vertex k first, then the vertices within graph distance ``rings``."""
-    return _core.n_rings(
-        _faces(faces, "faces"), _whole("n_vertices", n_vertices), _whole("rings", rings)
-    )
+    return _core.n_rings(_faces(faces, "faces"), _whole("n_vertices", n_vertices), _whole("rings", rings))
 
 
 def gaussian_curvature(points: Any, faces: Any = None) -> np.ndarray:
@@ -500,11 +504,10 @@ def prealign(template_vertices: Any, target: Any, motion: str = "rigid") -> dict
     robust two-sided distances ``identity_score`` (the placement as given) and ``score`` (after),
     and ``searched`` (False: the placement as given was already good and was kept)."""
     if motion not in ("rigid", "similarity"):
-        raise InvalidParameterError(
-            f"parameter motion = {motion!r}: must be \"rigid\" or \"similarity\""
-        )
+        raise InvalidParameterError(f'parameter motion = {motion!r}: must be "rigid" or "similarity"')
     return _core.prealign_transform(
-        _points(template_vertices, "template_vertices"), _points(target, "target"),
+        _points(template_vertices, "template_vertices"),
+        _points(target, "target"),
         motion == "similarity",
     )
 
@@ -515,7 +518,10 @@ def deformation_gradients(
     """Deformation gradients H_k (Eq. 4, with the normal completion) of the motion
     ``old → new``. Returns ``(gradients (M, 3, 3), degenerate (M,) bool)``."""
     return _core.deformation_gradients(
-        _points(old, "old"), _points(new, "new"), _faces(faces, "faces"), _whole("rings", rings),
+        _points(old, "old"),
+        _points(new, "new"),
+        _faces(faces, "faces"),
+        _whole("rings", rings),
         float(normal_completion),
     )
 
@@ -557,7 +563,9 @@ def foldmatch_update(old: Any, proposed: Any, faces: Any, **params: Any) -> tupl
     """One FoldMatch deformation update (Eq. 4–8 and ``Y ← R* Y + t*``) of the motion from
     ``old`` to the N-body ``proposed`` positions. Returns ``(new positions, per-step wvf)``."""
     return _core.foldmatch_update(
-        _points(old, "old"), _points(proposed, "proposed"), _faces(faces, "faces"),
+        _points(old, "old"),
+        _points(proposed, "proposed"),
+        _faces(faces, "faces"),
         _stage_settings(params),
     )
 
@@ -660,8 +668,6 @@ def assess(
         "residuals": raw["residuals"],
         "support": raw["support"],
     }
-
-
 
 
 def folded_sheet(**spec: Any) -> dict[str, np.ndarray]:

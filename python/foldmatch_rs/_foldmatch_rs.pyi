@@ -11,23 +11,41 @@ _F64 = npt.NDArray[np.float64]
 _I64 = npt.NDArray[np.int64]
 
 __all__ = [
-    "fit_params", "param_names", "param_reference", "read_mesh", "read_weights", "fit_raw",
-    "knn_query", "nbody_step", "n_rings",
-    "gaussian_curvature", "prealign_transform", "deformation_gradients", "regularize_gradients",
-    "polar_decomposition", "wrinkle_field", "solve_rotations", "foldmatch_update",
-    "folded_sheet", "evaluate", "assess_raw", "_mark_forked", "run_cli", "cluster_request",
-    "RunBook", "FileFitter", "render_preview", "wrinkle_colors", "write_fitted",
+    "fit_params",
+    "param_names",
+    "param_reference",
+    "read_mesh",
+    "read_weights",
+    "fit_raw",
+    "knn_query",
+    "nbody_step",
+    "n_rings",
+    "gaussian_curvature",
+    "prealign_transform",
+    "deformation_gradients",
+    "regularize_gradients",
+    "polar_decomposition",
+    "wrinkle_field",
+    "solve_rotations",
+    "foldmatch_update",
+    "folded_sheet",
+    "evaluate",
+    "assess_raw",
+    "_mark_forked",
+    "run_cli",
+    "cluster_request",
+    "RunBook",
+    "FileFitter",
+    "render_preview",
+    "wrinkle_colors",
+    "write_fitted",
     "__version__",
 ]
 
-def fit_params(
-    preset: str = "default", overrides: Optional[dict[str, Any]] = None
-) -> dict[str, Any]: ...
+def fit_params(preset: str = "default", overrides: Optional[dict[str, Any]] = None) -> dict[str, Any]: ...
 def param_names() -> list[str]: ...
 def param_reference() -> list[dict[str, Any]]: ...
-def read_mesh(
-    path: str, property: Optional[str] = None
-) -> tuple[_F64, _I64, Optional[_F64]]: ...
+def read_mesh(path: str, property: Optional[str] = None) -> tuple[_F64, _I64, Optional[_F64]]: ...
 def read_weights(path: str) -> _F64: ...
 def fit_raw(
     template_vertices: _F64,
@@ -56,9 +74,7 @@ def n_rings(
     faces: _I64, n_vertices: int, rings: int = 2
 ) -> tuple[npt.NDArray[np.uint64], npt.NDArray[np.uint32]]: ...
 def gaussian_curvature(points: _F64, faces: Optional[_I64] = None) -> _F64: ...
-def prealign_transform(
-    template_vertices: _F64, target: _F64, scaled: bool = False
-) -> dict[str, Any]: ...
+def prealign_transform(template_vertices: _F64, target: _F64, scaled: bool = False) -> dict[str, Any]: ...
 def deformation_gradients(
     old: _F64, new: _F64, faces: _I64, rings: int = 2, normal_completion: float = 0.3
 ) -> tuple[_F64, npt.NDArray[np.bool_]]: ...
@@ -106,9 +122,7 @@ def render_preview(
     views: Optional[list[str]] = None,
 ) -> npt.NDArray[np.uint8]: ...
 def wrinkle_colors(magnitude: _F64) -> tuple[npt.NDArray[np.uint8], tuple[float, float]]: ...
-def write_fitted(
-    path: str, vertices: _F64, faces: _I64, field: _F64, ascii: bool = False
-) -> None: ...
+def write_fitted(path: str, vertices: _F64, faces: _I64, field: _F64, ascii: bool = False) -> None: ...
 def _mark_forked() -> None: ...
 def cluster_request(argv: list[str]) -> Optional[str]: ...
 
@@ -135,9 +149,8 @@ class FileFitter:
     def fit(
         self, file_json: str, ascii: bool = False, warm: Optional[tuple[_F64, str]] = None
     ) -> tuple[str, Optional[_F64]]: ...
-    def resume_frame(
-        self, file_json: str, warm_name: Optional[str] = None
-    ) -> Optional[tuple[str, _F64]]: ...
+    def resume_frame(self, file_json: str, warm_name: Optional[str] = None) -> Optional[tuple[str, _F64]]: ...
+
 def assess_raw(
     template_vertices: _F64,
     template_faces: _I64,

@@ -24,9 +24,7 @@ GROUPS: list[tuple[str, str, list[str]]] = [
 ]
 
 #: Every setting's reference entry (``name``, ``type``, ``doc``, ``choices``), by name.
-SETTINGS: dict[str, dict[str, Any]] = {
-    s["name"]: s for g in _core.param_reference() for s in g["settings"]
-}
+SETTINGS: dict[str, dict[str, Any]] = {s["name"]: s for g in _core.param_reference() for s in g["settings"]}
 
 
 def _plain(value: Any) -> Any:
@@ -108,9 +106,7 @@ class FitParams(Mapping[str, Any]):
         # Reached only for names that are not attributes: an unknown setting.
         if name.startswith("_"):
             raise AttributeError(name)
-        raise AttributeError(
-            f"FitParams has no setting {name!r}; settings: {', '.join(SETTINGS)}"
-        )
+        raise AttributeError(f"FitParams has no setting {name!r}; settings: {', '.join(SETTINGS)}")
 
     def __setattr__(self, name: str, value: Any) -> None:
         raise AttributeError(f"FitParams is immutable: use .replace({name}=...)")

@@ -89,9 +89,13 @@ def _docstring(text: str, indent: str) -> str:
     lines = body.splitlines() or [""]
     if len(lines) == 1:
         return f'{indent}"""{lines[0]}"""'
-    return f'{indent}"""' + lines[0] + "\n" + "\n".join(
-        (indent + line) if line else "" for line in lines[1:]
-    ) + f'\n{indent}"""'
+    return (
+        f'{indent}"""'
+        + lines[0]
+        + "\n"
+        + "\n".join((indent + line) if line else "" for line in lines[1:])
+        + f'\n{indent}"""'
+    )
 
 
 def stub() -> str:

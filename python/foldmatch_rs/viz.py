@@ -39,9 +39,7 @@ def _sdk(sdk: Any) -> Any:
     try:
         import rerun
     except ImportError as e:
-        raise ImportError(
-            "foldmatch_rs.viz needs rerun-sdk: pip install rerun-sdk"
-        ) from e
+        raise ImportError("foldmatch_rs.viz needs rerun-sdk: pip install rerun-sdk") from e
     return rerun
 
 
@@ -106,8 +104,7 @@ def log_fit(
     for i, vertices in frames:
         rec.set_time(TIMELINE, sequence=i)
         rec.log(f"{entity}/mesh", rr.Mesh3D(vertex_positions=vertices, triangle_indices=faces))
-    colors, _ = _core.wrinkle_colors(
-        np.ascontiguousarray(result.wvf_accumulated_magnitude, dtype=np.float64))
+    colors, _ = _core.wrinkle_colors(np.ascontiguousarray(result.wvf_accumulated_magnitude, dtype=np.float64))
     rec.set_time(TIMELINE, sequence=int(result.iterations))
     rec.log(
         f"{entity}/mesh",
