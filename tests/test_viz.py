@@ -116,5 +116,5 @@ def test_missing_rerun_is_named(monkeypatch):
         return real_import(name, *args, **kwargs)
 
     monkeypatch.setattr(builtins, "__import__", no_rerun)
-    with pytest.raises(ImportError, match=r"foldmatch-rs\[viz\]"):
+    with pytest.raises(ImportError, match=r"pip install rerun-sdk"):
         viz.rerun_callback()

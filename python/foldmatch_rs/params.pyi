@@ -40,7 +40,7 @@ class FitParams(Mapping[str, Any]):
         (0 disables).
         """
     @property
-    def prealign(self) -> Literal['none', 'centroid']:
+    def prealign(self) -> Literal['none', 'centroid', 'rigid', 'similarity']:
         """Handling of a template placed far from the scan."""
     @property
     def landmark_weight(self) -> float:
