@@ -76,7 +76,7 @@ def fit_case(
     diag = cases_mod.bbox_diagonal(scan)
     idx, targets = landmarks_of(built, count, seed)
     sigma = built["meta"]["scan"]["noise_sigma"]
-    lm = (idx, targets) if weight is None else (idx, targets, weight)
+    with_params = dict(kw) if weight is None else {**kw, "landmark_weight": weight}
     row: dict[str, Any] = {
         "case": name,
         "start": start,
@@ -84,9 +84,10 @@ def fit_case(
         "noise_rms_length": sigma * np.sqrt(3),
         "units_per_metre": built["meta"]["units_per_metre"],
     }
-    for label, extra in (("without", {}), ("with", {"landmarks": lm})):
+    runs = (("without", {"params": kw}), ("with", {"landmarks": (idx, targets), "params": with_params}))
+    for label, extra in runs:
         t0 = time.perf_counter()
-        r = fm.fit(built[start], faces, scan, **kw, **extra)
+        r = fm.fit(built[start], faces, scan, **extra)
         fitted = np.asarray(r.vertices)
         row[f"f_R_{label}"] = rms(fitted, truth) / diag
         row[f"seconds_{label}"] = round(time.perf_counter() - t0, 1)
