@@ -55,30 +55,32 @@ def run_peers(cases: list[cases_mod.Case], methods: list[str], timeout: float, f
         harness.log(f"{case.name}: {case.sizes}")
         results["groups"]["sim"].append(harness.run_case(runner, case, methods))
         compare.save_json(path, results)
-    per_case = {
-        rec["name"]: {
-            m: (
-                {k: r.get(k) for k in ("f_R", "f_F", "f_lambda", "s2f_mean_rel", "wall_s")} | {"status": "ok"}
-                if r.get("status") == "ok"
-                else {"status": r.get("status"), "why": r.get("reason") or r.get("error")}
-            )
-            for m, r in rec["rows"].items()
-        }
-        for rec in results["groups"]["sim"]
-    }
+    old = json.loads(PEER_FIGURES.read_text()) if PEER_FIGURES.is_file() else {}
+    merged: dict[str, dict[str, Any]] = old.get("methods", {})
+    for rec in results["groups"]["sim"]:
+        per = merged.setdefault(rec["name"], {})
+        for m, r in rec["rows"].items():
+            if r.get("status") == "ok":
+                per[m] = {k: r.get(k) for k in ("f_R", "f_F", "f_lambda", "s2f_mean_rel", "wall_s")}
+                per[m]["status"] = "ok"
+            elif per.get(m, {}).get("status") != "ok":  # a run of other methods keeps these
+                per[m] = {"status": r.get("status"), "why": r.get("reason") or r.get("error")}
+    best = {}
+    for name, per in merged.items():
+        ok = [per[m] for m in variants.PEERS if per.get(m, {}).get("status") == "ok"]
+        if ok:
+            best[name] = {k: min(x[k] for x in ok) for k in ("f_R", "f_lambda", "s2f_mean_rel")}
+            best[name]["truth_f_F"] = per.get("oracle", {}).get("f_F", float("nan"))
     figures = {
         "about": "per simulated case (bench/sim_cases.py), the lowest f_R, f_lambda and "
         f"s2f_mean_rel of the peers ({', '.join(variants.PEERS)}) and the truth's f_F (`cases`, "
-        "read by bench/variants.py); every method's figures (`methods`); written by "
-        "nice -n 19 .venv/bin/python -m bench.sim --peers",
+        "read by bench/variants.py); every method's figures (`methods`, merged over runs: a "
+        "run of some methods or scenes keeps the others' figures); written by "
+        "nice .venv/bin/python -m bench.sim --peers",
         "code": results["code"],
-        "cases": variants.best_peers(path),
-        "methods": per_case,
-        "skipped": {m: status[m] for m in methods if status.get(m)},
+        "cases": best,
+        "methods": merged,
     }
-    old = json.loads(PEER_FIGURES.read_text()) if PEER_FIGURES.is_file() else {}
-    for key in ("cases", "methods"):  # a run on some scenes keeps the others' figures
-        figures[key] = {**old.get(key, {}), **figures[key]}
     PEER_FIGURES.write_text(json.dumps(figures, indent=1, sort_keys=True, default=str) + "\n")
     harness.log(f"wrote {PEER_FIGURES}")
     return figures

@@ -17,9 +17,9 @@ Scenes (:data:`SCENES`):
 * ``sphere``: a 1 m square sheet (41 × 41) dropped flat from 0.75 m onto a sphere of radius
   0.25 m whose top is at 0.6 m; the corners reach the ground.
 * ``box``: a 1.3 m table cloth (45 × 45) dropped onto a 0.7 × 0.7 × 0.5 m box (a table).
-* ``heap``: a 0.8 m sheet (33 × 33) thrown down from 0.25 m with an inward swirl (every
-  particle's velocity points toward the centre and around it, plus a smooth random field
-  drawn from the seed): it lands folded on itself, with cloth self-contact on.
+* ``heap``: a 0.8 m sheet (33 × 33) standing on its edge, thrown down into itself (its top at
+  1.5 m/s, a smooth random sideways velocity field drawn from the seed starts the buckling):
+  it collapses into a heap of folds, with cloth self-contact on.
 * ``flag``: a 1.0 × 0.6 m flag (41 × 25), its pole edge pinned, blown by a gusty wind (the
   mean wind along +x, gusts every ≈0.3 s and a travelling ripple, all from the seed); the
   state after 1.5 s.
@@ -88,7 +88,7 @@ class Scene:
     air_damping: float = 0.02  # share of every velocity removed per frame
     self_contact: bool = False
     vertical: bool = False  # sheet: hang in the x-z plane (a flag) instead of lying flat
-    script: str = "drop"  # drop, swirl, wind, gather
+    script: str = "drop"  # drop, crumple, wind, gather
     gather_radius: float = 0.0  # gather: the waist ring's final radius
     gather_frames: int = 30
     wind: float = 0.0  # wind: mean acceleration along +x, m/s²
@@ -116,12 +116,13 @@ SCENES: dict[str, Scene] = {
             33,
             0.8,
             0.8,
-            (0.0, 0.0, 0.25),
+            (0.0, 0.0, 0.42),
             (),
-            frames=120,
+            frames=100,
             seed=3,
             self_contact=True,
-            script="swirl",
+            vertical=True,
+            script="crumple",
             bending=5.0e-3,
         ),
         Scene(
@@ -301,14 +302,16 @@ def simulate(scene: Scene, verbose: bool = False) -> SimResult:
     contacts = pipe.contacts()
     mass = model.particle_mass.numpy().copy()
 
-    if scene.script == "swirl":
-        c = rest.mean(0)
-        r = rest - c
-        vel = -1.2 * r + 1.5 * np.stack([-r[:, 1], r[:, 0], np.zeros(len(r))], -1)
-        k = rng.normal(size=(3, 3)) * 4.0
+    if scene.script == "crumple":
+        # the standing sheet falls into itself: down at 1.5 m/s, with a smooth random sideways
+        # field (three sines of random wave vectors and phases) that starts the buckling
+        r = rest - rest.mean(0)
+        k = rng.normal(size=(3, 3)) * 6.0
         ph = rng.uniform(0, 2 * np.pi, 3)
-        vel += 0.5 * np.sin(r @ k + ph)
-        vel[:, 2] -= 0.5
+        vel = np.zeros_like(rest)
+        vel[:, 1] = 0.6 * np.sin(r @ k + ph).sum(1)
+        vel[:, 0] = 0.2 * np.sin(r @ k[::-1] + ph).sum(1)
+        vel[:, 2] = -1.5 * (r[:, 2] - r[:, 2].min()) / np.ptp(r[:, 2])
         s0.particle_qd.assign(vel.astype(np.float32))
     wind = _wind_field(scene, rng) if scene.script == "wind" else None
     ring = rest[pins] if scene.script == "gather" else None
