@@ -16,7 +16,7 @@ The template is the rest mesh placed as bench/cases.py places the real templates
 least-squares similarity onto the truth (Umeyama 1991), the same placed template for every
 method, so the comparison measures the non-rigid fit only.
 
-The states are read from ``bench/out/sim/`` (bench/sim_cloth.py's cache; running the simulator
+The states are read from ``bench/data/sim/`` (bench/sim_cloth.py's stored states; running the simulator
 needs ``pip install -r bench/requirements-sim.txt``). :func:`tiny_case` is the CI case, read
 from the stored ``bench/data/sim-sphere-tiny.npz`` (no simulator needed).
 """
@@ -159,44 +159,31 @@ def sim_cases(
 
 
 def cached_state(scene: sim_cloth.Scene) -> sim_cloth.SimResult | None:
-    """The cached state of a scene whatever its key (no Newton needed), or None."""
-    path = sim_cloth.OUT / f"{scene.name}.npz"
-    if not path.is_file():
+    """The stored state of a scene whatever its key (no Newton needed), or None."""
+    sim = sim_cloth.load_state(scene)
+    if sim is None:
         print(
-            f"group sim: {scene.name}: no simulated state in {path} (python -m bench.sim_cloth)",
+            f"group sim: {scene.name}: no simulated state in {sim_cloth.STATES} (python -m bench.sim_cloth)",
             file=sys.stderr,
         )
-        return None
-    with np.load(path) as z:
-        return sim_cloth.SimResult(z["rest"], z["faces"], z["final"], z["pinned"], json.loads(str(z["info"])))
+    return sim
 
 
 def load_tiny(path: pathlib.Path = TINY) -> sim_cloth.SimResult:
     """The stored tiny simulated state (a 17 × 17 sheet dropped on a sphere)."""
-    with np.load(path) as z:
-        return sim_cloth.SimResult(
-            z["rest"].astype(float),
-            z["faces"].astype(np.int64),
-            z["final"].astype(float),
-            z["pinned"].astype(np.int64),
-            json.loads(str(z["info"])),
-        )
+    sim = sim_cloth.load_state(sim_cloth.SMALL, path)
+    if sim is None:
+        raise FileNotFoundError(f"{path}: no stored tiny state (python -m bench.sim --store-tiny)")
+    return sim
 
 
 def store_tiny(path: pathlib.Path = TINY) -> sim_cloth.SimResult:
-    """Simulate :data:`sim_cloth.SMALL` and store it compactly (float32 positions) at ``path``
-    with its generation command and settings."""
+    """Simulate :data:`sim_cloth.SMALL` and store it at ``path`` with its generation command
+    and settings."""
     r = sim_cloth.simulate(sim_cloth.SMALL)
     r.info["command"] = "python -m bench.sim --store-tiny"
-    path.parent.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(
-        path,
-        rest=r.rest.astype(np.float32),
-        faces=r.faces.astype(np.int32),
-        final=r.final.astype(np.float32),
-        pinned=r.pinned.astype(np.int32),
-        info=json.dumps(r.info),
-    )
+    r.info["key"] = sim_cloth.settings_key(sim_cloth.SMALL)
+    sim_cloth.save_state(sim_cloth.SMALL, r, path)
     return load_tiny(path)
 
 

@@ -50,7 +50,10 @@ import numpy as np
 from bench import cases as cases_mod
 
 HERE = pathlib.Path(__file__).resolve().parent
-#: The simulated states (one .npz per scene), written by :func:`simulate_cached`.
+#: The simulated states (one compact .npz per scene, kept in the repository so that the harness
+#: needs no simulator), written by :func:`simulate_cached`.
+STATES = HERE / "data" / "sim"
+#: Runs made on the states (bench/sim.py's peers).
 OUT = HERE / "out" / "sim"
 #: Bump when the scripts change (invalidates the cache).
 VERSION = 1
@@ -416,33 +419,53 @@ def collider_meshes(scene: Scene) -> list[tuple[np.ndarray, np.ndarray]]:
     return out
 
 
+def save_state(scene: Scene, r: SimResult, path: pathlib.Path | None = None) -> pathlib.Path:
+    """Store a simulated state compactly: the final positions as float32 (the rest mesh and
+    the faces are :func:`rest_mesh`'s), the pinned vertices and the run's figures."""
+    path = path or STATES / f"{scene.name}.npz"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp.npz")
+    np.savez_compressed(
+        tmp, final=r.final.astype(np.float32), pinned=r.pinned.astype(np.int32), info=json.dumps(r.info)
+    )
+    tmp.replace(path)
+    return path
+
+
+def load_state(scene: Scene, path: pathlib.Path | None = None) -> SimResult | None:
+    """The stored state of ``scene`` (None when there is none); ``info["key"]`` says which
+    settings made it (:func:`settings_key`)."""
+    path = path or STATES / f"{scene.name}.npz"
+    if not path.is_file():
+        return None
+    rest, faces = rest_mesh(scene)
+    with np.load(path) as z:
+        final = z["final"].astype(float)
+        if final.shape != rest.shape:
+            raise ValueError(f"{path}: {final.shape} positions for a {rest.shape} rest mesh")
+        return SimResult(rest, faces, final, z["pinned"].astype(np.int64), json.loads(str(z["info"])))
+
+
 def simulate_cached(scene: Scene, force: bool = False, verbose: bool = True) -> SimResult:
-    """The scene's simulated state from ``bench/out/sim/`` (run and stored when missing or
+    """The scene's simulated state from :data:`STATES` (simulated and stored when missing or
     made with other settings)."""
     key = settings_key(scene)
-    path = OUT / f"{scene.name}.npz"
-    if path.is_file() and not force:
-        with np.load(path) as z:
-            info = json.loads(str(z["info"]))
-            if info.get("key") == key:
-                return SimResult(z["rest"], z["faces"], z["final"], z["pinned"], info)
+    r = None if force else load_state(scene)
+    if r is not None and r.info.get("key") == key:
+        return r
     if verbose:
         print(f"simulating {scene.name} ({scene.vertices} vertices, {scene.frames} frames)", flush=True)
     r = simulate(scene, verbose=verbose)
     r.info["key"] = key
-    OUT.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".tmp.npz")
-    np.savez_compressed(
-        tmp, rest=r.rest, faces=r.faces, final=r.final, pinned=r.pinned, info=json.dumps(r.info)
-    )
-    tmp.replace(path)
+    save_state(scene, r)
+    r.final = r.final.astype(np.float32).astype(float)  # as the harness reads it back
     if verbose:
         print(f"  {scene.name}: {r.info['seconds']} s, edge ratios {r.info['edge_ratio_p01_p50_p99']}")
     return r
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser(description="Simulate the harness's cloth scenes (bench/out/sim/).")
+    ap = argparse.ArgumentParser(description="Simulate the harness's cloth scenes (bench/data/sim/).")
     ap.add_argument("--scenes", default=",".join(SCENES), help="comma-separated: " + ", ".join(SCENES))
     ap.add_argument("--force", action="store_true", help="rerun cached scenes")
     args = ap.parse_args()
