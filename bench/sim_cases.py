@@ -24,7 +24,6 @@ from the stored ``bench/data/sim-sphere-tiny.npz`` (no simulator needed).
 from __future__ import annotations
 
 import importlib.util
-import json
 import pathlib
 import sys
 from collections.abc import Iterator
