@@ -23,7 +23,9 @@ from the stored ``bench/data/sim-sphere-tiny.npz`` (no simulator needed).
 
 from __future__ import annotations
 
+import hashlib
 import importlib.util
+import json
 import pathlib
 import sys
 from collections.abc import Iterator
@@ -100,6 +102,36 @@ def scan_target(
     return np.ascontiguousarray(pts[rng.permutation(len(pts))]), info
 
 
+#: Scans already made (the camera rig is the slow part of building the cases), keyed by the
+#: truth, the occluders and every scan setting.
+SCANS = sim_cloth.OUT / "scans"
+
+
+def cached_scan(
+    truth: np.ndarray,
+    faces: np.ndarray,
+    occluders: list[tuple[np.ndarray, np.ndarray]],
+    most: int,
+    seed: int,
+) -> tuple[np.ndarray, dict[str, Any]]:
+    """:func:`scan_target`, read from :data:`SCANS` when the same scan was made before."""
+    h = hashlib.sha1()
+    for a in (truth, faces, *[x for v_f in occluders for x in v_f]):
+        h.update(np.ascontiguousarray(a).tobytes())
+    settings = [SCANNER, SCAN_NOISE, SCAN_HOLES, SCAN_HOLE_RADIUS, SCAN_OUTLIERS, most, seed]
+    h.update(json.dumps(settings, sort_keys=True, default=str).encode())
+    path = SCANS / f"{h.hexdigest()[:16]}.npz"
+    if path.is_file():
+        with np.load(path) as z:
+            return z["points"], json.loads(str(z["info"]))
+    pts, info = scan_target(truth, faces, occluders, most, seed)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp.npz")
+    np.savez(tmp, points=pts, info=json.dumps(info))
+    tmp.replace(path)
+    return pts, info
+
+
 def placed_template(rest: np.ndarray, truth: np.ndarray) -> tuple[np.ndarray, dict[str, float]]:
     """The rest mesh moved by the least-squares similarity onto the truth (bench/cases.py)."""
     s, r, t = cases_mod.umeyama(rest, truth)
@@ -115,8 +147,10 @@ def cases_of(
     seed: int,
     group: str = "sim",
     kinds: tuple[str, ...] = ("mesh", "scan"),
+    cache: bool = True,
 ) -> Iterator[cases_mod.Case]:
-    """The cases of one simulated state (see the module's docstring)."""
+    """The cases of one simulated state (see the module's docstring); ``cache``: read and keep
+    the scan in :data:`SCANS`."""
     truth = np.asarray(sim.final, float)
     faces = np.asarray(sim.faces, np.int64)
     placed, pre = placed_template(np.asarray(sim.rest, float), truth)
@@ -132,7 +166,8 @@ def cases_of(
             f"sim-{name}-mesh", group, placed, faces, truth, faces, truth, {**meta, "variant": "mesh target"}
         )
     if "scan" in kinds:
-        pts, info = scan_target(truth, faces, occluders, most, seed)
+        make = cached_scan if cache else scan_target
+        pts, info = make(truth, faces, occluders, most, seed)
         yield cases_mod.Case(f"sim-{name}-scan", group, placed, faces, pts, None, truth, {**meta, **info})
 
 
@@ -190,4 +225,4 @@ def tiny_case(kind: str = "scan") -> cases_mod.Case:
     """The CI case: the stored tiny sphere drape as a scan (400 points) or as a mesh target."""
     sim = load_tiny()
     occ = sim_cloth.collider_meshes(sim_cloth.SMALL)
-    return next(cases_of("sphere-tiny", sim, occ, 400, seed=2799, group="sim-tiny", kinds=(kind,)))
+    return next(cases_of("sphere-tiny", sim, occ, 400, seed=2799, group="sim-tiny", kinds=(kind,), cache=False))
