@@ -225,4 +225,5 @@ def tiny_case(kind: str = "scan") -> cases_mod.Case:
     """The CI case: the stored tiny sphere drape as a scan (400 points) or as a mesh target."""
     sim = load_tiny()
     occ = sim_cloth.collider_meshes(sim_cloth.SMALL)
-    return next(cases_of("sphere-tiny", sim, occ, 400, seed=2799, group="sim-tiny", kinds=(kind,), cache=False))
+    made = cases_of("sphere-tiny", sim, occ, 400, seed=2799, group="sim-tiny", kinds=(kind,), cache=False)
+    return next(made)
