@@ -13,7 +13,8 @@ and, per group, the medians of f_R, f_λ, f_H, f_E, f_F and scan→fit mean::
 
 Groups: ``real`` (22 pre-placed real-garment cases), ``small`` / ``paper`` (generated, rotated
 and offset), ``sheets`` (24 random sheets), ``wind`` (30 wind frames), ``dressed`` (6 scans of
-dressed people, bench/dressed.py: whole scan, placed template; not in the default groups). Results go to
+dressed people, bench/dressed.py: whole scan, placed template; not in the default groups), ``sim``
+(12 physically simulated cases, bench/sim_cases.py; not in the default groups). Results go to
 ``--out`` (JSON, one row per case and variant). Each variant is also scored against the
 best peer of every case (``--peers``: by default a ``bench/compare.py`` run's
 ``bench/out/results.json`` if there is one, else ``bench/peer_figures.json``, which holds all
@@ -149,6 +150,10 @@ def group_cases(group: str) -> list[cases_mod.Case]:
         from bench import dressed_scans
 
         return list(dressed_scans.dressed_cases())
+    if group == "sim":  # the physically simulated cases of bench/sim_cases.py (docs/simulated.md)
+        from bench import sim_cases
+
+        return list(sim_cases.sim_cases())
     if group not in GROUPS:
         raise SystemExit(f"unknown group {group!r} ({', '.join(GROUPS)})")
     source, tag = GROUPS[group]
@@ -172,6 +177,8 @@ def parse_variant(text: str) -> tuple[str, dict[str, Any]]:
 PEER_FIGURES = HERE / "peer_figures.json"
 #: The same for the dressed-body cases (group ``dressed``), written by python -m bench.dressed --peers.
 PEER_FIGURES_DRESSED = HERE / "peer_figures_dressed.json"
+#: The same for the simulated cases (group ``sim``), written by python -m bench.sim --peers.
+PEER_FIGURES_SIM = HERE / "peer_figures_sim.json"
 
 #: Every compared method but FoldMatch's own two configurations (NRGa counts as a peer).
 PEERS = [m for m in peers.METHODS if m not in ("foldmatch", "foldmatch_paper")]
@@ -375,6 +382,8 @@ def load_best(names: list[str] | None) -> tuple[Best, str]:
         names = [str(json_run if json_run.is_file() else fallback)]
         if PEER_FIGURES_DRESSED.is_file():  # python -m bench.dressed --peers (group ``dressed``)
             names.append(str(PEER_FIGURES_DRESSED))
+        if PEER_FIGURES_SIM.is_file():  # python -m bench.sim --peers (group ``sim``)
+            names.append(str(PEER_FIGURES_SIM))
     best: Best = {}
     for name in names:
         peers_file = pathlib.Path(name)
