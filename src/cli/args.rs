@@ -236,6 +236,13 @@ pub struct SequenceCmd {
     /// docs/cluster.md.
     #[arg(long, value_name = "ADDRESS")]
     pub scheduler: Option<String>,
+    /// λ in [0, 1] of a frame's start: the previous fit moved on by λ × its last motion.
+    #[arg(long, value_name = "L", default_value_t = crate::track::DEFAULT_PREDICTION)]
+    pub prediction: f64,
+    /// Keep a flagged frame's fit instead of also fitting it again from the template placed
+    /// rigidly on it (docs/method.md "Tracking").
+    #[arg(long)]
+    pub no_reanchor: bool,
     #[command(flatten)]
     #[allow(missing_docs)]
     pub params: ParamArgs,
