@@ -338,3 +338,6 @@ pub fn placed_rigidly(rest: &[[f64; 3]], fitted: &[[f64; 3]]) -> Vec<[f64; 3]> {
         .map(|p| transform_vertex(&r, &vec3(p), &c_rest, &c_fit).into())
         .collect()
 }
+
+#[cfg(test)]
+mod tests;
