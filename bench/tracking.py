@@ -42,7 +42,9 @@ ANY_FRAME_MAX = 1.0
 EDGE_RATIO_MAX = 1.15
 
 
-def frames_of(sequence: str, every: int = 1, limit: int | None = None) -> list[tuple[int, np.ndarray, np.ndarray]]:
+def frames_of(
+    sequence: str, every: int = 1, limit: int | None = None
+) -> list[tuple[int, np.ndarray, np.ndarray]]:
     """(frame number, vertices, faces) of the sequence's frames in order, every ``every``-th."""
     files = sorted(WIND.joinpath(sequence).glob("*.obj"), key=lambda p: int(p.stem))
     files = files[::every][:limit]
@@ -100,7 +102,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             iterations=args.iterations,
             params=params or None,
             prediction=args.prediction,
-            reanchor=not args.no_reanchor,
+            reanchor=args.reanchor,
             threads=args.threads,
         )
     else:
@@ -144,14 +146,26 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         "default_single_fit_f_R_pct": 100 * single_fr,
     }
     checks = [
-        (f"frame 0's f_R ≤ {FIRST_FRAME_MAX} %", summary["first_f_R_pct"], summary["first_f_R_pct"] <= FIRST_FRAME_MAX),
-        (f"no frame's f_R > {ANY_FRAME_MAX} %", summary["max_f_R_pct"], summary["max_f_R_pct"] <= ANY_FRAME_MAX),
+        (
+            f"frame 0's f_R ≤ {FIRST_FRAME_MAX} %",
+            summary["first_f_R_pct"],
+            summary["first_f_R_pct"] <= FIRST_FRAME_MAX,
+        ),
+        (
+            f"no frame's f_R > {ANY_FRAME_MAX} %",
+            summary["max_f_R_pct"],
+            summary["max_f_R_pct"] <= ANY_FRAME_MAX,
+        ),
         (
             f"edge p95 ≤ {EDGE_RATIO_MAX}× the truth's",
             summary["max_edge_over_truth"],
             summary["max_edge_over_truth"] <= EDGE_RATIO_MAX,
         ),
-        ("time per frame ≤ the default's single fit", per_frame / single_seconds, per_frame <= single_seconds),
+        (
+            "time per frame ≤ the default's single fit",
+            per_frame / single_seconds,
+            per_frame <= single_seconds,
+        ),
     ]
     print(
         f"{args.sequence} ({len(rows)} frames, {args.mode}): mean f_R {summary['mean_f_R_pct']:.3f} %, "
@@ -164,13 +178,24 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     return summary
 
 
-def chained(fm: Any, template: np.ndarray, faces: np.ndarray, scans: list[np.ndarray], args: argparse.Namespace,
-            params: dict[str, Any]) -> Any:
+def chained(
+    fm: Any,
+    template: np.ndarray,
+    faces: np.ndarray,
+    scans: list[np.ndarray],
+    args: argparse.Namespace,
+    params: dict[str, Any],
+) -> Any:
     """Each frame fitted with the previous fit as its template (no rest shape)."""
     previous = template
     for scan in scans:
         result = fm.fit(
-            previous, faces, scan, preset=args.preset, iterations=args.iterations, params=params or None,
+            previous,
+            faces,
+            scan,
+            preset=args.preset,
+            iterations=args.iterations,
+            params=params or None,
             threads=args.threads,
         )
         previous = result.vertices
@@ -186,7 +211,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--preset", default="tracking")
     ap.add_argument("--iterations", type=int, default=None)
     ap.add_argument("--prediction", type=float, default=0.5)
-    ap.add_argument("--no-reanchor", action="store_true")
+    ap.add_argument("--reanchor", action="store_true", help="re-anchor flagged frames")
     ap.add_argument("--set", action="append", default=[], metavar="NAME=JSON", help="a fit setting")
     ap.add_argument("--threads", type=int, default=None)
     ap.add_argument("--json", help="write the summary here")

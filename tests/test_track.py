@@ -20,7 +20,9 @@ def sequence():
     oblique axis and moved 6 % of its size further: the last is out of reach of one fit."""
     case = fm.folded_sheet(nx=17, ny=17, fold_amplitude=0.08, rotation_degrees=0.0, offset=(0, 0, 0))
     shape = case["ground_truth"]
-    copies = [shape @ rotation((0.3, 1.0, 0.2), 6.0 * t).T + np.array([0.06, 0.02, -0.03]) * t for t in range(8)]
+    copies = [
+        shape @ rotation((0.3, 1.0, 0.2), 6.0 * t).T + np.array([0.06, 0.02, -0.03]) * t for t in range(8)
+    ]
     return shape, case["faces"], copies
 
 
@@ -45,7 +47,9 @@ def test_yields_one_result_per_frame_with_the_template_topology(sequence):
 def test_follows_rigidly_moved_copies_that_a_fit_from_the_template_misses(sequence):
     shape, faces, copies = sequence
     diagonal = float(np.linalg.norm(shape.max(0) - shape.min(0)))
-    errors = [rms(r.vertices, c) / diagonal for r, c in zip(fm.track(shape, faces, copies, iterations=30), copies)]
+    errors = [
+        rms(r.vertices, c) / diagonal for r, c in zip(fm.track(shape, faces, copies, iterations=30), copies)
+    ]
     assert max(errors) < 0.01, errors
     cold = fm.fit(shape, faces, copies[-1], preset="tracking", iterations=30)
     assert rms(cold.vertices, copies[-1]) / diagonal > 5 * max(errors)

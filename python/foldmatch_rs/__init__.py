@@ -432,7 +432,7 @@ def track(
     prediction: float = 0.5,
     distortion_jump: float = 0.15,
     distance_jump: float = 2.0,
-    reanchor: bool = True,
+    reanchor: bool = False,
     threads: Optional[int] = None,
 ) -> Iterator[FitResult]:
     """Track a 4D sequence: fit ``frames`` in order, yielding each frame's :class:`FitResult`.
@@ -443,7 +443,7 @@ def track(
     from frame to frame (docs/method.md "Tracking"). A frame whose edge distortion or scan
     distances jump against the first frame's is flagged: its ``quality["verdict"]`` is
     ``"suspicious"`` with the reasons, and ``result.tracking["flagged"]`` is true; with
-    ``reanchor`` it is first fitted again from the template placed rigidly on its fit, and
+    ``reanchor=True`` it is first fitted again from the template placed rigidly on its fit, and
     the better fit kept. ``foldmatch sequence`` runs the same tracker.
 
     Parameters

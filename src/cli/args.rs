@@ -91,7 +91,7 @@ pub enum Command {
     #[command(after_help = BATCH_AFTER_HELP)]
     Batch(BatchCmd),
     /// Track a 4D sequence: fit the frames of a folder in order, each warm-started from the
-    /// previous frame's fit.
+    /// previous frame's fit and anchored to the template's shape.
     #[command(after_help = SEQUENCE_AFTER_HELP)]
     Sequence(SequenceCmd),
     /// Compute the paper's metrics of a fit and print them as JSON.
@@ -239,10 +239,10 @@ pub struct SequenceCmd {
     /// λ in [0, 1] of a frame's start: the previous fit moved on by λ × its last motion.
     #[arg(long, value_name = "L", default_value_t = crate::track::DEFAULT_PREDICTION)]
     pub prediction: f64,
-    /// Keep a flagged frame's fit instead of also fitting it again from the template placed
-    /// rigidly on it (docs/method.md "Tracking").
+    /// Also fit a flagged frame again from the template placed rigidly on its fit, and keep the
+    /// better fit (docs/method.md "Tracking").
     #[arg(long)]
-    pub no_reanchor: bool,
+    pub reanchor: bool,
     #[command(flatten)]
     #[allow(missing_docs)]
     pub params: ParamArgs,

@@ -632,7 +632,7 @@ pub fn sequence(cmd: &SequenceCmd, ctx: &Context) -> i32 {
     let rules = TrackParams {
         fit: setup.params.clone(),
         prediction: cmd.prediction,
-        reanchor: !cmd.no_reanchor,
+        reanchor: cmd.reanchor,
         ..TrackParams::default()
     };
     let tracker = match Tracker::new(&setup.template.vertices, &setup.template.faces, rules) {

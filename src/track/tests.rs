@@ -32,7 +32,11 @@ fn moving_copies(frames: usize) -> (Vec<[f64; 3]>, Vec<[u32; 3]>, Vec<Vec<[f64; 
 }
 
 fn rms(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
-    let sum: f64 = a.iter().zip(b).map(|(x, y)| (vec3(x) - vec3(y)).norm_squared()).sum();
+    let sum: f64 = a
+        .iter()
+        .zip(b)
+        .map(|(x, y)| (vec3(x) - vec3(y)).norm_squared())
+        .sum();
     (sum / a.len() as f64).sqrt()
 }
 
@@ -50,7 +54,10 @@ fn tracks_rigidly_moved_copies_that_one_fit_from_the_template_cannot_reach() {
     for (t, copy) in copies.iter().enumerate() {
         let frame = tracker.step(copy, None, None, &mut |_| true).unwrap();
         let error = rms(&frame.result.vertices, copy) / size;
-        assert!(error < 0.01, "frame {t}: RMS to the moved copy {error:.4} of the diagonal");
+        assert!(
+            error < 0.01,
+            "frame {t}: RMS to the moved copy {error:.4} of the diagonal"
+        );
         assert_eq!(frame.figures.frame, t);
         assert_eq!(frame.figures.warm_started, t > 0);
         // The verdict's edge distortion is against the template, not the previous fit.
@@ -84,9 +91,17 @@ fn an_anchored_fit_restores_the_rest_shape_a_warm_start_lost() {
     let (template, faces, _) = moving_copies(1);
     let stretched: Vec<[f64; 3]> = template.iter().map(|p| [1.25 * p[0], p[1], p[2]]).collect();
     let params = quick().fit;
-    let anchored =
-        fit_anchored(&stretched, &template, &faces, &template, None, None, &params, &mut |_| true)
-            .unwrap();
+    let anchored = fit_anchored(
+        &stretched,
+        &template,
+        &faces,
+        &template,
+        None,
+        None,
+        &params,
+        &mut |_| true,
+    )
+    .unwrap();
     let loose = fit_simple(&stretched, &faces, &template, None, &params).unwrap();
     let distortion = |fitted: &[[f64; 3]]| {
         let input = AssessInput {
@@ -95,10 +110,16 @@ fn an_anchored_fit_restores_the_rest_shape_a_warm_start_lost() {
             fitted_vertices: fitted,
             scan: &template,
         };
-        assess(&input, &VerdictThresholds::default()).unwrap().quality.edge_distortion
+        assess(&input, &VerdictThresholds::default())
+            .unwrap()
+            .quality
+            .edge_distortion
     };
     let (a, l) = (distortion(&anchored.vertices), distortion(&loose.vertices));
-    assert!(a < l - 0.02, "anchored {a:.3}, anchored to the start {l:.3}");
+    assert!(
+        a < l - 0.02,
+        "anchored {a:.3}, anchored to the start {l:.3}"
+    );
     // The anchored fit's own verdict measures against the rest shape.
     assert_eq!(anchored.quality.edge_distortion, a);
 }
@@ -118,7 +139,11 @@ fn a_frame_that_jumps_is_flagged_suspicious() {
         .collect();
     let frame = tracker.step(&far, None, None, &mut |_| true).unwrap();
     assert!(frame.figures.flagged);
-    assert!(frame.figures.reasons.iter().any(|r| r.starts_with("tracking:")));
+    assert!(frame
+        .figures
+        .reasons
+        .iter()
+        .any(|r| r.starts_with("tracking:")));
     assert_eq!(frame.result.quality.verdict, Verdict::Suspicious);
 }
 
@@ -126,9 +151,27 @@ fn a_frame_that_jumps_is_flagged_suspicious() {
 fn refuses_bad_settings_and_a_fit_of_another_vertex_count() {
     let (template, faces, _) = moving_copies(1);
     for (p, name) in [
-        (TrackParams { prediction: 1.5, ..quick() }, "prediction"),
-        (TrackParams { distortion_jump: 0.0, ..quick() }, "distortion_jump"),
-        (TrackParams { distance_jump: 1.0, ..quick() }, "distance_jump"),
+        (
+            TrackParams {
+                prediction: 1.5,
+                ..quick()
+            },
+            "prediction",
+        ),
+        (
+            TrackParams {
+                distortion_jump: 0.0,
+                ..quick()
+            },
+            "distortion_jump",
+        ),
+        (
+            TrackParams {
+                distance_jump: 1.0,
+                ..quick()
+            },
+            "distance_jump",
+        ),
     ] {
         let err = Tracker::new(&template, &faces, p).err().unwrap();
         assert!(err.to_string().contains(name), "{err}");
@@ -138,4 +181,39 @@ fn refuses_bad_settings_and_a_fit_of_another_vertex_count() {
     assert!(matches!(err, FoldMatchError::Shape { .. }), "{err}");
     tracker.accept(&template).unwrap();
     assert_eq!(tracker.frames(), 1);
+}
+
+#[test]
+fn reanchoring_keeps_the_refit_only_when_its_edges_are_truer() {
+    // The jump of `a_frame_that_jumps_is_flagged_suspicious`, with and without re-anchoring:
+    // the same first fit (the fit is deterministic), and the kept one never more distorted.
+    let (template, faces, copies) = moving_copies(2);
+    let far: Vec<[f64; 3]> = copies[1]
+        .iter()
+        .filter(|q| q[0] > 0.0)
+        .map(|q| [q[0] + 0.3, q[1], q[2] + 0.3])
+        .collect();
+    let mut figures = Vec::new();
+    for reanchor in [false, true] {
+        let p = TrackParams {
+            reanchor,
+            ..quick()
+        };
+        let mut tracker = Tracker::new(&template, &faces, p).unwrap();
+        tracker.step(&copies[0], None, None, &mut |_| true).unwrap();
+        figures.push(
+            tracker
+                .step(&far, None, None, &mut |_| true)
+                .unwrap()
+                .figures,
+        );
+    }
+    let (plain, reanchored) = (&figures[0], &figures[1]);
+    assert!(!plain.reanchored);
+    assert!(reanchored.edge_distortion <= plain.edge_distortion);
+    if reanchored.reanchored {
+        assert!(reanchored.edge_distortion < plain.edge_distortion);
+    } else {
+        assert_eq!(reanchored, plain);
+    }
 }
