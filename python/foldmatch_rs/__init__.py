@@ -26,9 +26,8 @@ Examples
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
-from collections.abc import Iterable, Iterator
 from typing import Any, Callable, Optional, Union
 
 import numpy as np
