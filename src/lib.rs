@@ -46,6 +46,7 @@ pub mod render;
 pub mod rings;
 pub mod rotation;
 pub mod synthetic;
+pub mod track;
 pub mod wrinkle;
 
 #[cfg(feature = "python")]

@@ -29,6 +29,7 @@ mod meshes;
 mod params;
 mod quality;
 mod render;
+mod track;
 
 /// Set in a forked child (see `_mark_forked`): rayon's global pool does not survive `fork`, so
 /// the child computes in a fresh pool of its own.
@@ -410,7 +411,11 @@ fn fit_raw<'py>(
     if let Some(e) = callback_error {
         return Err(e);
     }
-    let r = result.map_err(to_pyerr)?;
+    result_dict(py, result.map_err(to_pyerr)?)
+}
+
+/// A fit's outcome as `fit_raw` returns it: every array and figure of `FitResult`, by name.
+fn result_dict(py: Python<'_>, r: fit::FitResult) -> PyResult<Bound<'_, PyDict>> {
     let d = PyDict::new(py);
     d.set_item("wvf_magnitude", fit::magnitudes(&r.wvf).into_pyarray(py))?;
     d.set_item(
@@ -1016,6 +1021,7 @@ fn _foldmatch_rs(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(render::write_fitted, m)?)?;
     m.add_function(wrap_pyfunction!(cluster::cluster_request, m)?)?;
     m.add_class::<cluster::RunBook>()?;
+    m.add_class::<track::Tracker>()?;
     m.add_class::<cluster::FileFitter>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())

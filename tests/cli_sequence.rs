@@ -85,6 +85,15 @@ sequence: 4 ok, 0 failed, 0 skipped in [..] s; report: out/report.json
     assert_eq!(report["params"]["anneal"], 1.0);
     assert_eq!(report["params"]["selection"], "single");
     assert_eq!(names(&report), ["f1.ply", "f2.ply", "f3.obj", "f10.ply"]);
+    // Every frame carries its tracking figures, numbered in order; the first is not warm-started.
+    let tracking = field(&report, "tracking");
+    for (i, t) in tracking.iter().enumerate() {
+        assert_eq!(t["frame"], i);
+        assert_eq!(t["warm_started"], i > 0);
+        assert!(t["edge_distortion"].as_f64().unwrap() >= 1.0);
+    }
+    // The tracking preset anchors every frame to the template's rest shape.
+    assert_eq!(report["params"]["rest_rigidity"], 0.65);
     assert_eq!(
         field(&report, "warm_start"),
         [

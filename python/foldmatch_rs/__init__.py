@@ -26,7 +26,7 @@ Examples
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any, Callable, Optional, Union
 
@@ -114,6 +114,10 @@ class FitResult:
     support : (M,) bool
         Per template vertex, whether it has scan support: its nearest scan point lies within
         the support radius and is claimed back by the vertex or a template neighbour.
+    tracking : dict
+        :func:`track` only, the frame's figures: ``frame``, ``fit_to_scan``, ``scan_to_fit``,
+        ``edge_distortion`` (against the template), ``motion``, ``warm_started``,
+        ``reanchored``, ``flagged`` and ``reasons`` (empty for :func:`fit`).
     """
 
     vertices: np.ndarray
@@ -131,6 +135,7 @@ class FitResult:
     correspondences: np.ndarray = field(default_factory=lambda: np.zeros(0, np.uint32))
     residuals: np.ndarray = field(default_factory=lambda: np.zeros(0))
     support: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    tracking: dict[str, Any] = field(default_factory=dict)
 
     def save(self, path: str | os.PathLike[str], accumulated: bool = True, ascii: bool = False) -> None:
         """Writes the fitted mesh as ``foldmatch fit`` does, with the same Rust writer (byte for
@@ -386,6 +391,11 @@ def fit(
             raw = _core.fit_raw(tv, tf, x, xf, values, bar, threads, weights, lm_vertices, lm_positions)
     else:
         raw = _core.fit_raw(tv, tf, x, xf, values, callback, threads, weights, lm_vertices, lm_positions)
+    return _result(raw, tf, settings)
+
+
+def _result(raw: dict[str, Any], tf: np.ndarray, settings: FitParams) -> FitResult:
+    """A :class:`FitResult` from the core's dict."""
     return FitResult(
         vertices=raw["vertices"],
         faces=tf,
@@ -406,7 +416,104 @@ def fit(
         correspondences=raw["correspondences"],
         residuals=raw["residuals"],
         support=raw["support"],
+        tracking=raw.get("tracking", {}),
     )
+
+
+def track(
+    template: Any,
+    template_faces: Any = None,
+    frames: Iterable[Any] = (),
+    *,
+    preset: Optional[str] = None,
+    iterations: Optional[int] = None,
+    params: Union[FitParams, dict[str, Any], None] = None,
+    prediction: float = 0.5,
+    distortion_jump: float = 0.15,
+    distance_jump: float = 2.0,
+    reanchor: bool = False,
+    threads: Optional[int] = None,
+) -> Iterator[FitResult]:
+    """Track a 4D sequence: fit ``frames`` in order, yielding each frame's :class:`FitResult`.
+
+    Each frame starts from the previous frame's fit (moved on by ``prediction`` times its last
+    motion) but stays anchored to ``template``: the rest-shape rigidity and the quality
+    verdict refer to the template's shape, not to the previous fit, so errors do not pile up
+    from frame to frame (docs/method.md "Tracking"). A frame whose edge distortion or scan
+    distances jump against the first frame's is flagged: its ``quality["verdict"]`` is
+    ``"suspicious"`` with the reasons, and ``result.tracking["flagged"]`` is true; with
+    ``reanchor=True`` it is first fitted again from the template placed rigidly on its fit, and
+    the better fit kept. ``foldmatch sequence`` runs the same tracker.
+
+    Parameters
+    ----------
+    template : (M, 3) float, a mesh object, or a path
+        The template; ideally the first frame's own mesh or a fit of it.
+    template_faces : (T, 3) int, optional
+        Template triangles (required unless ``template`` is a mesh or a mesh file).
+    frames : iterable
+        The frames in order: ``(N, 3)`` point arrays, mesh or point cloud objects, or
+        ``.ply`` / ``.obj`` paths; read one at a time (a generator works).
+    preset : str, optional
+        The preset of every frame's fit (default ``"tracking"``, see :func:`fit`).
+    iterations : int, optional
+        ξ per frame (the preset's, 100).
+    params : FitParams or dict, optional
+        Other fit settings, as for :func:`fit`.
+    prediction : float
+        λ in [0, 1] of the constant-velocity start: previous fit + λ × its last motion.
+    distortion_jump : float
+        Flag a frame whose edge distortion exceeds the first frame's by more than this.
+    distance_jump : float
+        Flag a frame whose fit→scan or scan→fit distance exceeds this multiple of the first
+        frame's.
+    reanchor : bool
+        Fit a flagged frame again from the template placed rigidly on its fit.
+    threads : int, optional
+        Worker threads, as for :func:`fit`.
+
+    Yields
+    ------
+    FitResult
+        One per frame, with the template's faces and the frame's figures in ``tracking``.
+
+    Raises
+    ------
+    InvalidInputError, InvalidParameterError
+        A bad template or setting (at the call), or a bad frame (when it is reached; the
+        message starts with ``frame <index>:``, and the sequence stops there).
+    MeshFileError, MeshFormatError
+        A frame file that cannot be read (naming the frame index).
+    """
+    settings = _settings(
+        preset or ("tracking" if not isinstance(params, FitParams) else None), params, iterations=iterations
+    )
+    tv, tf = _inputs.mesh(template, template_faces, "template_vertices")
+    if tf is None:
+        raise InvalidInputError("template_faces: missing (pass faces, a mesh object or a mesh file)")
+    tracker = _core.Tracker(
+        tv,
+        tf,
+        settings.to_dict(),
+        float(prediction),
+        float(distortion_jump),
+        float(distance_jump),
+        bool(reanchor),
+    )
+    return _frames(tracker, tf, settings, iter(frames), threads)
+
+
+def _frames(
+    tracker: Any, tf: np.ndarray, settings: FitParams, frames: Iterator[Any], threads: Optional[int]
+) -> Iterator[FitResult]:
+    """The frames of :func:`track`, fitted one by one."""
+    for index, frame in enumerate(frames):
+        try:
+            x, xf = _inputs.mesh(frame, None, "target")
+            raw = tracker.step(x, xf, None, threads)
+        except FoldMatchError as e:
+            raise type(e)(f"frame {index}: {e}") from e
+        yield _result(raw, tf, settings)
 
 
 def _settings(preset: Optional[str], params: Any, **given: Any) -> FitParams:
@@ -689,6 +796,7 @@ __all__ = [
     "FitParams",
     "FitResult",
     "fit",
+    "track",
     "knn",
     "nbody_step",
     "n_rings",

@@ -36,6 +36,7 @@ __all__ = [
     "cluster_request",
     "RunBook",
     "FileFitter",
+    "Tracker",
     "render_preview",
     "wrinkle_colors",
     "write_fitted",
@@ -150,6 +151,29 @@ class FileFitter:
         self, file_json: str, ascii: bool = False, warm: Optional[tuple[_F64, str]] = None
     ) -> tuple[str, Optional[_F64]]: ...
     def resume_frame(self, file_json: str, warm_name: Optional[str] = None) -> Optional[tuple[str, _F64]]: ...
+
+@final
+class Tracker:
+    def __new__(
+        cls,
+        template_vertices: _F64,
+        template_faces: _I64,
+        params: dict[str, Any],
+        prediction: float,
+        distortion_jump: float,
+        distance_jump: float,
+        reanchor: bool,
+    ) -> Tracker: ...
+    @property
+    def frames(self) -> int: ...
+    def skip(self) -> None: ...
+    def step(
+        self,
+        target: _F64,
+        target_faces: Optional[_I64] = None,
+        target_weights: Optional[_F64] = None,
+        threads: Optional[int] = None,
+    ) -> dict[str, Any]: ...
 
 def assess_raw(
     template_vertices: _F64,

@@ -91,7 +91,7 @@ pub enum Command {
     #[command(after_help = BATCH_AFTER_HELP)]
     Batch(BatchCmd),
     /// Track a 4D sequence: fit the frames of a folder in order, each warm-started from the
-    /// previous frame's fit.
+    /// previous frame's fit and anchored to the template's shape.
     #[command(after_help = SEQUENCE_AFTER_HELP)]
     Sequence(SequenceCmd),
     /// Compute the paper's metrics of a fit and print them as JSON.
@@ -236,6 +236,13 @@ pub struct SequenceCmd {
     /// docs/cluster.md.
     #[arg(long, value_name = "ADDRESS")]
     pub scheduler: Option<String>,
+    /// λ in [0, 1] of a frame's start: the previous fit moved on by λ × its last motion.
+    #[arg(long, value_name = "L", default_value_t = crate::track::DEFAULT_PREDICTION)]
+    pub prediction: f64,
+    /// Also fit a flagged frame again from the template placed rigidly on its fit, and keep the
+    /// better fit (docs/method.md "Tracking").
+    #[arg(long)]
+    pub reanchor: bool,
     #[command(flatten)]
     #[allow(missing_docs)]
     pub params: ParamArgs,

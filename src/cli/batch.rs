@@ -25,6 +25,7 @@ use super::report::{write_json, FileReport, RunReport, RunState, Status, Summary
 use super::ui::Ui;
 use super::{exit_code, Context};
 use crate::fit::FitParams;
+use crate::track::{TrackParams, Tracker};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -521,6 +522,7 @@ pub fn batch(cmd: &BatchCmd, ctx: &Context) -> i32 {
                     output: setup.outputs[i].clone(),
                     gt: setup.gt_for(cmd.gt_dir.as_deref(), i),
                     start: None,
+                    tracker: None,
                     ascii: cmd.ascii,
                     weights: cmd.scan_weights_property.clone().map(ScanWeights::Property),
                     landmarks: None,
@@ -625,8 +627,23 @@ pub fn sequence(cmd: &SequenceCmd, ctx: &Context) -> i32 {
         pool: &ctx.pool,
     };
     let files_bar = ui.files_bar(n);
-    // The last successful fit and the frame it belongs to.
-    let mut warm: Option<(Vec<[f64; 3]>, String)> = None;
+    // One tracker for the whole sequence (docs/method.md "Tracking"): every frame starts from
+    // the previous fits and is anchored to the template.
+    let rules = TrackParams {
+        fit: setup.params.clone(),
+        prediction: cmd.prediction,
+        reanchor: cmd.reanchor,
+        ..TrackParams::default()
+    };
+    let tracker = match Tracker::new(&setup.template.vertices, &setup.template.faces, rules) {
+        Ok(t) => Mutex::new(t),
+        Err(e) => {
+            ui.error(format_args!("sequence: {e}"));
+            return exit_code::FATAL;
+        }
+    };
+    // The name of the last frame fitted (or resumed), the next one's warm start.
+    let mut warm: Option<String> = None;
     for i in 0..n {
         if interrupt::requested() {
             break;
@@ -635,10 +652,15 @@ pub fn sequence(cmd: &SequenceCmd, ctx: &Context) -> i32 {
         if let Some(mut entry) = setup.resumable(i) {
             match read_named("resumed frame", &setup.outputs[i]) {
                 Ok(mesh) if mesh.vertices.len() == setup.template.vertices.len() => {
-                    entry.warm_start = warm.as_ref().map(|w| w.1.clone());
+                    entry.warm_start = warm.clone();
                     log_file(ui, i + 1, n, &entry);
                     shared.record(i, entry, &[]);
-                    warm = Some((mesh.vertices, name));
+                    let mut t = tracker.lock().unwrap_or_else(|e| e.into_inner());
+                    if let Err(e) = t.accept(&mesh.vertices) {
+                        ui.warn(format_args!("{}: {e}", setup.outputs[i].display()));
+                        t.skip();
+                    }
+                    warm = Some(name);
                     files_bar.inc();
                     continue;
                 }
@@ -654,19 +676,26 @@ pub fn sequence(cmd: &SequenceCmd, ctx: &Context) -> i32 {
             scan: setup.found[i].path.clone(),
             output: setup.outputs[i].clone(),
             gt: setup.gt_for(cmd.gt_dir.as_deref(), i),
-            start: warm.as_ref().map(|w| w.0.as_slice()),
+            start: None,
+            tracker: Some(&tracker),
             ascii: cmd.ascii,
             weights: cmd.scan_weights_property.clone().map(ScanWeights::Property),
             landmarks: None,
             stage: Some(stage_path(&setup.outputs[i])),
             preview: None,
         };
+        let before = tracker.lock().map_or(i, |t| t.frames());
         let mut outcome = runner.run(&job);
-        outcome.report.warm_start = warm.as_ref().map(|w| w.1.clone());
+        outcome.report.warm_start = warm.clone();
         log_file(ui, i + 1, n, &outcome.report);
         shared.record(i, outcome.report, &job.commits());
-        if let Some(fitted) = outcome.fitted {
-            warm = Some((fitted, name));
+        let mut t = tracker.lock().unwrap_or_else(|e| e.into_inner());
+        if t.frames() == before {
+            // Failed before its fit (an unreadable scan): the tracker did not see it.
+            t.skip();
+        }
+        if outcome.fitted.is_some() {
+            warm = Some(name);
         }
         files_bar.inc();
     }

@@ -455,6 +455,7 @@ impl FileFitter {
             output: file.output.clone(),
             gt: file.gt.clone(),
             start: warm.map(|w| w.0),
+            tracker: None,
             ascii,
             weights: file
                 .scan_weights_property

@@ -83,6 +83,7 @@ fn run(cmd: &DemoCmd, ctx: &Context) -> Result<i32, String> {
         output: fitted_path.clone(),
         gt: Some(gt_path.clone()),
         start: None,
+        tracker: None,
         ascii: false,
         weights: None,
         preview: Some(preview_path.clone()),

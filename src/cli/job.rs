@@ -6,8 +6,8 @@ use super::report::{FileReport, ScanWeightsReport, Status};
 use super::ui::{Ui, Verbosity};
 use crate::error::FoldMatchError;
 use crate::fit::{
-    deformation_model, fit_with_landmarks, validate_weights, FitParams, Progress, TemplateTopology,
-    Workspace,
+    deformation_model, fit_anchored, fit_with_landmarks, validate_weights, FitParams, Progress,
+    TemplateTopology, Workspace,
 };
 use crate::io::{fitted_mesh, read_mesh, read_npy, read_ply_property, write_mesh, MeshData};
 use crate::landmarks::Landmarks;
@@ -16,8 +16,10 @@ use crate::metrics::{evaluate, Metrics, MetricsInput, MetricsParams};
 use crate::normalize::Frame;
 use crate::render::{render, write_png, PreviewOptions, Scene};
 use crate::rings::{n_rings, Neighborhoods};
+use crate::track::Tracker;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 use std::time::Instant;
 
 /// The template mesh, read once per run, with what the wrinkle-field of a total motion needs.
@@ -162,8 +164,12 @@ pub struct Job<'a> {
     pub output: PathBuf,
     /// Ground truth for f_R.
     pub gt: Option<PathBuf>,
-    /// Start from these vertices instead of the template's (`sequence`).
+    /// Start from these vertices instead of the template's, with the template as the rest
+    /// shape ([`fit_anchored`]; a `sequence` frame on a Dask worker).
     pub start: Option<&'a [[f64; 3]]>,
+    /// Fit the scan as the next frame of this tracker (`sequence`, docs/method.md
+    /// "Tracking"); `start` is then unused (the tracker starts from its previous fits).
+    pub tracker: Option<&'a Mutex<Tracker>>,
     /// Write ASCII PLY.
     pub ascii: bool,
     /// Per-point weights of the scan, when given.
@@ -336,9 +342,37 @@ impl Runner<'_> {
         };
         let target_faces = (!scan.faces.is_empty()).then_some(scan.faces.as_slice());
         let fit_started = Instant::now();
-        let result = self
-            .pool
-            .install(|| {
+        let result = match (job.tracker, job.start) {
+            (Some(tracker), _) => {
+                let mut guard = tracker.lock().unwrap_or_else(|e| e.into_inner());
+                let tracker: &mut Tracker = &mut guard;
+                let frame = self
+                    .pool
+                    .install(|| {
+                        tracker.step(
+                            &scan.vertices,
+                            target_faces,
+                            weights.as_deref(),
+                            &mut observer,
+                        )
+                    })
+                    .map_err(named)?;
+                report.tracking = serde_json::to_value(&frame.figures).ok();
+                Ok(frame.result)
+            }
+            (None, Some(start)) => self.pool.install(|| {
+                fit_anchored(
+                    start,
+                    &template.vertices,
+                    &template.faces,
+                    &scan.vertices,
+                    target_faces,
+                    weights.as_deref(),
+                    self.params,
+                    &mut observer,
+                )
+            }),
+            (None, None) => self.pool.install(|| {
                 fit_with_landmarks(
                     start,
                     &template.faces,
@@ -349,8 +383,9 @@ impl Runner<'_> {
                     self.params,
                     &mut observer,
                 )
-            })
-            .map_err(named)?;
+            }),
+        }
+        .map_err(named)?;
         bar.finish();
         report.seconds = Some(fit_started.elapsed().as_secs_f64());
         report.iterations = Some(result.iterations);
@@ -359,7 +394,7 @@ impl Runner<'_> {
         if result.diagnostics.stopped_by_callback {
             return Err(INTERRUPTED.into());
         }
-        let field = if job.start.is_some() {
+        let field = if job.start.is_some() || job.tracker.is_some() {
             self.pool
                 .install(|| template.wrinkle_field(&result.vertices, explained, self.params))
         } else {

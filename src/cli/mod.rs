@@ -185,6 +185,7 @@ fn fit(cmd: &FitCmd, ctx: &Context) -> i32 {
         output: cmd.output.clone(),
         gt: cmd.gt.clone(),
         start: None,
+        tracker: None,
         ascii: cmd.ascii,
         weights: match (&cmd.scan_weights, &cmd.scan_weights_property) {
             (Some(file), _) => Some(ScanWeights::File(file.clone())),

@@ -65,6 +65,10 @@ pub struct FileReport {
     /// `sequence`: the frame whose fit this one started from (none: the template).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub warm_start: Option<String>,
+    /// `sequence`: the frame's tracking figures ([`crate::track::FrameFigures`]: distances,
+    /// edge distortion against the template, motion, whether it was flagged or re-anchored).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tracking: Option<Value>,
     /// Where the scan's per-point weights came from (`--scan-weights`,
     /// `--scan-weights-property`); none: every point weighs 1. With weights, `metrics` are of
     /// the scan points of positive weight.
@@ -192,6 +196,7 @@ impl FileReport {
             quality: None,
             ground_truth: None,
             warm_start: None,
+            tracking: None,
             scan_weights: None,
             preview: None,
         }

@@ -124,6 +124,76 @@ pub fn fit_with_landmarks(
     params: &FitParams,
     observer: &mut (dyn FnMut(&Progress) -> bool + Send),
 ) -> Result<FitResult> {
+    fit_from(
+        template_vertices,
+        None,
+        template_faces,
+        target,
+        target_faces,
+        target_weights,
+        landmarks,
+        params,
+        observer,
+    )
+}
+
+/// [`fit_weighted`] of a warm-started frame (docs/method.md "Tracking"): the fit starts from
+/// `start` (the previous frame's fit, or a prediction from it) while everything that refers to
+/// the template's metric refers to `rest`, the template as given — the rest shape of the
+/// rest-shape rigidity ([`Schedule::rest_rigidity`]), the edge spread of schedule selection
+/// and the quality verdict's edge distortion, flipped and collapsed faces. So a sequence is
+/// anchored to its template instead of to a previous fit, and a drifting frame is judged
+/// against the template. `rest` must have `start`'s vertex count
+/// ([`FoldMatchError::Shape`]) and finite coordinates.
+#[allow(clippy::too_many_arguments)]
+pub fn fit_anchored(
+    start: &[[f64; 3]],
+    rest: &[[f64; 3]],
+    template_faces: &[[u32; 3]],
+    target: &[[f64; 3]],
+    target_faces: Option<&[[u32; 3]]>,
+    target_weights: Option<&[f64]>,
+    params: &FitParams,
+    observer: &mut (dyn FnMut(&Progress) -> bool + Send),
+) -> Result<FitResult> {
+    crate::mesh::validate_points("rest", rest)?;
+    if rest.len() != start.len() {
+        return Err(FoldMatchError::shape(
+            "rest",
+            format!(
+                "has {} vertices, the warm start {} (one rest position per template vertex)",
+                rest.len(),
+                start.len()
+            ),
+        ));
+    }
+    fit_from(
+        start,
+        Some(rest),
+        template_faces,
+        target,
+        target_faces,
+        target_weights,
+        None,
+        params,
+        observer,
+    )
+}
+
+/// The fit of [`fit_with_landmarks`] and [`fit_anchored`]: from `template_vertices`, with
+/// `rest` (`None`: the template itself) as the rest shape.
+#[allow(clippy::too_many_arguments)]
+fn fit_from(
+    template_vertices: &[[f64; 3]],
+    rest: Option<&[[f64; 3]]>,
+    template_faces: &[[u32; 3]],
+    target: &[[f64; 3]],
+    target_faces: Option<&[[u32; 3]]>,
+    target_weights: Option<&[f64]>,
+    landmarks: Option<&Landmarks>,
+    params: &FitParams,
+    observer: &mut (dyn FnMut(&Progress) -> bool + Send),
+) -> Result<FitResult> {
     params.validate()?;
     if let Some(l) = landmarks {
         // Built against some template; checked again against this one.
@@ -146,8 +216,11 @@ pub fn fit_with_landmarks(
         None => prealigned(template_vertices, target, kept.as_deref(), params)?,
     };
     let template_vertices = placed.as_deref().unwrap_or(template_vertices);
+    // What the template's metric is measured on: the rest shape when one is given.
+    let rest_shape = rest.unwrap_or(template_vertices);
     let prepared = Prepared::new(
         template_vertices,
+        rest,
         template_faces,
         target,
         target_faces,
@@ -177,7 +250,7 @@ pub fn fit_with_landmarks(
             .iter()
             .map(|v| selection_distance(target, target_weights, prepared.garment.as_deref(), v))
             .collect();
-        let rest_edges = crate::metrics::EdgeLengths::new(template_vertices, &prepared.faces);
+        let rest_edges = crate::metrics::EdgeLengths::new(rest_shape, &prepared.faces);
         let spreads: Vec<f64> = vertices.iter().map(|v| rest_edges.spread(v)).collect();
         let best = select_schedule(&distances, &spreads, params.schedule.selection_margin);
         (best, vertices, distances, spreads)
@@ -203,7 +276,7 @@ pub fn fit_with_landmarks(
     // scan that holds more than the garment, those the template explains.
     let assessed = prepared.garment.as_deref().or(kept.as_deref());
     let assessment = crate::quality::assess_points(
-        template_vertices,
+        rest_shape,
         &prepared.faces,
         &vertices,
         target,

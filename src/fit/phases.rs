@@ -162,7 +162,7 @@ pub(super) fn fine(
     ws.times.update -= ws.times.model() - before; // counted in their own stages
     let rot = &ws.rotation;
     let beta = rest_rigidity_at(params, fine.0, fine.1);
-    let rest = &prepared.start;
+    let rest = &prepared.rest;
     next.par_iter_mut().enumerate().for_each(|(v, out)| {
         let ring = prepared.rings.of(v);
         let (c_old, c_new) = ring_centroids(ring, old, new);

@@ -30,15 +30,15 @@ impl FitParams {
     /// (warm-started frames of a sequence): annealing is a far-start device and, with few
     /// iterations per frame, leaves too little time at the final ε (docs/method.md). Its
     /// two-way weight (2), averaged pulls ([`TwoWayPull::Mean`]) and rigid phase on every
-    /// vertex are the values it was measured with on sequences; it has no rest-shape rigidity
-    /// (a warm-started frame's template is the previous fit, not a rest shape, and the option
-    /// was not measured on sequences).
+    /// vertex are the values it was measured with on sequences. It keeps the default's
+    /// rest-shape rigidity, whose rest shape in a sequence is the template, not the previous
+    /// fit ([`crate::track`], docs/method.md "Tracking"): on the DiffCloth wind sequence it
+    /// halves the largest per-frame error of tracking without it (`bench/tracking.py`).
     pub fn tracking() -> Self {
         let mut p = Self::default();
         p.schedule.two_way = 2.0;
         p.schedule.two_way_pull = TwoWayPull::Mean;
         p.acceleration.rigid_sample = 1;
-        p.schedule.rest_rigidity = 0.0;
         p.schedule.anneal = 1.0;
         p.schedule.anneal_fraction = 0.0;
         p.schedule.selection = Selection::Single;

@@ -27,10 +27,14 @@ pub(super) struct Prepared {
     pub(super) target: ScanPoints,
     /// The template in the normalized frame, after any pre-alignment.
     pub(super) start: Vec<[f64; 3]>,
+    /// The rest shape of the rest-shape rigidity in the normalized frame: `start`, or the
+    /// template a warm-started frame is anchored to ([`fit_anchored`](super::fit_anchored),
+    /// docs/method.md "Tracking").
+    pub(super) rest: Vec<[f64; 3]>,
     pub(super) incidence: VertexFaces,
     /// Γᵏ_Y: n-rings (FoldMatch) or k-NN neighborhoods (NRGa).
     pub(super) rings: Neighborhoods,
-    /// The centroid of every vertex's ring of `start` (the rest shape), for
+    /// The centroid of every vertex's ring of `rest`, for
     /// [`rest_rigidity`](crate::fit::Schedule::rest_rigidity); empty when no schedule uses it.
     pub(super) rest_centroids: Vec<Vec3>,
     /// The coarse phase's neighborhoods, one per level (empty when no schedule has one).
@@ -68,9 +72,12 @@ pub(super) struct Prepared {
 impl Prepared {
     /// Validates the inputs and builds the shared state; `schedules` differ at most in their
     /// schedule fields ([`FitParams::sharp_schedule`]), the first one's structure is used.
+    /// `rest`: the rest shape of the rest-shape rigidity when it is not the template itself
+    /// (same vertex count; the caller validates it).
     #[allow(clippy::too_many_arguments)] // the fit's inputs, as `fit_with_landmarks` takes them
     pub(super) fn new(
         template_vertices: &[[f64; 3]],
+        rest: Option<&[[f64; 3]]>,
         template_faces: &[[u32; 3]],
         target: &[[f64; 3]],
         target_faces: Option<&[[u32; 3]]>,
@@ -234,13 +241,17 @@ impl Prepared {
         } else {
             Vec::new()
         };
+        let rest = match rest {
+            Some(r) => frame.forward(r),
+            None => start.clone(),
+        };
         let rest_centroids = if schedules
             .iter()
             .any(|p| p.method == Method::FoldMatch && p.schedule.rest_rigidity > 0.0)
         {
             (0..m)
                 .into_par_iter()
-                .map(|v| ring_centroids(rings.of(v), &start, &start).0)
+                .map(|v| ring_centroids(rings.of(v), &rest, &rest).0)
                 .collect()
         } else {
             Vec::new()
@@ -312,6 +323,7 @@ impl Prepared {
             frame,
             target,
             start,
+            rest,
             incidence,
             rings,
             rest_centroids,

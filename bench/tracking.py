@@ -1,0 +1,226 @@
+"""The tracking benchmark: the DiffCloth wind T-shirt sequences as noisy scans (issue 28).
+
+Each frame of ``../shared/data/diffcloth/tshirt1000_wind_sim/<sequence>`` (``iter0``: frames
+0, 10, …, 250; ``iter17``: frames 0, 50, …, 250, another wind) becomes a scan as the harness's
+real ``-pts`` cases do (:data:`bench.cases.REAL_POINTS` area-uniform samples, isotropic
+Gaussian noise σ = :data:`bench.cases.REAL_NOISE` of the frame's diagonal, a fixed seed per
+frame); the template is frame 0's own mesh, and every frame's mesh is its ground truth (all
+frames share the template's faces). :func:`foldmatch_rs.track` fits the scans in order.
+
+Printed per frame: f_R (RMS to the truth ÷ the scan's diagonal, in %), the 95th percentile of
+the edge-length ratios ``max(ℓ/ℓ⁰, ℓ⁰/ℓ)`` to the template of the fit and of the truth, whether
+the frame was flagged, and its time; then the summary against issue 28's targets: frame 0's
+f_R ≤ 0.4 %, no frame above 1 %, every frame's edge p95 within 1.15× the truth's, the mean
+time per frame ≤ the default's single fit of frame 0 (timed in the same run).
+
+``--mode chained`` runs what ``foldmatch sequence`` did before tracking: each frame fitted by
+``fm.fit`` with the previous fit as its template (no rest shape, no flags).
+
+Tune on ``iter0``; ``iter17`` is the held-out sequence.
+
+    python -m bench.tracking                      # iter0, every frame
+    python -m bench.tracking --sequence iter17    # the held-out sequence
+    python -m bench.tracking --every 5            # frames 0, 50, ..., 250 of iter0
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from typing import Any
+
+import numpy as np
+
+from .cases import REAL_NOISE, REAL_POINTS, SHARED_DATA, bbox_diagonal, load_mesh, sample_surface
+
+WIND = SHARED_DATA / "diffcloth" / "tshirt1000_wind_sim"
+
+#: Issue 28's tracking targets.
+FIRST_FRAME_MAX = 0.4
+ANY_FRAME_MAX = 1.0
+EDGE_RATIO_MAX = 1.15
+
+
+def frames_of(
+    sequence: str, every: int = 1, limit: int | None = None
+) -> list[tuple[int, np.ndarray, np.ndarray]]:
+    """(frame number, vertices, faces) of the sequence's frames in order, every ``every``-th."""
+    files = sorted(WIND.joinpath(sequence).glob("*.obj"), key=lambda p: int(p.stem))
+    files = files[::every][:limit]
+    return [(int(p.stem), *load_mesh(p)) for p in files]
+
+
+def noisy_scan(vertices: np.ndarray, faces: np.ndarray, seed: int) -> np.ndarray:
+    """The harness's real ``-pts`` scan of a mesh: resampled points, isotropic noise."""
+    rng = np.random.default_rng(seed)
+    pts = sample_surface(vertices, faces, REAL_POINTS, rng)
+    return pts + rng.normal(scale=REAL_NOISE * bbox_diagonal(vertices), size=pts.shape)
+
+
+def edge_index(faces: np.ndarray) -> np.ndarray:
+    """The mesh's undirected edges, once each."""
+    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    return np.unique(np.sort(e, axis=1), axis=0)
+
+
+def edge_ratio_p95(vertices: np.ndarray, rest: np.ndarray, edges: np.ndarray) -> float:
+    """95th percentile over edges of max(ℓ/ℓ⁰, ℓ⁰/ℓ) against the rest shape."""
+    length = np.linalg.norm(vertices[edges[:, 0]] - vertices[edges[:, 1]], axis=1)
+    rest_length = np.linalg.norm(rest[edges[:, 0]] - rest[edges[:, 1]], axis=1)
+    ratio = length / np.maximum(rest_length, 1e-300)
+    return float(np.percentile(np.maximum(ratio, 1.0 / np.maximum(ratio, 1e-300)), 95))
+
+
+def f_r(fitted: np.ndarray, truth: np.ndarray, scan: np.ndarray) -> float:
+    """RMS distance to the truth ÷ the scan's bounding-box diagonal."""
+    return float(np.sqrt(np.mean(np.sum((fitted - truth) ** 2, axis=1))) / bbox_diagonal(scan))
+
+
+def run(args: argparse.Namespace) -> dict[str, Any]:
+    import foldmatch_rs as fm
+
+    frames = frames_of(args.sequence, args.every, args.limit)
+    template, faces = frames[0][1], frames[0][2]
+    edges = edge_index(faces)
+    scans = [noisy_scan(v, f, seed=1000 + number) for number, v, f in frames]
+    settings = dict(kv.split("=", 1) for kv in args.set)
+    params = {k: json.loads(v) for k, v in settings.items()}
+
+    started = time.perf_counter()
+    single = fm.fit(template, faces, scans[0], threads=args.threads)
+    single_seconds = time.perf_counter() - started
+    single_fr = f_r(single.vertices, frames[0][1], scans[0])
+
+    rows = []
+    if args.mode == "track":
+        stream = fm.track(
+            template,
+            faces,
+            scans,
+            preset=args.preset,
+            iterations=args.iterations,
+            params=params or None,
+            prediction=args.prediction,
+            reanchor=args.reanchor,
+            threads=args.threads,
+        )
+    else:
+        stream = chained(fm, template, faces, scans, args, params)
+    clock = time.perf_counter()
+    for (number, truth, _), scan, result in zip(frames, scans, stream):
+        now = time.perf_counter()
+        seconds, clock = now - clock, now
+        tracking = result.tracking
+        rows.append(
+            {
+                "frame": number,
+                "f_R_pct": 100 * f_r(result.vertices, truth, scan),
+                "edge_p95": edge_ratio_p95(result.vertices, template, edges),
+                "truth_edge_p95": edge_ratio_p95(truth, template, edges),
+                "flagged": bool(tracking.get("flagged", False)),
+                "reanchored": bool(tracking.get("reanchored", False)),
+                "verdict": result.quality.get("verdict"),
+                "seconds": seconds,
+            }
+        )
+        r = rows[-1]
+        print(
+            f"  frame {number:>3}  f_R {r['f_R_pct']:6.3f} %  edge p95 {r['edge_p95']:.3f} "
+            f"(truth {r['truth_edge_p95']:.3f}, ×{r['edge_p95'] / r['truth_edge_p95']:.3f})  "
+            f"{r['verdict']:10s}{' re-anchored' if r['reanchored'] else ''}  {seconds:5.2f} s",
+            flush=True,
+        )
+    per_frame = float(np.mean([r["seconds"] for r in rows]))
+    summary = {
+        "sequence": args.sequence,
+        "frames": [r["frame"] for r in rows],
+        "mode": args.mode,
+        "first_f_R_pct": rows[0]["f_R_pct"],
+        "max_f_R_pct": max(r["f_R_pct"] for r in rows),
+        "mean_f_R_pct": float(np.mean([r["f_R_pct"] for r in rows])),
+        "max_edge_over_truth": max(r["edge_p95"] / r["truth_edge_p95"] for r in rows),
+        "flagged": sum(r["flagged"] for r in rows),
+        "seconds_per_frame": per_frame,
+        "default_single_fit_seconds": single_seconds,
+        "default_single_fit_f_R_pct": 100 * single_fr,
+    }
+    checks = [
+        (
+            f"frame 0's f_R ≤ {FIRST_FRAME_MAX} %",
+            summary["first_f_R_pct"],
+            summary["first_f_R_pct"] <= FIRST_FRAME_MAX,
+        ),
+        (
+            f"no frame's f_R > {ANY_FRAME_MAX} %",
+            summary["max_f_R_pct"],
+            summary["max_f_R_pct"] <= ANY_FRAME_MAX,
+        ),
+        (
+            f"edge p95 ≤ {EDGE_RATIO_MAX}× the truth's",
+            summary["max_edge_over_truth"],
+            summary["max_edge_over_truth"] <= EDGE_RATIO_MAX,
+        ),
+        (
+            "time per frame ≤ the default's single fit",
+            per_frame / single_seconds,
+            per_frame <= single_seconds,
+        ),
+    ]
+    print(
+        f"{args.sequence} ({len(rows)} frames, {args.mode}): mean f_R {summary['mean_f_R_pct']:.3f} %, "
+        f"{summary['flagged']} flagged; {per_frame:.2f} s per frame, the default's single fit of frame 0 "
+        f"{single_seconds:.2f} s (f_R {summary['default_single_fit_f_R_pct']:.3f} %)"
+    )
+    for label, value, met in checks:
+        print(f"  {'met ' if met else 'MISS'} {label}: {value:.3f}")
+    summary["met"] = {label: met for label, _, met in checks}
+    return summary
+
+
+def chained(
+    fm: Any,
+    template: np.ndarray,
+    faces: np.ndarray,
+    scans: list[np.ndarray],
+    args: argparse.Namespace,
+    params: dict[str, Any],
+) -> Any:
+    """Each frame fitted with the previous fit as its template (no rest shape)."""
+    previous = template
+    for scan in scans:
+        result = fm.fit(
+            previous,
+            faces,
+            scan,
+            preset=args.preset,
+            iterations=args.iterations,
+            params=params or None,
+            threads=args.threads,
+        )
+        previous = result.vertices
+        yield result
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--sequence", default="iter0", choices=["iter0", "iter17"])
+    ap.add_argument("--every", type=int, default=1, help="every k-th frame of the sequence (default 1)")
+    ap.add_argument("--limit", type=int, default=None, help="at most this many frames")
+    ap.add_argument("--mode", default="track", choices=["track", "chained"])
+    ap.add_argument("--preset", default="tracking")
+    ap.add_argument("--iterations", type=int, default=None)
+    ap.add_argument("--prediction", type=float, default=0.5)
+    ap.add_argument("--reanchor", action="store_true", help="re-anchor flagged frames")
+    ap.add_argument("--set", action="append", default=[], metavar="NAME=JSON", help="a fit setting")
+    ap.add_argument("--threads", type=int, default=None)
+    ap.add_argument("--json", help="write the summary here")
+    args = ap.parse_args(argv)
+    summary = run(args)
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(summary, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,344 @@
+//! Tracking a 4D sequence (docs/method.md "Tracking"): the frames of a sequence fitted in
+//! order, each warm-started from the previous fit for position but anchored to the template's
+//! rest shape for its metric, so that the errors of one frame do not become the next frame's
+//! template.
+//!
+//! Per frame t (scan X_t), with Y⁰ the template and Y_{t−1}, Y_{t−2} the earlier fits:
+//! 1. the start: `Y_{t−1} + λ (Y_{t−1} − Y_{t−2})`, the previous fit moved on by λ times its
+//!    last motion (a constant-velocity prediction, λ = [`TrackParams::prediction`]); the
+//!    template itself at t = 0;
+//! 2. [`crate::fit::fit_anchored`] from that start onto X_t, with Y⁰ as the rest shape of the
+//!    rest-shape rigidity and of the quality verdict;
+//! 3. the frame's figures ([`FrameFigures`]): the verdict's distances and edge distortion
+//!    against the template, and the jumps against the first frame's; a frame past a jump
+//!    threshold is flagged (its verdict `suspicious`, with the reasons);
+//! 4. re-anchoring ([`TrackParams::reanchor`]): a flagged frame is fitted again from the
+//!    template placed rigidly onto its fit (the rest shape, at the fit's position), and the
+//!    second fit is kept when its edge distortion is lower at no larger scan distance.
+//!
+//! `foldmatch sequence` and the Python `foldmatch_rs.track` both run a [`Tracker`].
+
+use crate::error::{FoldMatchError, Result};
+use crate::fit::{fit_anchored, FitParams, FitResult, Progress};
+use crate::math::vec3;
+use crate::mesh::{validate_faces, validate_points};
+use crate::quality::Verdict;
+use crate::rotation::{kabsch, ring_centroids, transform_vertex};
+use serde::{Deserialize, Serialize};
+
+/// The settings of a [`Tracker`]: the fit of every frame and the tracking rules.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TrackParams {
+    /// The fit of every frame (the `"tracking"` preset by default).
+    pub fit: FitParams,
+    /// λ of the constant-velocity prediction of a frame's start, in `[0, 1]`: 0 starts from
+    /// the previous fit, 1 moves it on by its whole last motion.
+    pub prediction: f64,
+    /// A frame is flagged when its edge distortion exceeds the first frame's by more than
+    /// this (the verdict's 95th-percentile distortion against the template, 1 = isometric).
+    pub distortion_jump: f64,
+    /// A frame is flagged when its fit→scan or scan→fit distance exceeds this multiple of the
+    /// first frame's.
+    pub distance_jump: f64,
+    /// Fit a flagged frame again from the template rigidly placed on its fit, and keep the
+    /// better of the two fits (off by default: on the DiffCloth wind sequence the second fit
+    /// was kept on 2 of 20 flagged frames, at twice their time; docs/method.md "Tracking").
+    pub reanchor: bool,
+}
+
+/// The tracking rules' defaults (docs/method.md "Tracking").
+pub const DEFAULT_PREDICTION: f64 = 0.5;
+/// See [`TrackParams::distortion_jump`].
+pub const DEFAULT_DISTORTION_JUMP: f64 = 0.15;
+/// See [`TrackParams::distance_jump`].
+pub const DEFAULT_DISTANCE_JUMP: f64 = 2.0;
+
+impl Default for TrackParams {
+    fn default() -> Self {
+        Self {
+            fit: FitParams::tracking(),
+            prediction: DEFAULT_PREDICTION,
+            distortion_jump: DEFAULT_DISTORTION_JUMP,
+            distance_jump: DEFAULT_DISTANCE_JUMP,
+            reanchor: false,
+        }
+    }
+}
+
+impl TrackParams {
+    /// The fit's parameters and the rules' ranges ([`FoldMatchError::Parameter`] naming the
+    /// setting).
+    pub fn validate(&self) -> Result<()> {
+        self.fit.validate()?;
+        if !(0.0..=1.0).contains(&self.prediction) {
+            return Err(FoldMatchError::parameter(
+                "prediction",
+                self.prediction,
+                "must be in [0, 1]",
+            ));
+        }
+        if self.distortion_jump.is_nan() || self.distortion_jump <= 0.0 {
+            return Err(FoldMatchError::parameter(
+                "distortion_jump",
+                self.distortion_jump,
+                "must be > 0 (+inf turns the test off)",
+            ));
+        }
+        if self.distance_jump.is_nan() || self.distance_jump <= 1.0 {
+            return Err(FoldMatchError::parameter(
+                "distance_jump",
+                self.distance_jump,
+                "must be > 1 (+inf turns the test off)",
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// One frame's tracking figures (the distances in scan diagonals, as the quality verdict's).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FrameFigures {
+    /// The frame's index in the sequence (0-based).
+    pub frame: usize,
+    /// Mean fitted-vertex → scan distance ÷ the scan diagonal.
+    pub fit_to_scan: f64,
+    /// Mean scan → fitted-surface distance ÷ the scan diagonal.
+    pub scan_to_fit: f64,
+    /// 95th percentile of the edge-length distortion against the template (1: isometric).
+    pub edge_distortion: f64,
+    /// Mean distance of the fitted vertices from the previous frame's ÷ the scan diagonal
+    /// (0 at the first frame).
+    pub motion: f64,
+    /// Whether the frame started from a previous fit (not at the first frame, nor after a
+    /// frame that failed).
+    pub warm_started: bool,
+    /// Whether the kept fit is the re-anchored one.
+    pub reanchored: bool,
+    /// Whether a figure jumped past its threshold (the frame's verdict is then `suspicious`).
+    pub flagged: bool,
+    /// One sentence per jump (empty when not flagged).
+    pub reasons: Vec<String>,
+}
+
+/// A frame's fit and its tracking figures.
+#[derive(Clone, Debug)]
+pub struct TrackedFrame {
+    /// The fit (its `quality` verdict includes the tracking flags).
+    pub result: FitResult,
+    /// The frame's figures.
+    pub figures: FrameFigures,
+}
+
+/// A sequence in progress: the template, the settings and the last fits.
+pub struct Tracker {
+    template: Vec<[f64; 3]>,
+    faces: Vec<[u32; 3]>,
+    params: TrackParams,
+    /// The last two fits, latest first.
+    previous: Vec<Vec<[f64; 3]>>,
+    /// The first frame's figures: the jumps' reference.
+    first: Option<FrameFigures>,
+    frames: usize,
+}
+
+impl Tracker {
+    /// A tracker of sequences of `template` (its vertices are the rest shape of every frame).
+    /// Errors: the template's and the settings' ([`FoldMatchError`]).
+    pub fn new(template: &[[f64; 3]], faces: &[[u32; 3]], params: TrackParams) -> Result<Self> {
+        validate_points("template_vertices", template)?;
+        validate_faces("template_faces", faces, template.len())?;
+        params.validate()?;
+        Ok(Self {
+            template: template.to_vec(),
+            faces: faces.to_vec(),
+            params,
+            previous: Vec::new(),
+            first: None,
+            frames: 0,
+        })
+    }
+
+    /// The frames seen so far (fitted, accepted or failed).
+    pub fn frames(&self) -> usize {
+        self.frames
+    }
+
+    /// The settings.
+    pub fn params(&self) -> &TrackParams {
+        &self.params
+    }
+
+    /// Takes `fitted` as the next frame's fit without fitting it (a frame done by an earlier
+    /// run, `sequence --resume`); a wrong vertex count is refused.
+    pub fn accept(&mut self, fitted: &[[f64; 3]]) -> Result<()> {
+        validate_points("fitted frame", fitted)?;
+        if fitted.len() != self.template.len() {
+            return Err(self.count_error(fitted.len()));
+        }
+        self.push(fitted.to_vec());
+        self.frames += 1;
+        Ok(())
+    }
+
+    /// Records a frame that could not be fitted: the next one starts from the last fit, with
+    /// no prediction across the gap.
+    pub fn skip(&mut self) {
+        self.previous.truncate(1);
+        self.frames += 1;
+    }
+
+    /// Fits the next frame (`target`, with optional faces and per-point weights as
+    /// [`crate::fit::fit_weighted`] takes them). Errors are the fit's; the frame then counts
+    /// as skipped ([`Tracker::skip`]).
+    pub fn step(
+        &mut self,
+        target: &[[f64; 3]],
+        target_faces: Option<&[[u32; 3]]>,
+        target_weights: Option<&[f64]>,
+        observer: &mut (dyn FnMut(&Progress) -> bool + Send),
+    ) -> Result<TrackedFrame> {
+        let frame = self.frames;
+        let start = self.start();
+        let warm_started = !self.previous.is_empty();
+        let fit = |start: &[[f64; 3]], observer: &mut (dyn FnMut(&Progress) -> bool + Send)| {
+            fit_anchored(
+                start,
+                &self.template,
+                &self.faces,
+                target,
+                target_faces,
+                target_weights,
+                &self.params.fit,
+                observer,
+            )
+        };
+        let mut result = match fit(&start, observer) {
+            Ok(r) => r,
+            Err(e) => {
+                self.skip();
+                return Err(e);
+            }
+        };
+        let mut figures = self.figures(frame, &result, warm_started, false);
+        if figures.flagged && self.params.reanchor && !result.diagnostics.stopped_by_callback {
+            let placed = placed_rigidly(&self.template, &result.vertices);
+            let again = fit(&placed, observer)?;
+            let other = self.figures(frame, &again, warm_started, true);
+            let nearest = figures.scan_to_fit.max(figures.fit_to_scan);
+            if other.edge_distortion < figures.edge_distortion
+                && other.scan_to_fit.max(other.fit_to_scan) <= nearest
+            {
+                result = again;
+                figures = other;
+            }
+        }
+        if figures.flagged {
+            let q = &mut result.quality;
+            q.verdict = Verdict::Suspicious;
+            q.reasons.extend(figures.reasons.iter().cloned());
+        }
+        if self.first.is_none() {
+            self.first = Some(figures.clone());
+        }
+        self.push(result.vertices.clone());
+        self.frames += 1;
+        Ok(TrackedFrame { result, figures })
+    }
+
+    /// The next frame's start: the template first, then the previous fit moved on by
+    /// λ × its last motion.
+    fn start(&self) -> Vec<[f64; 3]> {
+        let lambda = self.params.prediction;
+        match self.previous.as_slice() {
+            [] => self.template.clone(),
+            [last] => last.clone(),
+            [last, before, ..] => last
+                .iter()
+                .zip(before)
+                .map(|(a, b)| (vec3(a) + lambda * (vec3(a) - vec3(b))).into())
+                .collect(),
+        }
+    }
+
+    fn push(&mut self, fitted: Vec<[f64; 3]>) {
+        self.previous.insert(0, fitted);
+        self.previous.truncate(2);
+    }
+
+    fn count_error(&self, got: usize) -> FoldMatchError {
+        FoldMatchError::shape(
+            "fitted frame",
+            format!("has {got} vertices, the template {}", self.template.len()),
+        )
+    }
+
+    /// The figures of `result` as frame `frame`, flagged against the first frame's.
+    fn figures(
+        &self,
+        frame: usize,
+        result: &FitResult,
+        warm_started: bool,
+        reanchored: bool,
+    ) -> FrameFigures {
+        let q = &result.quality;
+        let motion = match self.previous.first() {
+            Some(last) if q.scan_diagonal > 0.0 => {
+                let sum: f64 = last
+                    .iter()
+                    .zip(&result.vertices)
+                    .map(|(a, b)| (vec3(a) - vec3(b)).norm())
+                    .sum();
+                sum / last.len() as f64 / q.scan_diagonal
+            }
+            _ => 0.0,
+        };
+        let mut reasons = Vec::new();
+        if let Some(first) = &self.first {
+            let jump = self.params.distortion_jump;
+            if q.edge_distortion > first.edge_distortion + jump {
+                reasons.push(format!(
+                    "tracking: edge-length distortion {:.3} against the template, more than \
+                     {jump} above the first frame's {:.3}",
+                    q.edge_distortion, first.edge_distortion
+                ));
+            }
+            let times = self.params.distance_jump;
+            for (name, now, then) in [
+                ("fit→scan", q.fit_to_scan, first.fit_to_scan),
+                ("scan→fit", q.scan_to_fit, first.scan_to_fit),
+            ] {
+                if now > times * then {
+                    reasons.push(format!(
+                        "tracking: {name} distance {:.4} of the scan diagonal, more than \
+                         {times}× the first frame's {:.4}",
+                        now, then
+                    ));
+                }
+            }
+        }
+        FrameFigures {
+            frame,
+            fit_to_scan: q.fit_to_scan,
+            scan_to_fit: q.scan_to_fit,
+            edge_distortion: q.edge_distortion,
+            motion,
+            warm_started,
+            reanchored,
+            flagged: !reasons.is_empty(),
+            reasons,
+        }
+    }
+}
+
+/// `rest` moved by the rigid motion (Kabsch, all vertices) that best places it on `fitted`.
+pub fn placed_rigidly(rest: &[[f64; 3]], fitted: &[[f64; 3]]) -> Vec<[f64; 3]> {
+    let all: Vec<u32> = (0..rest.len() as u32).collect();
+    let (c_rest, c_fit) = ring_centroids(&all, rest, fitted);
+    let r = kabsch(&all, rest, fitted, &c_rest, &c_fit, false);
+    rest.iter()
+        .map(|p| transform_vertex(&r, &vec3(p), &c_rest, &c_fit).into())
+        .collect()
+}
+
+#[cfg(test)]
+mod tests;
