@@ -7,10 +7,13 @@ use crate::quality::{assess, AssessInput, VerdictThresholds};
 use crate::synthetic::{folded_sheet, SheetSpec};
 use nalgebra::{Rotation3, Unit, Vector3};
 
+/// One frame's points.
+type Frame = Vec<[f64; 3]>;
+
 /// A folded sheet (the template) and `frames` copies of it, each turned by a further 6° about
 /// an oblique axis and moved by a further 6 % of its size: by the last frame the copy is far
 /// beyond what one fit from the template can bridge.
-fn moving_copies(frames: usize) -> (Vec<[f64; 3]>, Vec<[u32; 3]>, Vec<Vec<[f64; 3]>>) {
+fn moving_copies(frames: usize) -> (Vec<[f64; 3]>, Vec<[u32; 3]>, Vec<Frame>) {
     let case = folded_sheet(&SheetSpec {
         nx: 17,
         ny: 17,
