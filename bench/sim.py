@@ -2,9 +2,9 @@
 
     .venv/bin/python -m bench.sim                      # the default on every case, beside the peers' figures
     .venv/bin/python -m bench.sim --scenes sphere,box  # some scenes
-    nice -n 19 .venv/bin/python -m bench.sim --peers   # run the peers, write bench/peer_figures_sim.json
+    nice .venv/bin/python -m bench.sim --peers         # run the peers, write bench/peer_figures_sim.json
     .venv/bin/python -m bench.sim --store-tiny         # regenerate bench/data/sim-sphere-tiny.npz
-    .venv/bin/python -m bench.sim --json rows.json     # keep the rows; --from-json rows.json reprints the table
+    .venv/bin/python -m bench.sim --json rows.json     # keep the rows (--from-json rows.json: reprint)
 
 Prints per case: the default's f_R and flipped-face share f_F, the truth's own f_F, every
 peer's f_R (bench/peer_figures_sim.json, written by ``--peers``: each peer run in its own
