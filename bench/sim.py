@@ -2,8 +2,9 @@
 
     .venv/bin/python -m bench.sim                      # the default on every case, beside the peers' figures
     .venv/bin/python -m bench.sim --scenes sphere,box  # some scenes
-    nice -n 19 .venv/bin/python -m bench.sim --peers   # run the peers, write bench/peer_figures_sim.json
+    nice .venv/bin/python -m bench.sim --peers         # run the peers, write bench/peer_figures_sim.json
     .venv/bin/python -m bench.sim --store-tiny         # regenerate bench/data/sim-sphere-tiny.npz
+    .venv/bin/python -m bench.sim --json rows.json     # keep the rows (--from-json rows.json: reprint)
 
 Prints per case: the default's f_R and flipped-face share f_F, the truth's own f_F, every
 peer's f_R (bench/peer_figures_sim.json, written by ``--peers``: each peer run in its own
@@ -35,9 +36,12 @@ PEER_FIGURES = HERE / "peer_figures_sim.json"
 OUT = sim_cloth.OUT
 
 
-def run_peers(cases: list[cases_mod.Case], methods: list[str], timeout: float, force: bool) -> dict[str, Any]:
+def run_peers(
+    cases: list[cases_mod.Case], methods: list[str], timeout: float, force: bool, cached_only: bool = False
+) -> dict[str, Any]:
     """Every method of ``methods`` on every case (bench/harness.py's runner, one process per
-    run, cached); writes ``bench/out/sim/peers/results.json`` and :data:`PEER_FIGURES`."""
+    run, cached); writes ``bench/out/sim/peers/results.json`` and :data:`PEER_FIGURES`.
+    ``cached_only``: collect the runs already in the cache, start none."""
     from bench import compare, harness, peers, variants
 
     out = OUT / "peers"
@@ -53,7 +57,8 @@ def run_peers(cases: list[cases_mod.Case], methods: list[str], timeout: float, f
     path = out / "results.json"
     for case in cases:
         harness.log(f"{case.name}: {case.sizes}")
-        results["groups"]["sim"].append(harness.run_case(runner, case, methods))
+        ran = [m for m in methods if (out / "runs" / case.name / f"{m}.npz.json").is_file()]
+        results["groups"]["sim"].append(harness.run_case(runner, case, ran if cached_only else methods))
         compare.save_json(path, results)
     old = json.loads(PEER_FIGURES.read_text()) if PEER_FIGURES.is_file() else {}
     merged: dict[str, dict[str, Any]] = old.get("methods", {})
@@ -179,8 +184,10 @@ def main() -> int:
     ap.add_argument("--methods", default="", help="--peers: comma-separated (default: every peer)")
     ap.add_argument("--timeout", type=float, default=900, help="--peers: per run, seconds")
     ap.add_argument("--force", action="store_true", help="--peers: rerun cached runs")
+    ap.add_argument("--cached-peers", action="store_true", help="--peers: collect cached runs, start none")
     ap.add_argument("--store-tiny", action="store_true", help="regenerate bench/data/sim-sphere-tiny.npz")
     ap.add_argument("--json", metavar="FILE", help="write the default's rows")
+    ap.add_argument("--from-json", metavar="FILE", help="print the table of an earlier run's rows (--json)")
     ap.add_argument("--preview", metavar="PNG", help="draw the rest and simulated meshes and exit")
     args = ap.parse_args()
     if args.store_tiny:
@@ -193,6 +200,10 @@ def main() -> int:
     unknown = [s for s in scenes if s not in sim_cloth.SCENES]
     if unknown:
         raise SystemExit(f"unknown scenes {unknown} ({', '.join(sim_cloth.SCENES)})")
+    if args.from_json:
+        figures = json.loads(PEER_FIGURES.read_text()) if PEER_FIGURES.is_file() else {}
+        print(render(json.loads(pathlib.Path(args.from_json).read_text()), figures))
+        return 0
     if args.preview:
         preview(scenes, pathlib.Path(args.preview))
         print(f"wrote {args.preview}")
@@ -202,7 +213,7 @@ def main() -> int:
         from bench import variants
 
         methods = args.methods.split(",") if args.methods else list(variants.PEERS)
-        run_peers(cases, methods, args.timeout, args.force)
+        run_peers(cases, methods, args.timeout, args.force, args.cached_peers)
     rows = []
     for case in cases:
         rows.append(fit_default(case))
