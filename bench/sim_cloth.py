@@ -8,7 +8,7 @@ bench/sim_cases.py's; the simulator is only needed to regenerate them (docs/simu
 
 Simulator: Newton (``pip install newton``, NVIDIA's GPU-optional physics engine on Warp; the
 successor of ``warp.sim``, which warp-lang ≥ 1.10 no longer ships), its vertex block descent
-cloth solver (``SolverVBD``: StVK membrane, dihedral bending, implicit contact with the
+cloth solver (``SolverVBD``: neo-Hookean membrane, dihedral bending, implicit contact with the
 colliders, optional cloth self-contact) run on Warp's ``"cpu"`` device. Units: metres,
 seconds, z up, gravity −9.81 m/s².
 
