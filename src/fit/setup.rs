@@ -43,8 +43,9 @@ pub(super) struct Prepared {
     /// Every vertex index (the rigid phase's "ring"; empty when no schedule has one).
     pub(super) all_vertices: Vec<u32>,
     /// The rigid phase's parts where the template has several connected components (garments,
-    /// paper Fig. 1): each vertex's part, and the vertices of each part ([`rigid_parts`]); empty
-    /// for a template of one piece, or when no schedule has a rigid phase.
+    /// paper Fig. 1) and the scan holds more than the template: each vertex's part, and the
+    /// vertices of each part ([`rigid_parts`]); empty for a template of one piece, on a
+    /// garment-only scan, or when no schedule has a rigid phase.
     pub(super) rigid_parts: RigidParts,
     /// The phases' scan samples
     /// ([`rigid_scan_sample`](crate::fit::Acceleration::rigid_scan_sample),
@@ -226,7 +227,10 @@ impl Prepared {
         } else {
             Vec::new()
         };
-        let rigid_parts = if phases.iter().any(|p| p.0 > 0) {
+        // One rigid motion per garment on a scan that holds more than the template (a dressed
+        // body with several garments); on a garment-only scan the components are pieces of one
+        // garment (panels, sleeves as separate tubes), which move together.
+        let rigid_parts = if garment.is_some() && phases.iter().any(|p| p.0 > 0) {
             rigid_parts(&faces, m)
         } else {
             RigidParts::default()

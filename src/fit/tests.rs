@@ -901,12 +901,20 @@ fn two_sheets_case(dz: f64) -> Case {
 }
 
 #[test]
-fn rigid_phase_moves_each_garment_by_its_own_rigid_motion() {
+fn rigid_phase_moves_each_garment_by_its_own_rigid_motion_on_a_dressed_scan() {
     // One rigid motion cannot lift one sheet and lower the other: it would tilt both about the
-    // y axis. One per connected component (docs/method.md "Rigid phase") moves each sheet
-    // straight to its own scan, keeping each sheet's shape.
-    let (v, f, x) = two_sheets_case(0.05);
+    // y axis. On a scan that holds more than the template (here a far "body" plane 1.5 below,
+    // 6 × 6 wide), one motion per connected component (docs/method.md "Rigid phase") moves
+    // each sheet straight to its own scan, keeping each sheet's shape.
+    let (v, f, garments) = two_sheets_case(0.05);
+    let (body, _) = crate::synthetic::grid_sheet(25, 25, 6.0, 6.0);
+    let mut x = garments.clone();
+    x.extend(body.iter().map(|p| [p[0], p[1], -1.5]));
     let r = fit_simple(&v, &f, &x, None, &rigid_only(30)).unwrap();
+    assert!(
+        r.diagnostics.frame.unwrap().scale < 3.0,
+        "the garment frame is in use"
+    );
     let half = v.len() / 2;
     for (range, sign) in [(0..half, 1.0), (half..v.len(), -1.0)] {
         assert_rigidly_moved(&v[range.clone()], &r.vertices[range.clone()]);
@@ -915,9 +923,17 @@ fn rigid_phase_moves_each_garment_by_its_own_rigid_motion() {
             .iter()
             .fold((f64::MAX, f64::MIN), |(a, b), &z| (a.min(z), b.max(z)));
         // Each sheet reached its own scan's height and stayed level.
-        assert!(sign * lo > 0.03, "{lo} {hi}");
+        assert!(sign * lo > 0.03 && sign * hi < 0.07, "{lo} {hi}");
         assert!(hi - lo < 0.01, "a sheet tilted: z from {lo} to {hi}");
     }
+    // The same template on the garments alone: its components are taken as pieces of one
+    // garment and move by one rigid motion, which tilts them.
+    let one = fit_simple(&v, &f, &garments, None, &rigid_only(30)).unwrap();
+    assert_rigidly_moved(&v, &one.vertices);
+    let z: Vec<f64> = one.vertices[..half].iter().map(|p| p[2]).collect();
+    let spread =
+        z.iter().fold(f64::MIN, |a, &b| a.max(b)) - z.iter().fold(f64::MAX, |a, &b| a.min(b));
+    assert!(spread > 0.02, "{spread}");
 }
 
 #[test]
