@@ -107,6 +107,40 @@ pub fn boundary_vertices(faces: &[[u32; 3]], n_vertices: usize) -> Vec<u32> {
     (0..n_vertices as u32).filter(|&v| on[v as usize]).collect()
 }
 
+/// The connected components of the mesh (vertices joined by the faces' edges): each vertex's
+/// component label, `0..count`, numbered in the order of each component's lowest vertex. A vertex
+/// no face uses is a component of its own.
+pub fn connected_components(faces: &[[u32; 3]], n_vertices: usize) -> (Vec<u32>, usize) {
+    fn root(parent: &mut [u32], mut v: u32) -> u32 {
+        while parent[v as usize] != v {
+            let up = parent[parent[v as usize] as usize];
+            parent[v as usize] = up;
+            v = up;
+        }
+        v
+    }
+    let mut parent: Vec<u32> = (0..n_vertices as u32).collect();
+    for f in faces {
+        for (a, b) in [(f[0], f[1]), (f[1], f[2])] {
+            let (ra, rb) = (root(&mut parent, a), root(&mut parent, b));
+            if ra != rb {
+                parent[ra.max(rb) as usize] = ra.min(rb);
+            }
+        }
+    }
+    let mut label = vec![u32::MAX; n_vertices];
+    let mut count = 0;
+    for v in 0..n_vertices as u32 {
+        let r = root(&mut parent, v) as usize;
+        if label[r] == u32::MAX {
+            label[r] = count;
+            count += 1;
+        }
+        label[v as usize] = label[r];
+    }
+    (label, count as usize)
+}
+
 /// Face normal scaled by twice the face area: `(b − a) × (c − a)`.
 #[inline]
 pub fn face_area_normal(p: &[[f64; 3]], f: &[u32; 3]) -> Vec3 {
@@ -176,6 +210,23 @@ pub fn vertex_normals(
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn connected_components_label_each_piece_and_isolated_vertex() {
+        // Two triangles sharing an edge (0–3), a separate triangle (4, 6, 7), vertex 5 unused.
+        let faces = [[0, 1, 2], [2, 1, 3], [7, 4, 6]];
+        let (label, count) = super::connected_components(&faces, 8);
+        assert_eq!(count, 3);
+        assert_eq!(label, vec![0, 0, 0, 0, 1, 2, 1, 1]);
+        // Joining the pieces by one face leaves one component besides the unused vertex.
+        let joined = [[0, 1, 2], [2, 1, 3], [7, 4, 6], [3, 4, 0]];
+        let (label, count) = super::connected_components(&joined, 8);
+        assert_eq!(count, 2);
+        assert!(label
+            .iter()
+            .enumerate()
+            .all(|(v, &l)| l == u32::from(v == 5)));
+    }
+
     use super::*;
 
     #[test]

@@ -77,6 +77,10 @@ pub(super) fn rigid(
                 fast,
             )
         }
+        _ if !prepared.rigid_parts.vertices.is_empty() => {
+            rigid_by_part(prepared, all, fit_old, fit_new, sample, old, fast, next);
+            return 0;
+        }
         _ => {
             let (c_old, c_new) = ring_centroids(all, fit_old, fit_new);
             (
@@ -90,6 +94,43 @@ pub(super) fn rigid(
         *out = transform_vertex(&r, &vec3(&old[v]), &c_old, &c_new).into();
     });
     0
+}
+
+/// The rigid phase on a template of several garments ([`RigidParts`](super::setup::RigidParts)):
+/// one Kabsch fit per part, of that part's members of `all` (`fit_old` → `fit_new`), moves that
+/// part's vertices; a part with fewer than three fitted members moves with the whole template's
+/// fit (docs/method.md "Rigid phase").
+#[allow(clippy::too_many_arguments)] // the fit's points, the sample and the buffers
+fn rigid_by_part(
+    prepared: &Prepared,
+    all: &[u32],
+    fit_old: &[[f64; 3]],
+    fit_new: &[[f64; 3]],
+    sample: Option<&PhaseSample>,
+    old: &[[f64; 3]],
+    fast: bool,
+    next: &mut [[f64; 3]],
+) {
+    let parts = &prepared.rigid_parts;
+    let mut members: Vec<Vec<u32>> = vec![Vec::new(); parts.vertices.len()];
+    for &i in all {
+        let v = sample.map_or(i, |s| s.vertices[i as usize]);
+        members[parts.of[v as usize] as usize].push(i);
+    }
+    let fit = |ring: &[u32]| {
+        let (c_old, c_new) = ring_centroids(ring, fit_old, fit_new);
+        let r = kabsch(ring, fit_old, fit_new, &c_old, &c_new, fast);
+        (r, c_old, c_new)
+    };
+    let whole = fit(all);
+    let motions: Vec<(Mat3, Vec3, Vec3)> = members
+        .iter()
+        .map(|ring| if ring.len() >= 3 { fit(ring) } else { whole })
+        .collect();
+    next.par_iter_mut().enumerate().for_each(|(v, out)| {
+        let (r, c_old, c_new) = &motions[parts.of[v] as usize];
+        *out = transform_vertex(r, &vec3(&old[v]), c_old, c_new).into();
+    });
 }
 
 /// The coarse phase's update at `level`: each vertex moves by the Kabsch fit of its coarse ring

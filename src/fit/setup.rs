@@ -46,6 +46,11 @@ pub(super) struct Prepared {
     pub(super) coarse_sampled: Vec<Neighborhoods>,
     /// Every vertex index (the rigid phase's "ring"; empty when no schedule has one).
     pub(super) all_vertices: Vec<u32>,
+    /// The rigid phase's parts where the template has several connected components (garments,
+    /// paper Fig. 1) and the scan holds more than the template: each vertex's part, and the
+    /// vertices of each part ([`rigid_parts`]); empty for a template of one piece, on a
+    /// garment-only scan, or when no schedule has a rigid phase.
+    pub(super) rigid_parts: RigidParts,
     /// The phases' scan samples
     /// ([`rigid_scan_sample`](crate::fit::Acceleration::rigid_scan_sample),
     /// [`coarse_scan_sample`](crate::fit::Acceleration::coarse_scan_sample)), one per stride > 1 in
@@ -229,6 +234,14 @@ impl Prepared {
         } else {
             Vec::new()
         };
+        // One rigid motion per garment on a scan that holds more than the template (a dressed
+        // body with several garments); on a garment-only scan the components are pieces of one
+        // garment (panels, sleeves as separate tubes), which move together.
+        let rigid_parts = if garment.is_some() && phases.iter().any(|p| p.0 > 0) {
+            rigid_parts(&faces, m)
+        } else {
+            RigidParts::default()
+        };
         let coarse_radius = if phases.iter().any(|p| p.1 > 0) {
             params.coarse_radius(m)
         } else {
@@ -331,6 +344,7 @@ impl Prepared {
             coarse_deltas,
             coarse_sampled,
             all_vertices,
+            rigid_parts,
             scan_samples,
             scan_strides,
             edge_length,
@@ -371,6 +385,54 @@ impl Prepared {
             rings: &self.rings,
         }
     }
+}
+
+/// The rigid phase's parts of a template with several garments: each vertex's part and each
+/// part's vertices, in increasing order.
+#[derive(Default)]
+pub(super) struct RigidParts {
+    pub(super) of: Vec<u32>,
+    pub(super) vertices: Vec<Vec<u32>>,
+}
+
+/// A connected component of the template with fewer vertices than this moves with the largest
+/// component in the rigid phase: a stray vertex or a small piece does not determine a rigid
+/// motion of its own.
+pub const MIN_RIGID_PART: usize = 16;
+
+/// The rigid phase's parts: the template's connected components of at least [`MIN_RIGID_PART`]
+/// vertices, the smaller ones joined to the largest (docs/method.md "Rigid phase"); none when that
+/// leaves one part.
+pub(super) fn rigid_parts(faces: &[[u32; 3]], m: usize) -> RigidParts {
+    let (label, count) = crate::mesh::connected_components(faces, m);
+    let mut size = vec![0usize; count];
+    label.iter().for_each(|&l| size[l as usize] += 1);
+    let largest = (0..count)
+        .max_by_key(|&c| (size[c], usize::MAX - c))
+        .unwrap_or(0);
+    let mut part = vec![u32::MAX; count];
+    let mut parts = 0u32;
+    for c in 0..count {
+        if size[c] >= MIN_RIGID_PART || c == largest {
+            part[c] = parts;
+            parts += 1;
+        }
+    }
+    if parts < 2 {
+        return RigidParts::default();
+    }
+    let of: Vec<u32> = label
+        .iter()
+        .map(|&l| match part[l as usize] {
+            u32::MAX => part[largest],
+            p => p,
+        })
+        .collect();
+    let mut vertices = vec![Vec::new(); parts as usize];
+    for (v, &p) in of.iter().enumerate() {
+        vertices[p as usize].push(v as u32);
+    }
+    RigidParts { of, vertices }
 }
 
 /// The mean length of the template's edges (each face's three, shared edges counted twice).

@@ -883,3 +883,77 @@ fn the_fast_paths_change_the_fit_only_by_round_off() {
         assert!(a.diagnostics.knn_queries < b.diagnostics.knn_queries);
     }
 }
+
+/// Two 9 × 9 sheets side by side (x ∈ [−1.3, −0.3] and [0.3, 1.3]) as one template, and a scan of
+/// the left one lifted by `dz` and the right one lowered by `dz`.
+fn two_sheets_case(dz: f64) -> Case {
+    let (sheet, faces) = crate::synthetic::grid_sheet(9, 9, 1.0, 1.0);
+    let n = sheet.len() as u32;
+    let mut v: Vec<[f64; 3]> = sheet.iter().map(|p| [p[0] - 0.8, p[1], 0.0]).collect();
+    v.extend(sheet.iter().map(|p| [p[0] + 0.8, p[1], 0.0]));
+    let mut f = faces.clone();
+    f.extend(faces.iter().map(|t| t.map(|i| i + n)));
+    let x = v
+        .iter()
+        .map(|p| [p[0], p[1], if p[0] < 0.0 { dz } else { -dz }])
+        .collect();
+    (v, f, x)
+}
+
+#[test]
+fn rigid_phase_moves_each_garment_by_its_own_rigid_motion_on_a_dressed_scan() {
+    // One rigid motion cannot lift one sheet and lower the other: it would tilt both about the
+    // y axis. On a scan that holds more than the template (here a far "body" plane 1.5 below,
+    // 6 × 6 wide), one motion per connected component (docs/method.md "Rigid phase") moves
+    // each sheet straight to its own scan, keeping each sheet's shape.
+    let (v, f, garments) = two_sheets_case(0.05);
+    let (body, _) = crate::synthetic::grid_sheet(25, 25, 6.0, 6.0);
+    let mut x = garments.clone();
+    x.extend(body.iter().map(|p| [p[0], p[1], -1.5]));
+    let r = fit_simple(&v, &f, &x, None, &rigid_only(30)).unwrap();
+    assert!(
+        r.diagnostics.frame.unwrap().scale < 3.0,
+        "the garment frame is in use"
+    );
+    let half = v.len() / 2;
+    for (range, sign) in [(0..half, 1.0), (half..v.len(), -1.0)] {
+        assert_rigidly_moved(&v[range.clone()], &r.vertices[range.clone()]);
+        let z: Vec<f64> = r.vertices[range].iter().map(|p| p[2]).collect();
+        let (lo, hi) = z
+            .iter()
+            .fold((f64::MAX, f64::MIN), |(a, b), &z| (a.min(z), b.max(z)));
+        // Each sheet reached its own scan's height and stayed level.
+        assert!(sign * lo > 0.03 && sign * hi < 0.07, "{lo} {hi}");
+        assert!(hi - lo < 0.01, "a sheet tilted: z from {lo} to {hi}");
+    }
+    // The same template on the garments alone: its components are taken as pieces of one
+    // garment and move by one rigid motion, which tilts them.
+    let one = fit_simple(&v, &f, &garments, None, &rigid_only(30)).unwrap();
+    assert_rigidly_moved(&v, &one.vertices);
+    let z: Vec<f64> = one.vertices[..half].iter().map(|p| p[2]).collect();
+    let spread =
+        z.iter().fold(f64::MIN, |a, &b| a.max(b)) - z.iter().fold(f64::MAX, |a, &b| a.min(b));
+    assert!(spread > 0.02, "{spread}");
+}
+
+#[test]
+fn rigid_parts_are_the_components_with_small_pieces_joined_to_the_largest() {
+    let (v, mut f, _) = two_sheets_case(0.05);
+    let m = v.len();
+    // A lone triangle (3 vertices < MIN_RIGID_PART) and an unused vertex.
+    f.push([m as u32, m as u32 + 1, m as u32 + 2]);
+    let parts = super::setup::rigid_parts(&f, m + 4);
+    assert_eq!(parts.vertices.len(), 2);
+    let first: Vec<u32> = (0..81).chain(m as u32..m as u32 + 4).collect();
+    assert_eq!(parts.vertices[0], first);
+    // The largest is the first of the two equal sheets; the small pieces join it.
+    assert!((m..m + 4).all(|v| parts.of[v] == 0));
+    assert!((81..m).all(|v| parts.of[v] == 1));
+    // One sheet alone (plus small pieces) is one part: the whole-template fit.
+    let one: Vec<[u32; 3]> = f
+        .iter()
+        .copied()
+        .filter(|t| t[0] < 81 || t[0] >= m as u32)
+        .collect();
+    assert!(super::setup::rigid_parts(&one, m + 4).vertices.is_empty());
+}
