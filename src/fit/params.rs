@@ -327,12 +327,13 @@ pub struct Schedule {
     /// remaining iterations are spared. A case whose choice there is the one made at the end gets
     /// the same fit, bit for bit (the chosen run never sees the others). 1: at the end.
     pub selection_at: f64,
-    /// Do no harm: the template as given is returned unchanged when its mean scan distance (the
-    /// distance schedule selection compares, [`select_schedule`](super::select_schedule)) is
-    /// within `(1 + keep_margin) ×` the fit's. A fit started on its scan only trades the noise of
-    /// the scan for a slide along it — the data term has no tangential fixed point on noisy
-    /// points — while bringing the template no closer to the scan than the noise allows
-    /// (docs/method.md "Do no harm"). 0: off (the fit is always returned).
+    /// Do no harm: the template where the fit started is returned unchanged when its scan
+    /// distance — the median distance from the scan points (those schedule selection compares)
+    /// to their nearest vertex — is within `(1 + keep_margin) ×` the fit's. A fit started on its
+    /// scan only trades the scan's noise for a slide along it (on noisy points the data term has
+    /// no tangential fixed point) and comes no closer to the scan than the noise allows
+    /// (docs/method.md "Do no harm"). 0: off, the fit is always returned (the `"paper"` and
+    /// `"tracking"` presets).
     pub keep_margin: f64,
 }
 
