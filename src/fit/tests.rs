@@ -901,7 +901,13 @@ fn the_start_is_kept_only_within_the_keep_margin() {
 #[test]
 fn the_do_no_harm_distance_is_the_weighted_median() {
     // Scan points at distances 0, 1, 2, 3 and 10 from the one vertex at the origin.
-    let scan = [[0.0; 3], [1.0, 0.0, 0.0], [0.0, 2.0, 0.0], [0.0, 0.0, 3.0], [10.0, 0.0, 0.0]];
+    let scan = [
+        [0.0; 3],
+        [1.0, 0.0, 0.0],
+        [0.0, 2.0, 0.0],
+        [0.0, 0.0, 3.0],
+        [10.0, 0.0, 0.0],
+    ];
     let vertex = [[0.0; 3]];
     let d = |w: Option<&[f64]>, g: Option<&[usize]>| {
         super::schedule::median_scan_distance(&scan, w, g, &vertex)
