@@ -232,6 +232,16 @@ class FitParams(Mapping[str, Any]):
         remaining iterations are spared. A case whose choice there is the one made at the end gets
         the same fit, bit for bit (the chosen run never sees the others). 1: at the end.
         """
+    @property
+    def keep_margin(self) -> float:
+        """Do no harm: the template where the fit started is returned unchanged when its scan
+        distance — the median distance from the scan points (those schedule selection compares)
+        to their nearest vertex — is within `(1 + keep_margin) ×` the fit's. A fit started on its
+        scan only trades the scan's noise for a slide along it (on noisy points the data term has
+        no tangential fixed point) and comes no closer to the scan than the noise allows
+        (docs/method.md "Do no harm"). 0: off, the fit is always returned (the `"paper"` and
+        `"tracking"` presets).
+        """
 
     # ---- Acceleration
     @property

@@ -37,12 +37,12 @@ pub use params::{
     RIGID_SCAN_POINTS_PER_VERTEX, SCHEDULE_NAMES,
 };
 pub use result::{Diagnostics, FitResult, IterationRecord, Progress, StageTimes};
-pub use schedule::select_schedule;
+pub use schedule::{keeps_start, select_schedule};
 
 use crate::error::{FoldMatchError, Result};
 use crate::landmarks::Landmarks;
 use crate::math::vec3;
-use schedule::{drive, selection_distance, ScheduleRun};
+use schedule::{drive, median_scan_distance, selection_distance, ScheduleRun};
 use setup::Prepared;
 
 /// Fits the template to the target.
@@ -272,6 +272,22 @@ fn fit_from(
         Some((_, compared, ..)) if compare_at == total => compared.swap_remove(best),
         _ => winner.user_vertices(&prepared),
     };
+    // Do no harm: a template already on its scan stays there (docs/method.md "Do no harm").
+    let garment = prepared.garment.as_deref();
+    // The template where the fit started (pre-aligned, by the landmarks too), in the user's frame.
+    let mut start_vertices = prepared.start.clone();
+    prepared.frame.inverse_in_place(&mut start_vertices);
+    let kept_start = params.schedule.keep_margin > 0.0 && {
+        let fitted = median_scan_distance(target, target_weights, garment, &vertices);
+        let start = median_scan_distance(target, target_weights, garment, &start_vertices);
+        keeps_start(start, fitted, params.schedule.keep_margin)
+    };
+    let vertices = if kept_start {
+        winner.pos.clone_from(&prepared.start);
+        start_vertices
+    } else {
+        vertices
+    };
     // The verdict against the points the fit was drawn to: those of positive weight, or on a
     // scan that holds more than the garment, those the template explains.
     let assessed = prepared.garment.as_deref().or(kept.as_deref());
@@ -297,6 +313,7 @@ fn fit_from(
             d.stage_seconds.add(&other.ws.times);
         }
     }
+    chosen.diagnostics.kept_start = kept_start;
     let finish = clock.elapsed().as_secs_f64() - setup - iterations;
     chosen.diagnostics.wall_seconds = [setup, iterations, finish];
     Ok(chosen)

@@ -22,6 +22,7 @@ impl FitParams {
         p.schedule.anneal = 1.0;
         p.schedule.anneal_fraction = 0.0;
         p.schedule.selection = Selection::Single;
+        p.schedule.keep_margin = 0.0;
         p.readings.regularization = Regularization::AffineInvariant;
         p
     }
@@ -42,6 +43,7 @@ impl FitParams {
         p.schedule.anneal = 1.0;
         p.schedule.anneal_fraction = 0.0;
         p.schedule.selection = Selection::Single;
+        p.schedule.keep_margin = 0.0;
         p
     }
 

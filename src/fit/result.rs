@@ -102,6 +102,9 @@ pub struct Diagnostics {
     pub converged: bool,
     /// Whether the observer stopped the fit.
     pub stopped_by_callback: bool,
+    /// Whether the do-no-harm rule returned the template as it started
+    /// ([`keep_margin`](super::Schedule::keep_margin)).
+    pub kept_start: bool,
     /// The normalized frame used.
     pub frame: Option<Frame>,
     /// Seconds per stage of the iterations, summed over the schedules run (under schedule

@@ -36,6 +36,44 @@ pub(super) fn selection_distance(
     }
 }
 
+/// The do-no-harm rule's scan distance of the vertices `fitted`: the (weighted) median of the
+/// distances from the scan points of [`selection_distance`] to their nearest vertex. The median
+/// is the typical point's: unmoved by the share (under half) of those points that the garment
+/// does not explain, skin next to a hem that a fit drawn to it comes closer to
+/// (docs/method.md "Do no harm").
+pub(super) fn median_scan_distance(
+    target: &[[f64; 3]],
+    weights: Option<&[f64]>,
+    garment: Option<&[usize]>,
+    fitted: &[[f64; 3]],
+) -> f64 {
+    let all: Vec<usize>;
+    let chosen = match garment {
+        Some(g) => g,
+        None => {
+            all = (0..target.len()).collect();
+            &all
+        }
+    };
+    let points: Vec<[f64; 3]> = chosen.iter().map(|&j| target[j]).collect();
+    let d = crate::metrics::nearest_distances(&points, fitted);
+    let w: Vec<f64> = chosen
+        .iter()
+        .map(|&j| weights.map_or(1.0, |w| w[j]))
+        .collect();
+    let mut order: Vec<usize> = (0..d.len()).filter(|&i| w[i] > 0.0).collect();
+    order.sort_by(|&a, &b| d[a].total_cmp(&d[b]));
+    let half = 0.5 * order.iter().map(|&i| w[i]).sum::<f64>();
+    let mut acc = 0.0;
+    for &i in &order {
+        acc += w[i];
+        if acc >= half {
+            return d[i];
+        }
+    }
+    0.0
+}
+
 /// Schedule selection's rule (docs/method.md, "Beyond the paper: the default configuration"): of
 /// the candidates whose mean scan→fit distance is at most `(1 + margin) ×` the smallest, the one
 /// with the least edge-length spread; ties keep the earlier candidate (the given schedule first).
@@ -56,6 +94,13 @@ pub fn select_schedule(distances: &[f64], spreads: &[f64], margin: f64) -> usize
             _ => Some(i),
         })
         .unwrap_or(0)
+}
+
+/// The do-no-harm rule (docs/method.md "Do no harm"): whether the template as given, at mean
+/// scan distance `start`, is kept in place of the fit at `fitted` — when it lies within
+/// `(1 + margin) ×` the fit's distance (`margin = 0`: never).
+pub fn keeps_start(start: f64, fitted: f64, margin: f64) -> bool {
+    margin > 0.0 && start <= (1.0 + margin) * fitted
 }
 
 /// Steps every run in lockstep (concurrently when there are several) and reports each iteration

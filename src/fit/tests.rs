@@ -957,3 +957,40 @@ fn rigid_parts_are_the_components_with_small_pieces_joined_to_the_largest() {
         .collect();
     assert!(super::setup::rigid_parts(&one, m + 4).vertices.is_empty());
 }
+
+#[test]
+fn the_start_is_kept_only_within_the_keep_margin() {
+    assert!(keeps_start(1.09, 1.0, 0.1));
+    assert!(keeps_start(0.9, 1.0, 0.1));
+    assert!(!keeps_start(1.11, 1.0, 0.1));
+    // Margin 0: the rule is off, even where the start is the closer one.
+    assert!(!keeps_start(0.5, 1.0, 0.0));
+    for bad in [-0.01, f64::NAN, f64::INFINITY] {
+        let mut p = FitParams::default();
+        p.schedule.keep_margin = bad;
+        assert_refused(&p, "keep_margin");
+    }
+}
+
+#[test]
+fn the_do_no_harm_distance_is_the_weighted_median() {
+    // Scan points at distances 0, 1, 2, 3 and 10 from the one vertex at the origin.
+    let scan = [
+        [0.0; 3],
+        [1.0, 0.0, 0.0],
+        [0.0, 2.0, 0.0],
+        [0.0, 0.0, 3.0],
+        [10.0, 0.0, 0.0],
+    ];
+    let vertex = [[0.0; 3]];
+    let d = |w: Option<&[f64]>, g: Option<&[usize]>| {
+        super::schedule::median_scan_distance(&scan, w, g, &vertex)
+    };
+    assert_eq!(d(None, None), 2.0);
+    // The far point weighs most: half the weight lies at 10.
+    assert_eq!(d(Some(&[1.0, 1.0, 1.0, 1.0, 4.0]), None), 3.0);
+    assert_eq!(d(Some(&[1.0, 1.0, 1.0, 1.0, 5.0]), None), 10.0);
+    // Weight 0 removes a point; the garment's points alone when given.
+    assert_eq!(d(Some(&[0.0, 0.0, 1.0, 1.0, 1.0]), None), 3.0);
+    assert_eq!(d(None, Some(&[0, 1])), 0.0);
+}

@@ -141,6 +141,7 @@ impl FitParams {
                 self.schedule.selection_margin,
                 NON_NEGATIVE,
             ),
+            ("keep_margin", self.schedule.keep_margin, NON_NEGATIVE),
             ("two_way", self.schedule.two_way, NON_NEGATIVE),
             ("two_way_trust", self.schedule.two_way_trust, NON_NEGATIVE),
             ("two_way_rim", self.schedule.two_way_rim, NON_NEGATIVE),
