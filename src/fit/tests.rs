@@ -88,6 +88,8 @@ fn rigid_only(iterations: usize) -> FitParams {
         p.schedule.rigid_fraction = 1.0;
         p.schedule.coarse_fraction = 0.0;
         p.schedule.selection = Selection::Single;
+        // The rigid phase alone, without the end-of-fit comparison with the start.
+        p.schedule.keep_margin = 0.0;
         p
     }
 }
