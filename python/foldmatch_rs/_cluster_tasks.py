@@ -14,13 +14,12 @@ import os
 import threading
 from typing import Any, Optional, Union
 
-import numpy as np
-
 from . import _foldmatch_rs as _core
 
 #: Fit threads per task: a number, or ``{worker address: number}`` chosen by the driver.
 Threads = Union[int, dict]
-#: The previous frame's fit and its name (``None``: start from the template).
+#: What a sequence's next frame continues from: the tracker's state (JSON) and the name of
+#: the last fitted frame (``None``: the first frame, from the template).
 Warm = Optional[tuple]
 
 # The fitters of the runs this worker process has served, by template file and parameters: a
@@ -61,8 +60,7 @@ def _threads(threads: Threads) -> int:
 def fit_file(template: str, params_json: str, file_json: str, ascii: bool, threads: Threads) -> str:
     """One scan of a batch: its report entry (JSON). A scan that fails is an ``error`` entry."""
     fitter = _fitter(template, params_json, _threads(threads))
-    entry, _ = fitter.fit(file_json, ascii)
-    return entry
+    return fitter.fit(file_json, ascii)
 
 
 def track_frame(
@@ -71,29 +69,23 @@ def track_frame(
     file_json: str,
     ascii: bool,
     threads: Threads,
+    tracking_json: str,
     previous: Optional[tuple[str, Warm]],
 ) -> tuple[str, Warm]:
-    """One frame of a sequence, warm-started from ``previous`` (the previous frame's task
-    result): ``(entry JSON, warm start of the next frame)``. As ``foldmatch sequence``: a frame
-    that fails leaves the next one starting from the last successful fit, and a frame done by an
-    earlier run (``resume``) is read back instead of fitted."""
+    """One frame of a sequence, tracked on from ``previous`` (the previous frame's task
+    result): ``(entry JSON, what the next frame continues from)``. As ``foldmatch sequence``,
+    whose tracker this task continues (its state: the last fits, the first frame's figures):
+    a frame that fails leaves the next one starting from the last successful fit, and a frame
+    done by an earlier run (``resume``) is read back instead of fitted."""
     fitter = _fitter(template, params_json, _threads(threads))
-    warm: Warm = None if previous is None else previous[1]
-    warm_name = None if warm is None else warm[1]
-    resumed = fitter.resume_frame(file_json, warm_name)
+    state, warm_name = (None, None) if previous is None or previous[1] is None else previous[1]
     name = _name(file_json)
+    resumed = fitter.resume_frame(file_json, state, warm_name)
     if resumed is not None:
-        entry, vertices = resumed
-        return entry, (vertices, name)
-    entry, fitted = fitter.fit(file_json, ascii, _warm_arg(warm))
-    return entry, (warm if fitted is None else (fitted, name))
-
-
-def _warm_arg(warm: Warm) -> Optional[tuple[np.ndarray, str]]:
-    if warm is None:
-        return None
-    vertices, name = warm
-    return np.ascontiguousarray(vertices, dtype=np.float64), str(name)
+        entry, state = resumed
+        return entry, (state, name)
+    entry, state, fitted = fitter.track(file_json, tracking_json, state, warm_name, ascii)
+    return entry, (state, name if fitted else warm_name)
 
 
 def _name(file_json: str) -> str:

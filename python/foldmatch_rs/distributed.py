@@ -158,6 +158,8 @@ def track_sequences(
     workers: Optional[int] = None,
     retries: int = DEFAULT_RETRIES,
     progress: bool = False,
+    prediction: Optional[float] = None,
+    reanchor: bool = False,
     **params: Any,
 ) -> dict[str, dict[str, Any]]:
     """Track many 4D sequences in parallel on a Dask cluster, each as ``foldmatch sequence``.
@@ -168,8 +170,11 @@ def track_sequences(
     (the schema of ``foldmatch sequence``'s); two sequence folders must not share a name.
 
     ``gt_dirs`` gives, per sequence, a folder of ground-truth meshes named like its frames (or
-    ``None``). The other parameters are those of :func:`fit_batch`; the default preset is
-    ``"tracking"``, as for ``foldmatch sequence``.
+    ``None``). ``prediction`` and ``reanchor`` are the tracking rules of ``foldmatch
+    sequence --prediction/--reanchor`` (:func:`foldmatch_rs.track`'s; each frame continues
+    the same tracker as the local command, so the outputs are its outputs bit for bit). The
+    other parameters are those of :func:`fit_batch`; the default preset is ``"tracking"``, as
+    for ``foldmatch sequence``.
 
     Returns ``{sequence name: report}``.
     """
@@ -195,6 +200,9 @@ def track_sequences(
             gt_dir=None if gt_dirs is None else gt_dirs[k],
             params=params,
         )
+        request["tracking"] = {"reanchor": bool(reanchor)}
+        if prediction is not None:
+            request["tracking"]["prediction"] = float(prediction)
         books.append(_book(request, progress))
     with connect(client, workers=workers, retries=retries) as c:
         results = run_books(c, "sequence", books, ascii=ascii, threads=threads, retries=retries)
@@ -263,7 +271,9 @@ def run_books(
             if kind == "batch":
                 future = client.submit(fit_file, *common, key=key, retries=retries, pure=False)
             else:
-                future = client.submit(track_frame, *common, previous, key=key, retries=retries, pure=False)
+                future = client.submit(
+                    track_frame, *common, book.tracking_json, previous, key=key, retries=retries, pure=False
+                )
                 previous = future
             owner[future] = (book, file["index"])
     interrupted = False

@@ -14,6 +14,7 @@ use super::ui::{Bar, Ui};
 pub use super::report::FileReport;
 pub use super::ui::Verbosity;
 use crate::fit::FitParams;
+use crate::track::{TrackParams, Tracker, TrackerState};
 use serde::{Deserialize, Serialize};
 use serde_json::{Map, Value};
 use std::path::{Path, PathBuf};
@@ -93,6 +94,29 @@ pub struct Request {
     /// `--scan-weights-property`: the per-vertex PLY property that weighs every scan's points.
     #[serde(default)]
     pub scan_weights_property: Option<String>,
+    /// `sequence`'s tracking rules (`--prediction`, `--reanchor`).
+    #[serde(default)]
+    pub tracking: TrackOptions,
+}
+
+/// The tracking rules of a `sequence` run ([`crate::track::TrackParams`] beyond the fit's
+/// settings), as `foldmatch sequence --prediction/--reanchor` sets them.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct TrackOptions {
+    /// `--prediction`.
+    pub prediction: f64,
+    /// `--reanchor`.
+    pub reanchor: bool,
+}
+
+impl Default for TrackOptions {
+    fn default() -> Self {
+        Self {
+            prediction: crate::track::DEFAULT_PREDICTION,
+            reanchor: false,
+        }
+    }
 }
 
 fn ply() -> String {
@@ -124,6 +148,7 @@ impl Request {
                     params_file: $cmd.params.params.clone(),
                     params: $cmd.params.overrides(),
                     scan_weights_property: $cmd.scan_weights_property,
+                    tracking: TrackOptions::default(),
                 }
             };
         }
@@ -133,11 +158,15 @@ impl Request {
                 cmd.scheduler?,
                 cmd.jobs,
             ),
-            Command::Sequence(cmd) => (
-                folder_run!(cmd, RunKind::Sequence, cmd.frame_dir, false),
-                cmd.scheduler?,
-                None,
-            ),
+            Command::Sequence(cmd) => {
+                let tracking = TrackOptions {
+                    prediction: cmd.prediction,
+                    reanchor: cmd.reanchor,
+                };
+                let mut run = folder_run!(cmd, RunKind::Sequence, cmd.frame_dir, false);
+                run.tracking = tracking;
+                (run, cmd.scheduler?, None)
+            }
             _ => return None,
         };
         Some(CliRun {
@@ -209,6 +238,7 @@ pub struct RunBook {
     setup: Setup,
     gt_dir: Option<PathBuf>,
     scan_weights_property: Option<String>,
+    tracking: TrackOptions,
     live: Mutex<Live>,
 }
 
@@ -295,6 +325,7 @@ impl RunBook {
             kind,
             gt_dir: request.gt_dir.clone(),
             scan_weights_property: request.scan_weights_property.clone(),
+            tracking: request.tracking,
             live: Mutex::new(Live {
                 shared,
                 lock: setup.lock.take(),
@@ -336,6 +367,11 @@ impl RunBook {
     /// The resolved parameters, every key, as JSON (what the workers fit with).
     pub fn params_json(&self) -> String {
         self.setup.params.to_json()
+    }
+
+    /// A sequence's tracking rules as JSON ([`TrackOptions`], for [`FileFitter::track`]).
+    pub fn tracking_json(&self) -> String {
+        serde_json::to_string(&self.tracking).unwrap_or_default()
     }
 
     /// The template's path.
@@ -438,24 +474,90 @@ impl FileFitter {
         self.template.vertices.len()
     }
 
-    /// Fits one file exactly as `batch` (no `warm`) or `sequence` (warm-started from the
-    /// previous frame's fit and named after it) do, writing the output to its staged path
+    /// Fits one file exactly as `batch` does, writing the output to its staged path
     /// (`stage_path`) for [`RunBook::record`] to commit; never fails: problems are in the
     /// entry.
-    pub fn fit(&self, file: &Planned, ascii: bool, warm: Option<(&[[f64; 3]], &str)>) -> Outcome {
-        let runner = Runner {
+    pub fn fit(&self, file: &Planned, ascii: bool) -> Outcome {
+        self.runner().run(&self.job(file, ascii, None))
+    }
+
+    /// Fits one frame of a sequence exactly as `sequence` does: by a [`Tracker`] with the
+    /// run's `tracking` rules that continues from `state` (the previous frame's task's; `None`
+    /// for the first frame), the entry's warm start named `warm_name`. Returns the outcome and
+    /// the state for the next frame (after a failed frame, the tracker's skip: the next frame
+    /// starts from the last fit). Never fails: problems are in the entry.
+    pub fn track(
+        &self,
+        file: &Planned,
+        ascii: bool,
+        tracking: TrackOptions,
+        state: Option<TrackerState>,
+        warm_name: Option<&str>,
+    ) -> (Outcome, TrackerState) {
+        let rules = TrackParams {
+            fit: self.params.clone(),
+            prediction: tracking.prediction,
+            reanchor: tracking.reanchor,
+            ..TrackParams::default()
+        };
+        let tracker =
+            Tracker::new(&self.template.vertices, &self.template.faces, rules).and_then(|mut t| {
+                if let Some(state) = state.clone() {
+                    t.restore(state)?;
+                }
+                Ok(t)
+            });
+        let tracker = match tracker {
+            Ok(t) => Mutex::new(t),
+            Err(e) => {
+                let mut report = FileReport::pending(&file.name, &file.scan, &file.output);
+                report.status = Status::Error;
+                report.error = Some(format!("sequence: {e}"));
+                let outcome = Outcome {
+                    report,
+                    fitted: None,
+                    metrics: None,
+                };
+                return (outcome, state.unwrap_or_default());
+            }
+        };
+        let before = state.as_ref().map_or(0, |s| s.frames);
+        let mut outcome = self.runner().run(&self.job(file, ascii, Some(&tracker)));
+        outcome.report.warm_start = warm_name.map(str::to_string);
+        let mut t = tracker.into_inner().unwrap_or_else(|e| e.into_inner());
+        if t.frames() == before {
+            // Failed before its fit (an unreadable scan): the tracker did not see it.
+            t.skip();
+        }
+        (outcome, t.state())
+    }
+
+    /// A sequence frame done by an earlier run (`sequence --resume`), taken as the tracker's
+    /// next fit: the state that follows `state`.
+    pub fn accept(&self, state: Option<TrackerState>, fitted: &[[f64; 3]]) -> TrackerState {
+        let mut state = state.unwrap_or_default();
+        state.previous.insert(0, fitted.to_vec());
+        state.previous.truncate(2);
+        state.frames += 1;
+        state
+    }
+
+    fn runner(&self) -> Runner<'_> {
+        Runner {
             template: &self.template,
             params: &self.params,
             ui: &self.ui,
             pool: &self.pool,
-        };
-        let mut outcome = runner.run(&Job {
+        }
+    }
+
+    fn job<'a>(&self, file: &Planned, ascii: bool, tracker: Option<&'a Mutex<Tracker>>) -> Job<'a> {
+        Job {
             name: file.name.clone(),
             scan: file.scan.clone(),
             output: file.output.clone(),
             gt: file.gt.clone(),
-            start: warm.map(|w| w.0),
-            tracker: None,
+            tracker,
             ascii,
             weights: file
                 .scan_weights_property
@@ -466,9 +568,7 @@ impl FileFitter {
             stage: Some(stage_path(&file.output)),
             // `--preview` conflicts with `--scheduler` (args.rs): previews are local only.
             preview: None,
-        });
-        outcome.report.warm_start = warm.map(|w| w.1.to_string());
-        outcome
+        }
     }
 
     /// `sequence --resume`: the frame's earlier output, read back to warm-start the next
@@ -558,5 +658,20 @@ mod tests {
         let text = serde_json::to_string(&run.request).unwrap();
         let back: Request = serde_json::from_str(&text).unwrap();
         assert_eq!(back.scan_weights_property.as_deref(), Some("label"));
+        assert_eq!(back.tracking, TrackOptions::default());
+        // The tracking rules travel to the workers.
+        let run = Request::from_cli(argv(
+            "foldmatch sequence t.ply f -o o --scheduler local --prediction 0.25 --reanchor",
+        ))
+        .unwrap();
+        let text = serde_json::to_string(&run.request).unwrap();
+        let back: Request = serde_json::from_str(&text).unwrap();
+        assert_eq!(
+            back.tracking,
+            TrackOptions {
+                prediction: 0.25,
+                reanchor: true
+            }
+        );
     }
 }

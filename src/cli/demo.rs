@@ -82,7 +82,6 @@ fn run(cmd: &DemoCmd, ctx: &Context) -> Result<i32, String> {
         scan: scan_path.clone(),
         output: fitted_path.clone(),
         gt: Some(gt_path.clone()),
-        start: None,
         tracker: None,
         ascii: false,
         weights: None,

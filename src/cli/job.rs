@@ -6,8 +6,8 @@ use super::report::{FileReport, ScanWeightsReport, Status};
 use super::ui::{Ui, Verbosity};
 use crate::error::FoldMatchError;
 use crate::fit::{
-    deformation_model, fit_anchored, fit_with_landmarks, validate_weights, FitParams, Progress,
-    TemplateTopology, Workspace,
+    deformation_model, fit_with_landmarks, validate_weights, FitParams, Progress, TemplateTopology,
+    Workspace,
 };
 use crate::io::{fitted_mesh, read_mesh, read_npy, read_ply_property, write_mesh, MeshData};
 use crate::landmarks::Landmarks;
@@ -164,11 +164,8 @@ pub struct Job<'a> {
     pub output: PathBuf,
     /// Ground truth for f_R.
     pub gt: Option<PathBuf>,
-    /// Start from these vertices instead of the template's, with the template as the rest
-    /// shape ([`fit_anchored`]; a `sequence` frame on a Dask worker).
-    pub start: Option<&'a [[f64; 3]]>,
     /// Fit the scan as the next frame of this tracker (`sequence`, docs/method.md
-    /// "Tracking"); `start` is then unused (the tracker starts from its previous fits).
+    /// "Tracking"): it starts from its previous fits, anchored to the template.
     pub tracker: Option<&'a Mutex<Tracker>>,
     /// Write ASCII PLY.
     pub ascii: bool,
@@ -321,7 +318,7 @@ impl Runner<'_> {
         if interrupt::requested() {
             return Err(INTERRUPTED.into());
         }
-        let start = job.start.unwrap_or(&template.vertices);
+        let start = &template.vertices;
         crate::limits::check_snapshots(self.params, start.len()).map_err(|e| e.to_string())?;
         let bar = self.ui.iterations_bar(&job.name, self.params.iterations);
         let every = (self.params.iterations / 10).max(1);
@@ -342,8 +339,8 @@ impl Runner<'_> {
         };
         let target_faces = (!scan.faces.is_empty()).then_some(scan.faces.as_slice());
         let fit_started = Instant::now();
-        let result = match (job.tracker, job.start) {
-            (Some(tracker), _) => {
+        let result = match job.tracker {
+            Some(tracker) => {
                 let mut guard = tracker.lock().unwrap_or_else(|e| e.into_inner());
                 let tracker: &mut Tracker = &mut guard;
                 let frame = self
@@ -360,19 +357,7 @@ impl Runner<'_> {
                 report.tracking = serde_json::to_value(&frame.figures).ok();
                 Ok(frame.result)
             }
-            (None, Some(start)) => self.pool.install(|| {
-                fit_anchored(
-                    start,
-                    &template.vertices,
-                    &template.faces,
-                    &scan.vertices,
-                    target_faces,
-                    weights.as_deref(),
-                    self.params,
-                    &mut observer,
-                )
-            }),
-            (None, None) => self.pool.install(|| {
+            None => self.pool.install(|| {
                 fit_with_landmarks(
                     start,
                     &template.faces,
@@ -394,7 +379,7 @@ impl Runner<'_> {
         if result.diagnostics.stopped_by_callback {
             return Err(INTERRUPTED.into());
         }
-        let field = if job.start.is_some() || job.tracker.is_some() {
+        let field = if job.tracker.is_some() {
             self.pool
                 .install(|| template.wrinkle_field(&result.vertices, explained, self.params))
         } else {

@@ -184,7 +184,6 @@ fn fit(cmd: &FitCmd, ctx: &Context) -> i32 {
         scan: cmd.scan.clone(),
         output: cmd.output.clone(),
         gt: cmd.gt.clone(),
-        start: None,
         tracker: None,
         ascii: cmd.ascii,
         weights: match (&cmd.scan_weights, &cmd.scan_weights_property) {

@@ -3,9 +3,9 @@
 //! command line with `--scheduler` for the console script. Plans, entries and reports cross as
 //! JSON (the schema of `report.json`); vertices as `(n, 3)` float64 arrays.
 
-use super::{array2, InvalidInputError, InvalidParameterError, RunSetupError};
-use crate::cli::cluster::{self, FileReport, Planned, Request, Verbosity};
-use numpy::{PyArray2, PyReadonlyArray2, PyUntypedArrayMethods};
+use super::{InvalidParameterError, RunSetupError};
+use crate::cli::cluster::{self, FileReport, Planned, Request, TrackOptions, Verbosity};
+use crate::track::TrackerState;
 use pyo3::prelude::*;
 
 fn verbosity(name: &str) -> PyResult<Verbosity> {
@@ -56,6 +56,12 @@ impl RunBook {
     #[getter]
     fn params_json(&self) -> String {
         self.0.params_json()
+    }
+
+    /// A sequence's tracking rules (JSON, for `FileFitter.track`).
+    #[getter]
+    fn tracking_json(&self) -> String {
+        self.0.tracking_json()
     }
 
     /// The template's path.
@@ -118,64 +124,62 @@ impl FileFitter {
             .map_err(RunSetupError::new_err)
     }
 
-    /// Fits one planned file (JSON, from `RunBook.files_json`) and writes its output to the
-    /// staged path that `RunBook.record` commits: `(entry JSON, fitted vertices or None)`. A
-    /// failed file is an `error` entry, not an exception. `warm`: the previous frame's fit and
-    /// name (`sequence`).
-    #[pyo3(signature = (file_json, ascii=false, warm=None))]
-    fn fit<'py>(
-        &self,
-        py: Python<'py>,
-        file_json: &str,
-        ascii: bool,
-        warm: Option<(PyReadonlyArray2<'py, f64>, String)>,
-    ) -> PyResult<(String, Option<Bound<'py, PyArray2<f64>>>)> {
+    /// Fits one planned file (JSON, from `RunBook.files_json`) as `batch` does and writes its
+    /// output to the staged path that `RunBook.record` commits: the entry (JSON). A failed
+    /// file is an `error` entry, not an exception.
+    #[pyo3(signature = (file_json, ascii=false))]
+    fn fit(&self, py: Python<'_>, file_json: &str, ascii: bool) -> PyResult<String> {
         let file: Planned = from_json("file", file_json)?;
-        let start = match &warm {
-            None => None,
-            Some((vertices, name)) => Some((self.warm_vertices(vertices)?, name.clone())),
-        };
-        let outcome = py.detach(|| {
-            let warm = start.as_ref().map(|(v, n)| (v.as_slice(), n.as_str()));
-            self.0.fit(&file, ascii, warm)
-        });
+        let outcome = py.detach(|| self.0.fit(&file, ascii));
+        Ok(to_json(&outcome.report))
+    }
+
+    /// Fits one frame of a sequence as `sequence` does: a tracker with the rules
+    /// `tracking_json` (`RunBook.tracking_json`) continued from `state_json` (the previous
+    /// frame's; `None` for the first), the entry's warm start named `warm_name`. Returns
+    /// `(entry JSON, the next frame's state JSON, whether the frame was fitted)`.
+    #[pyo3(signature = (file_json, tracking_json, state_json=None, warm_name=None, ascii=false))]
+    fn track(
+        &self,
+        py: Python<'_>,
+        file_json: &str,
+        tracking_json: &str,
+        state_json: Option<&str>,
+        warm_name: Option<&str>,
+        ascii: bool,
+    ) -> PyResult<(String, String, bool)> {
+        let file: Planned = from_json("file", file_json)?;
+        let tracking: TrackOptions = from_json("tracking", tracking_json)?;
+        let state: Option<TrackerState> = state_json.map(|s| from_json("state", s)).transpose()?;
+        let (outcome, next) = py.detach(|| self.0.track(&file, ascii, tracking, state, warm_name));
         Ok((
             to_json(&outcome.report),
-            outcome.fitted.map(|v| array2(py, v)),
+            to_json(&next),
+            outcome.fitted.is_some(),
         ))
     }
 
-    /// `sequence --resume`: `(entry JSON, the frame's earlier output)`, or `None` when it
-    /// cannot be reused (the frame is then fitted again).
-    #[pyo3(signature = (file_json, warm_name=None))]
-    fn resume_frame<'py>(
+    /// `sequence --resume`: `(entry JSON, the next frame's state JSON)` with the frame's
+    /// earlier output taken as its fit, or `None` when it cannot be reused (the frame is then
+    /// fitted again).
+    #[pyo3(signature = (file_json, state_json=None, warm_name=None))]
+    fn resume_frame(
         &self,
-        py: Python<'py>,
+        py: Python<'_>,
         file_json: &str,
+        state_json: Option<&str>,
         warm_name: Option<&str>,
-    ) -> PyResult<Option<(String, Bound<'py, PyArray2<f64>>)>> {
+    ) -> PyResult<Option<(String, String)>> {
         let file: Planned = from_json("file", file_json)?;
-        let resumed = py.detach(|| self.0.resume_frame(&file, warm_name));
+        let state: Option<TrackerState> = state_json.map(|s| from_json("state", s)).transpose()?;
+        let resumed = py.detach(|| {
+            self.0
+                .resume_frame(&file, warm_name)
+                .map(|(entry, vertices)| (entry, self.0.accept(state, &vertices)))
+        });
         Ok(resumed
             .ok()
-            .map(|(entry, vertices)| (to_json(&entry), array2(py, vertices))))
-    }
-}
-
-impl FileFitter {
-    fn warm_vertices(&self, a: &PyReadonlyArray2<'_, f64>) -> PyResult<Vec<[f64; 3]>> {
-        let shape = a.shape();
-        if shape[1] != 3 || shape[0] != self.0.vertex_count() {
-            return Err(InvalidInputError::new_err(format!(
-                "warm: expected shape ({}, 3), got {shape:?}",
-                self.0.vertex_count()
-            )));
-        }
-        Ok(a.as_array()
-            .rows()
-            .into_iter()
-            .map(|r| [r[0], r[1], r[2]])
-            .collect())
+            .map(|(entry, next)| (to_json(&entry), to_json(&next))))
     }
 }
 

@@ -129,6 +129,20 @@ pub struct TrackedFrame {
     pub figures: FrameFigures,
 }
 
+/// What a [`Tracker`] carries from one frame to the next (its last two fits, the first
+/// frame's figures, the frames seen): a sequence whose frames run as separate tasks (a Dask
+/// chain, `foldmatch sequence --scheduler`) passes it from each frame's task to the next, so
+/// that it tracks exactly as one local [`Tracker`] does.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct TrackerState {
+    /// The last two fits, latest first.
+    pub previous: Vec<Vec<[f64; 3]>>,
+    /// The first frame's figures (the jumps' reference).
+    pub first: Option<FrameFigures>,
+    /// The frames seen (fitted, accepted or failed).
+    pub frames: usize,
+}
+
 /// A sequence in progress: the template, the settings and the last fits.
 pub struct Tracker {
     template: Vec<[f64; 3]>,
@@ -156,6 +170,31 @@ impl Tracker {
             first: None,
             frames: 0,
         })
+    }
+
+    /// What the next frame needs of the frames so far ([`TrackerState`]).
+    pub fn state(&self) -> TrackerState {
+        TrackerState {
+            previous: self.previous.clone(),
+            first: self.first.clone(),
+            frames: self.frames,
+        }
+    }
+
+    /// Continues from `state` (another tracker's [`Tracker::state`] over the same template);
+    /// fits of another vertex count are refused.
+    pub fn restore(&mut self, state: TrackerState) -> Result<()> {
+        for fitted in &state.previous {
+            validate_points("tracker state", fitted)?;
+            if fitted.len() != self.template.len() {
+                return Err(self.count_error(fitted.len()));
+            }
+        }
+        self.previous = state.previous;
+        self.previous.truncate(2);
+        self.first = state.first;
+        self.frames = state.frames;
+        Ok(())
     }
 
     /// The frames seen so far (fitted, accepted or failed).

@@ -220,3 +220,33 @@ fn reanchoring_keeps_the_refit_only_when_its_edges_are_truer() {
         assert_eq!(reanchored, plain);
     }
 }
+
+#[test]
+fn a_tracker_restored_from_a_state_through_json_continues_bit_for_bit() {
+    let (template, faces, copies) = moving_copies(4);
+    let mut whole = Tracker::new(&template, &faces, quick()).unwrap();
+    let mut fits = Vec::new();
+    for copy in &copies {
+        fits.push(whole.step(copy, None, None, &mut |_| true).unwrap());
+    }
+    // Frame by frame, each by a fresh tracker that only sees the state the last one left.
+    let mut state = TrackerState::default();
+    for (t, copy) in copies.iter().enumerate() {
+        let mut fresh = Tracker::new(&template, &faces, quick()).unwrap();
+        let json = serde_json::to_string(&state).unwrap();
+        fresh.restore(serde_json::from_str(&json).unwrap()).unwrap();
+        let frame = fresh.step(copy, None, None, &mut |_| true).unwrap();
+        assert_eq!(frame.result.vertices, fits[t].result.vertices, "frame {t}");
+        assert_eq!(frame.figures, fits[t].figures, "frame {t}");
+        state = fresh.state();
+    }
+    assert_eq!(state.frames, copies.len());
+    assert_eq!(state, whole.state());
+    // A state of another template's vertex count is refused.
+    let mut other = Tracker::new(&template, &faces, quick()).unwrap();
+    let wrong = TrackerState {
+        previous: vec![template[..5].to_vec()],
+        ..TrackerState::default()
+    };
+    assert!(other.restore(wrong).is_err());
+}
