@@ -112,3 +112,23 @@ def test_transfer_between_identical_bodies_is_the_identity(tshirt):
     moved = bv @ r.T + [0.1, 0.2, 0.3]
     out = dressed_scans.transfer_to_body(pts, (bv, bf), (moved, bf), 1.0)
     assert np.allclose(out, pts @ r.T + [0.1, 0.2, 0.3], atol=1e-9)
+
+
+def test_the_default_fits_the_shirt_of_a_dressed_scan_almost_as_without_the_body(tshirt):
+    """Issue 26's figure on the tuning scan: the default's whole-scan fit (garment refit on)
+    within 1.25× of its fit of the same scan without the body points, and within 0.8× of the
+    placed template's error; without the refit it is not (1.46×)."""
+    import foldmatch_rs as fm
+
+    _, built = tshirt
+    tpl, faces, scan, labels, truth = (built[k] for k in ("placed", "faces", "scan", "labels", "truth"))
+    whole = fm.fit(tpl, faces, scan)
+    free = fm.fit(tpl, faces, scan[labels > 0])
+    once = fm.fit(tpl, faces, scan, params={"garment_refit": 0.0})
+    rms = dressed_scans.rms
+    assert 0 < whole.diagnostics["garment_refit_points"] < len(scan)
+    assert free.diagnostics["garment_refit_points"] == once.diagnostics["garment_refit_points"] == 0
+    ratio = rms(whole.vertices, truth) / rms(free.vertices, truth)
+    assert ratio <= 1.25, ratio
+    assert rms(whole.vertices, truth) <= 0.8 * rms(tpl, truth)
+    assert rms(once.vertices, truth) / rms(free.vertices, truth) > 1.25

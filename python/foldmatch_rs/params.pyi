@@ -242,6 +242,16 @@ class FitParams(Mapping[str, Any]):
         (docs/method.md "Do no harm"). 0: off, the fit is always returned (the `"paper"` and
         `"tracking"` presets).
         """
+    @property
+    def garment_refit(self) -> float:
+        """The garment refit on a scan that holds more than the garment (a dressed body: its
+        bounding-box diagonal exceeds the template's 1.5-fold): the scan points the first fit
+        explains — within `garment_refit ×` the larger of the median vertex-to-scan distance and
+        the mean edge length of a fitted vertex, and not outward of the fit's rim — are taken as
+        the garment, and the template is fitted again from its start onto them alone, as onto a
+        garment-only scan (about 1.7× the time of one fit on such scans; docs/method.md "Scans of
+        dressed people"). 0: off (the `"paper"` preset).
+        """
 
     # ---- Acceleration
     @property

@@ -14,6 +14,7 @@
 //! All per-vertex buffers are allocated once per fit ([`Workspace`]).
 
 mod attraction;
+mod garment_refit;
 mod landmark_pull;
 mod model;
 mod params;
@@ -44,6 +45,7 @@ use crate::landmarks::Landmarks;
 use crate::math::vec3;
 use schedule::{drive, median_scan_distance, selection_distance, ScheduleRun};
 use setup::Prepared;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// Fits the template to the target.
 ///
@@ -229,12 +231,25 @@ fn fit_from(
         landmarks,
         &schedules,
     )?;
+    // A scan that holds more than the garment is fitted twice: the second fit onto the points
+    // the first explains (docs/method.md "Scans of dressed people"); each reports half the
+    // iterations to the observer.
+    let refit = params.schedule.garment_refit > 0.0 && prepared.garment.is_some();
+    let total = params.iterations;
+    let pass = AtomicUsize::new(0);
+    let mut observed = |p: &Progress| {
+        if refit {
+            observer(&p.of_passes(pass.load(Ordering::Relaxed), total))
+        } else {
+            observer(p)
+        }
+    };
+    let observer: &mut (dyn FnMut(&Progress) -> bool + Send) = &mut observed;
     let mut runs: Vec<ScheduleRun> = schedules
         .into_iter()
         .map(|p| ScheduleRun::new(&prepared, p))
         .collect();
     let setup = clock.elapsed().as_secs_f64();
-    let total = params.iterations;
     // Side by side up to the comparison (by default the last iteration; a single run: all).
     let compare_at = if runs.len() > 1 {
         ((params.schedule.selection_at * total as f64).ceil() as usize).clamp(1, total)
@@ -273,10 +288,27 @@ fn fit_from(
         _ => winner.user_vertices(&prepared),
     };
     // Do no harm: a template already on its scan stays there (docs/method.md "Do no harm").
-    let garment = prepared.garment.as_deref();
     // The template where the fit started (pre-aligned, by the landmarks too), in the user's frame.
     let mut start_vertices = prepared.start.clone();
     prepared.frame.inverse_in_place(&mut start_vertices);
+    // Before a garment refit, the points compared are those the start explains by the refit's
+    // rule (not past its rim): skin past a hem, which a fit drawn to it comes closer to, does
+    // not count against a start that sits on its garment.
+    let start_garment: Option<Vec<usize>> =
+        (refit && params.schedule.keep_margin > 0.0).then(|| {
+            let w = garment_refit::garment_weights(
+                target,
+                target_weights,
+                &start_vertices,
+                &prepared.faces,
+                params.schedule.garment_refit,
+            );
+            (0..w.len()).filter(|&j| w[j] > 0.0).collect()
+        });
+    let garment = start_garment
+        .as_deref()
+        .filter(|g| !g.is_empty())
+        .or(prepared.garment.as_deref());
     let kept_start = params.schedule.keep_margin > 0.0 && {
         let fitted = median_scan_distance(target, target_weights, garment, &vertices);
         let start = median_scan_distance(target, target_weights, garment, &start_vertices);
@@ -316,7 +348,43 @@ fn fit_from(
     chosen.diagnostics.kept_start = kept_start;
     let finish = clock.elapsed().as_secs_f64() - setup - iterations;
     chosen.diagnostics.wall_seconds = [setup, iterations, finish];
-    Ok(chosen)
+    if !refit || kept_start || chosen.diagnostics.stopped_by_callback {
+        return Ok(chosen);
+    }
+    let weights = garment_refit::garment_weights(
+        target,
+        target_weights,
+        &chosen.vertices,
+        &prepared.faces,
+        params.schedule.garment_refit,
+    );
+    let garment_points = weights.iter().filter(|&&w| w > 0.0).count();
+    let live = kept.as_ref().map_or(target.len(), Vec::len);
+    if garment_points < template_vertices.len() / 4 || garment_points == live {
+        // Too little explained to be the garment, or nothing left out: the first fit stands.
+        return Ok(chosen);
+    }
+    let mut inner = params.clone();
+    inner.schedule.garment_refit = 0.0;
+    // From where the first fit started (pre-aligned already, by the landmarks too).
+    inner.prealign = Prealign::None;
+    let mut start = prepared.start.clone();
+    prepared.frame.inverse_in_place(&mut start);
+    pass.store(1, Ordering::Relaxed);
+    let mut again = fit_from(
+        &start,
+        None,
+        template_faces,
+        target,
+        target_faces,
+        Some(&weights),
+        landmarks,
+        &inner,
+        observer,
+    )?;
+    again.params = params.clone();
+    again.diagnostics.garment_refit_points = garment_points;
+    Ok(again)
 }
 
 /// The template moved by the global pre-alignment of [`FitParams::prealign`] (`Rigid`,

@@ -23,6 +23,7 @@ impl FitParams {
         p.schedule.anneal_fraction = 0.0;
         p.schedule.selection = Selection::Single;
         p.schedule.keep_margin = 0.0;
+        p.schedule.garment_refit = 0.0;
         p.readings.regularization = Regularization::AffineInvariant;
         p
     }

@@ -31,6 +31,18 @@ pub struct Progress {
     pub record: IterationRecord,
 }
 
+impl Progress {
+    /// This progress of one of two passes over `total` iterations each (`pass` 0 or 1), as
+    /// progress over `total` iterations in all: each pass counts half.
+    pub(super) fn of_passes(&self, pass: usize, total: usize) -> Progress {
+        Progress {
+            iteration: (pass * total + self.iteration).div_ceil(2),
+            iterations: total,
+            record: self.record,
+        }
+    }
+}
+
 /// Wall-clock seconds spent in each stage over the whole fit (for the benchmarks' breakdown).
 #[derive(Clone, Copy, Debug, Default, Serialize, Deserialize)]
 pub struct StageTimes {
@@ -105,6 +117,10 @@ pub struct Diagnostics {
     /// Whether the do-no-harm rule returned the template as it started
     /// ([`keep_margin`](super::Schedule::keep_margin)).
     pub kept_start: bool,
+    /// The scan points of the garment refit on a scan that holds more than the garment
+    /// ([`garment_refit`](super::Schedule::garment_refit)); 0 when there was none.
+    #[serde(default)]
+    pub garment_refit_points: usize,
     /// The normalized frame used.
     pub frame: Option<Frame>,
     /// Seconds per stage of the iterations, summed over the schedules run (under schedule

@@ -142,6 +142,7 @@ impl FitParams {
                 NON_NEGATIVE,
             ),
             ("keep_margin", self.schedule.keep_margin, NON_NEGATIVE),
+            ("garment_refit", self.schedule.garment_refit, NON_NEGATIVE),
             ("two_way", self.schedule.two_way, NON_NEGATIVE),
             ("two_way_trust", self.schedule.two_way_trust, NON_NEGATIVE),
             ("two_way_rim", self.schedule.two_way_rim, NON_NEGATIVE),

@@ -1,0 +1,233 @@
+//! The garment refit on a scan that holds more than the garment (docs/method.md "Scans of
+//! dressed people"): the fit's own segmentation of the scan. A dressed-body scan's skin and
+//! hair continue the garment's surface past its hems, cuffs and collar, where a garment-only scan
+//! ends; the first fit, which has to ignore them by its trust radius and rim rules, leaves the
+//! garment's rim without the scan edge that places it. The points that this first fit explains —
+//! within one trust unit of a fitted vertex, and not outward of the fit's rim (Turk & Levoy's
+//! boundary rule, 1994) — are taken as the garment, and the template is fitted again from its
+//! start onto those points alone, as onto a garment-only scan.
+
+use super::setup::mean_edge_length;
+use crate::knn::PointIndex;
+use crate::math::{vec3, Vec3};
+use rayon::prelude::*;
+use std::collections::HashMap;
+
+/// The refit's weights of the scan points: the given weight (1 when none) on the points that
+/// `fitted` explains, 0 elsewhere. A point is explained when its nearest fitted vertex is within
+/// `radius_multiple ×` the larger of the median vertex-to-scan distance and the mean edge length
+/// ([`garment_refit`](crate::fit::Schedule::garment_refit)), and, when that vertex lies on the
+/// template's boundary, the point is not outward of it (on the far side of the plane through the
+/// vertex normal to its outward direction in the surface). Points of weight 0 stay 0.
+pub(super) fn garment_weights(
+    target: &[[f64; 3]],
+    weights: Option<&[f64]>,
+    fitted: &[[f64; 3]],
+    faces: &[[u32; 3]],
+    radius_multiple: f64,
+) -> Vec<f64> {
+    let given = |j: usize| weights.map_or(1.0, |w| w[j]);
+    let live: Vec<usize> = (0..target.len()).filter(|&j| given(j) > 0.0).collect();
+    let scan: Vec<[f64; 3]> = live.iter().map(|&j| target[j]).collect();
+    let scan_index = PointIndex::new(&scan);
+    let mut nearest: Vec<f64> = fitted
+        .par_iter()
+        .map(|v| scan_index.nearest_one(v).1)
+        .collect();
+    let mid = nearest.len() / 2;
+    let median = nearest.select_nth_unstable_by(mid, f64::total_cmp).1.sqrt();
+    let radius = radius_multiple * median.max(mean_edge_length(fitted, faces));
+    let outward = rim_outward(fitted, faces);
+    let fitted_index = PointIndex::new(fitted);
+    let explained: Vec<bool> = scan
+        .par_iter()
+        .map(|p| {
+            let (v, d2) = fitted_index.nearest_one(p);
+            let v = v as usize;
+            d2 <= radius * radius && (vec3(p) - vec3(&fitted[v])).dot(&vec3(&outward[v])) <= 0.0
+        })
+        .collect();
+    let mut out = vec![0.0; target.len()];
+    for (&j, &e) in live.iter().zip(&explained) {
+        if e {
+            out[j] = given(j);
+        }
+    }
+    out
+}
+
+/// Every vertex's outward direction on the boundary of the mesh `(vertices, faces)`: in the
+/// surface, normal to the boundary — the unit vector from the centroid of the vertex's
+/// one-ring to the vertex, less its component along the boundary (the direction between its
+/// two boundary neighbours); zero off the boundary.
+fn rim_outward(vertices: &[[f64; 3]], faces: &[[u32; 3]]) -> Vec<[f64; 3]> {
+    let m = vertices.len();
+    // Every edge, with its face count and its direction in its first face.
+    let mut edges: HashMap<(u32, u32), (u32, (u32, u32))> = HashMap::new();
+    for f in faces {
+        for (a, b) in [(f[0], f[1]), (f[1], f[2]), (f[2], f[0])] {
+            edges.entry((a.min(b), a.max(b))).or_insert((0, (a, b))).0 += 1;
+        }
+    }
+    let mut ring_sum = vec![Vec3::zeros(); m];
+    let mut ring_count = vec![0usize; m];
+    let mut keys: Vec<(u32, u32)> = edges.keys().copied().collect();
+    keys.sort_unstable();
+    for (a, b) in keys {
+        ring_sum[a as usize] += vec3(&vertices[b as usize]);
+        ring_sum[b as usize] += vec3(&vertices[a as usize]);
+        ring_count[a as usize] += 1;
+        ring_count[b as usize] += 1;
+    }
+    // Along the boundary: the boundary edges in their faces' direction, which runs around each
+    // boundary loop one way on a consistently oriented mesh (at a vertex: next − previous).
+    let mut along = vec![Vec3::zeros(); m];
+    let mut on_rim = vec![false; m];
+    let mut rim: Vec<(u32, u32)> = edges
+        .values()
+        .filter(|(n, _)| *n == 1)
+        .map(|&(_, e)| e)
+        .collect();
+    rim.sort_unstable();
+    for (a, b) in rim {
+        let d = vec3(&vertices[b as usize]) - vec3(&vertices[a as usize]);
+        along[a as usize] += d;
+        along[b as usize] += d;
+        on_rim[a as usize] = true;
+        on_rim[b as usize] = true;
+    }
+    (0..m)
+        .map(|v| {
+            if !on_rim[v] || ring_count[v] == 0 {
+                return [0.0; 3];
+            }
+            let mut d = vec3(&vertices[v]) - ring_sum[v] / ring_count[v] as f64;
+            let t = along[v].try_normalize(0.0);
+            if let Some(t) = t {
+                d -= d.dot(&t) * t;
+            }
+            d.try_normalize(0.0).map_or([0.0; 3], Into::into)
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fit::{fit_simple, fit_weighted, FitParams};
+    use crate::synthetic::grid_sheet;
+
+    /// A 1 × 1 sheet in z = 0 (9 × 9 vertices, edge 0.125).
+    fn sheet() -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
+        grid_sheet(9, 9, 1.0, 1.0)
+    }
+
+    #[test]
+    fn the_garment_is_what_the_fit_explains_and_not_past_its_rim() {
+        let (fitted, faces) = sheet();
+        let mut scan = Vec::new();
+        let mut expected = Vec::new();
+        // On the sheet: a 20 × 20 grid strictly inside it, 0.01 above it.
+        for i in 0..20 {
+            for j in 0..20 {
+                let (x, y) = (-0.475 + 0.05 * i as f64, -0.475 + 0.05 * j as f64);
+                scan.push([x, y, 0.01]);
+                expected.push(true);
+            }
+        }
+        // Its continuation past the edge x = 0.5 (skin past a hem), within the radius.
+        for j in 0..10 {
+            scan.push([0.56, -0.45 + 0.1 * j as f64, 0.0]);
+            expected.push(false);
+        }
+        // Far away (another part of the body).
+        for j in 0..10 {
+            scan.push([0.1 * j as f64, 0.0, -1.5]);
+            expected.push(false);
+        }
+        let mut weights = vec![1.0; scan.len()];
+        weights[3] = 0.5; // kept, with its weight
+        weights[5] = 0.0; // removed by the user: stays removed
+        let w = garment_weights(&scan, Some(&weights), &fitted, &faces, 1.0);
+        for (j, (&wj, &garment)) in w.iter().zip(&expected).enumerate() {
+            let want = if garment { weights[j] } else { 0.0 };
+            assert_eq!(wj, want, "point {j} at {:?}", scan[j]);
+        }
+        // Without weights every explained point weighs 1; a larger radius takes no point past the
+        // rim either.
+        let w = garment_weights(&scan, None, &fitted, &faces, 3.0);
+        assert_eq!(w.iter().filter(|&&x| x > 0.0).count(), 400);
+    }
+
+    /// A template (vertices, faces) and a scan.
+    type Case = (Vec<[f64; 3]>, Vec<[u32; 3]>, Vec<[f64; 3]>);
+
+    /// A sheet template and a scan of it bent up along x (the garment) continued past its edge
+    /// x = 0.5 by a flat strip (skin past a hem) and a far plane (the rest of a body).
+    fn dressed_sheet() -> Case {
+        let (template, faces) = sheet();
+        let bend = |x: f64| 0.15 * (std::f64::consts::PI * x).cos();
+        let mut scan = Vec::new();
+        for i in 0..41 {
+            for j in 0..41 {
+                let (x, y) = (-0.5 + 0.025 * i as f64, -0.5 + 0.025 * j as f64);
+                scan.push([x, y, bend(x)]);
+            }
+        }
+        for i in 1..13 {
+            for j in 0..41 {
+                scan.push([0.5 + 0.025 * i as f64, -0.5 + 0.025 * j as f64, bend(0.5)]);
+            }
+        }
+        let (body, _) = grid_sheet(25, 25, 3.0, 3.0);
+        scan.extend(body.iter().map(|p| [p[0], p[1], -1.5]));
+        (template, faces, scan)
+    }
+
+    #[test]
+    fn a_dressed_scan_is_fitted_again_onto_the_points_the_first_fit_explains() {
+        let (template, faces, scan) = dressed_sheet();
+        let params = FitParams {
+            iterations: 40,
+            ..FitParams::default()
+        };
+        let refit = fit_simple(&template, &faces, &scan, None, &params).unwrap();
+        let mut once = params.clone();
+        once.schedule.garment_refit = 0.0;
+        let first = fit_simple(&template, &faces, &scan, None, &once).unwrap();
+        assert_eq!(first.diagnostics.garment_refit_points, 0);
+        // The second fit is the fit of the first's explained points, from the same start.
+        let weights = garment_weights(&scan, None, &first.vertices, &faces, 1.0);
+        let garment = weights.iter().filter(|&&w| w > 0.0).count();
+        assert_eq!(refit.diagnostics.garment_refit_points, garment);
+        assert!(
+            garment < 41 * 41 + 41 * 6,
+            "{garment}: the strip past the edge is left out"
+        );
+        assert!(
+            weights[41 * 41 + 41 * 12..].iter().all(|&w| w == 0.0),
+            "the far plane"
+        );
+        let again = fit_weighted(
+            &template,
+            &faces,
+            &scan,
+            None,
+            Some(&weights),
+            &once,
+            &mut |_| true,
+        )
+        .unwrap();
+        assert_eq!(refit.vertices, again.vertices);
+        // The observer saw one run of the iterations, each pass counting half.
+        let mut seen = Vec::new();
+        let observed = crate::fit::fit(&template, &faces, &scan, None, &params, &mut |p| {
+            seen.push((p.iteration, p.iterations));
+            true
+        })
+        .unwrap();
+        assert_eq!(observed.vertices, refit.vertices);
+        assert!(seen.windows(2).all(|w| w[0].0 <= w[1].0), "{seen:?}");
+        assert_eq!(seen.last(), Some(&(40, 40)));
+    }
+}
