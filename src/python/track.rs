@@ -49,6 +49,7 @@ impl Tracker {
             distortion_jump,
             distance_jump,
             reanchor,
+            ..TrackParams::default()
         };
         let tracker = track::Tracker::new(tv, &tf, rules).map_err(to_pyerr)?;
         Ok(Self(Mutex::new(tracker)))

@@ -44,6 +44,11 @@ pub struct TrackParams {
     /// better of the two fits (off by default: on the DiffCloth wind sequence the second fit
     /// was kept on 2 of 20 flagged frames, at twice their time; docs/method.md "Tracking").
     pub reanchor: bool,
+    /// The do-no-harm margin ([`keep_margin`](crate::fit::Schedule::keep_margin)) of the first
+    /// frame, which starts from the template itself as a single fit does (the later frames,
+    /// warm-started, use the fit's own, 0 in the `"tracking"` preset): a template that is the
+    /// first frame's mesh stays on it. 0: the fit's own for every frame.
+    pub first_keep_margin: f64,
 }
 
 /// The tracking rules' defaults (docs/method.md "Tracking").
@@ -61,6 +66,7 @@ impl Default for TrackParams {
             distortion_jump: DEFAULT_DISTORTION_JUMP,
             distance_jump: DEFAULT_DISTANCE_JUMP,
             reanchor: false,
+            first_keep_margin: crate::fit::DEFAULT_KEEP_MARGIN,
         }
     }
 }
@@ -82,6 +88,13 @@ impl TrackParams {
                 "distortion_jump",
                 self.distortion_jump,
                 "must be > 0 (+inf turns the test off)",
+            ));
+        }
+        if self.first_keep_margin.is_nan() || self.first_keep_margin < 0.0 {
+            return Err(FoldMatchError::parameter(
+                "first_keep_margin",
+                self.first_keep_margin,
+                "must be >= 0",
             ));
         }
         if self.distance_jump.is_nan() || self.distance_jump <= 1.0 {
@@ -239,6 +252,16 @@ impl Tracker {
         let frame = self.frames;
         let start = self.start();
         let warm_started = !self.previous.is_empty();
+        // The first frame starts from the template: the do-no-harm rule of a single fit.
+        let first_params;
+        let params = if warm_started || self.params.first_keep_margin == 0.0 {
+            &self.params.fit
+        } else {
+            let mut p = self.params.fit.clone();
+            p.schedule.keep_margin = p.schedule.keep_margin.max(self.params.first_keep_margin);
+            first_params = p;
+            &first_params
+        };
         let fit = |start: &[[f64; 3]], observer: &mut (dyn FnMut(&Progress) -> bool + Send)| {
             fit_anchored(
                 start,
@@ -247,7 +270,7 @@ impl Tracker {
                 target,
                 target_faces,
                 target_weights,
-                &self.params.fit,
+                params,
                 observer,
             )
         };

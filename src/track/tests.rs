@@ -3,6 +3,7 @@
 use super::*;
 use crate::fit::fit_simple;
 use crate::math::vec3;
+use crate::math::Vec3;
 use crate::quality::{assess, AssessInput, VerdictThresholds};
 use crate::synthetic::{folded_sheet, SheetSpec};
 use nalgebra::{Rotation3, Unit, Vector3};
@@ -249,4 +250,36 @@ fn a_tracker_restored_from_a_state_through_json_continues_bit_for_bit() {
         ..TrackerState::default()
     };
     assert!(other.restore(wrong).is_err());
+}
+
+#[test]
+fn the_first_frame_keeps_a_template_that_is_its_scan() {
+    // The template is the first frame's shape: the first fit starts on it and keeps it (the
+    // single fit's do-no-harm rule); with the rule off the fit is returned as it ends.
+    let (template, faces, _) = moving_copies(1);
+    // A scan of its surface: the vertices and the faces' centroids.
+    let mut scan = template.clone();
+    scan.extend(faces.iter().map(|f| {
+        let c = f
+            .iter()
+            .fold(Vec3::zeros(), |a, &v| a + vec3(&template[v as usize]))
+            / 3.0;
+        [c.x, c.y, c.z]
+    }));
+    let mut tracker = Tracker::new(&template, &faces, quick()).unwrap();
+    let frame = tracker.step(&scan, None, None, &mut |_| true).unwrap();
+    assert!(frame.result.diagnostics.kept_start);
+    assert!(rms(&frame.result.vertices, &template) < 1e-12);
+    let off = TrackParams {
+        first_keep_margin: 0.0,
+        ..quick()
+    };
+    let mut tracker = Tracker::new(&template, &faces, off).unwrap();
+    let frame = tracker.step(&scan, None, None, &mut |_| true).unwrap();
+    assert!(!frame.result.diagnostics.kept_start);
+    let bad = TrackParams {
+        first_keep_margin: -1.0,
+        ..quick()
+    };
+    assert!(Tracker::new(&template, &faces, bad).is_err());
 }
