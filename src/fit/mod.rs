@@ -366,6 +366,9 @@ fn fit_from(
     }
     let mut inner = params.clone();
     inner.schedule.garment_refit = 0.0;
+    // The first fit was not worse than its start; the second is not compared with it again
+    // (on its fewer points the start can look as close as a fit that is far better).
+    inner.schedule.keep_margin = 0.0;
     // From where the first fit started (pre-aligned already, by the landmarks too).
     inner.prealign = Prealign::None;
     let mut start = prepared.start.clone();
