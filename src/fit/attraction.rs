@@ -270,6 +270,20 @@ pub(super) fn explained_points(
     if params.schedule.two_way_trust <= 0.0 || diag(scan) <= GARMENT_FRAME_RATIO * diag(template) {
         return None;
     }
+    let radius =
+        DRESSED_TRUST_FACTOR * params.schedule.two_way_trust * trust_unit(template, faces, scan);
+    let template_index = PointIndex::new(template);
+    let explained: Vec<u32> = (0..scan.len() as u32)
+        .into_par_iter()
+        .filter(|&j| template_index.nearest_one(&scan[j as usize]).1 <= radius * radius)
+        .collect();
+    (!explained.is_empty() && explained.len() < scan.len()).then_some(explained)
+}
+
+/// The unit of the trust radius for `template` against `scan` (docs/method.md "Scans of dressed
+/// people"): the larger of the median distance from a template vertex to its nearest scan point
+/// and the template's mean edge length.
+pub(super) fn trust_unit(template: &[[f64; 3]], faces: &[[u32; 3]], scan: &[[f64; 3]]) -> f64 {
     let scan_index = PointIndex::new(scan);
     let mut nearest: Vec<f64> = template
         .par_iter()
@@ -277,13 +291,5 @@ pub(super) fn explained_points(
         .collect();
     let mid = nearest.len() / 2;
     let median = nearest.select_nth_unstable_by(mid, f64::total_cmp).1.sqrt();
-    let radius = DRESSED_TRUST_FACTOR
-        * params.schedule.two_way_trust
-        * median.max(mean_edge_length(template, faces));
-    let template_index = PointIndex::new(template);
-    let explained: Vec<u32> = (0..scan.len() as u32)
-        .into_par_iter()
-        .filter(|&j| template_index.nearest_one(&scan[j as usize]).1 <= radius * radius)
-        .collect();
-    (!explained.is_empty() && explained.len() < scan.len()).then_some(explained)
+    median.max(mean_edge_length(template, faces))
 }

@@ -7,7 +7,7 @@
 //! boundary rule, 1994) — are taken as the garment, and the template is fitted again from its
 //! start onto those points alone, as onto a garment-only scan.
 
-use super::setup::mean_edge_length;
+use super::attraction::trust_unit;
 use crate::knn::PointIndex;
 use crate::math::{vec3, Vec3};
 use rayon::prelude::*;
@@ -29,14 +29,7 @@ pub(super) fn garment_weights(
     let given = |j: usize| weights.map_or(1.0, |w| w[j]);
     let live: Vec<usize> = (0..target.len()).filter(|&j| given(j) > 0.0).collect();
     let scan: Vec<[f64; 3]> = live.iter().map(|&j| target[j]).collect();
-    let scan_index = PointIndex::new(&scan);
-    let mut nearest: Vec<f64> = fitted
-        .par_iter()
-        .map(|v| scan_index.nearest_one(v).1)
-        .collect();
-    let mid = nearest.len() / 2;
-    let median = nearest.select_nth_unstable_by(mid, f64::total_cmp).1.sqrt();
-    let radius = radius_multiple * median.max(mean_edge_length(fitted, faces));
+    let radius = radius_multiple * trust_unit(fitted, faces, &scan);
     let outward = rim_outward(fitted, faces);
     let fitted_index = PointIndex::new(fitted);
     let explained: Vec<bool> = scan
