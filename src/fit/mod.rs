@@ -37,7 +37,7 @@ pub use params::{
     DEFAULT_TWO_WAY_RIM, DEFAULT_TWO_WAY_TRUST, FAR_AWAY, FAST_TWO_WAY, MAX_SCAN_SAMPLE,
     PAPER_K_MAX, PAPER_RHO, RIGID_SCAN_POINTS_PER_VERTEX, SCHEDULE_NAMES,
 };
-pub use result::{Diagnostics, FitResult, IterationRecord, Progress, StageTimes};
+pub use result::{ComponentFigures, Diagnostics, FitResult, IterationRecord, Progress, StageTimes};
 pub use schedule::{keeps_start, select_schedule};
 
 use crate::error::{FoldMatchError, Result};
@@ -333,6 +333,12 @@ fn fit_from(
     )?;
     // Only the chosen run is finished (its wrinkle fields are a whole Eq. 4–8 pass).
     let mut chosen = winner.finish(&prepared, vertices, assessment);
+    chosen.diagnostics.components = result::component_figures(
+        &prepared.faces,
+        &chosen.residuals,
+        &chosen.support,
+        chosen.quality.scan_diagonal,
+    );
     if let Some((_, _, distances, spreads)) = selection {
         chosen.params = params.clone();
         let d = &mut chosen.diagnostics;

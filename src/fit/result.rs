@@ -89,6 +89,62 @@ pub(super) fn timed<T>(slot: &mut f64, f: impl FnOnce() -> T) -> T {
     out
 }
 
+/// The figures of one connected component of the template (one garment of several).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ComponentFigures {
+    /// Its lowest vertex index (components are listed in this order).
+    pub first_vertex: usize,
+    /// Its vertex count.
+    pub vertices: usize,
+    /// Mean distance from its fitted vertices to their nearest scan points ÷ the scan's
+    /// bounding-box diagonal (the verdict's `fit_to_scan`, over this component).
+    pub fit_to_scan: f64,
+    /// Share of its vertices without scan support.
+    pub unsupported_share: f64,
+}
+
+/// The [`ComponentFigures`] of every connected component with faces of the template
+/// `(faces, m vertices)`, from the per-vertex `residuals` and `support` of a fit; empty when
+/// there are fewer than two.
+pub(super) fn component_figures(
+    faces: &[[u32; 3]],
+    residuals: &[f64],
+    support: &[bool],
+    diagonal: f64,
+) -> Vec<ComponentFigures> {
+    let m = residuals.len();
+    let (label, count) = crate::mesh::connected_components(faces, m);
+    let mut has_faces = vec![false; count];
+    for f in faces {
+        has_faces[label[f[0] as usize] as usize] = true;
+    }
+    if has_faces.iter().filter(|&&f| f).count() < 2 {
+        return Vec::new();
+    }
+    let mut out: Vec<ComponentFigures> = (0..count)
+        .map(|_| ComponentFigures {
+            first_vertex: usize::MAX,
+            ..ComponentFigures::default()
+        })
+        .collect();
+    for v in 0..m {
+        let c = &mut out[label[v] as usize];
+        c.first_vertex = c.first_vertex.min(v);
+        c.vertices += 1;
+        c.fit_to_scan += residuals[v];
+        c.unsupported_share += f64::from(u8::from(!support[v]));
+    }
+    for c in &mut out {
+        let n = c.vertices.max(1) as f64;
+        c.fit_to_scan /= n * if diagonal > 0.0 { diagonal } else { 1.0 };
+        c.unsupported_share /= n;
+    }
+    out.into_iter()
+        .zip(has_faces)
+        .filter_map(|(c, f)| f.then_some(c))
+        .collect()
+}
+
 /// Facts about the inputs and the run, for reports.
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct Diagnostics {
@@ -121,6 +177,11 @@ pub struct Diagnostics {
     /// ([`garment_refit`](super::Schedule::garment_refit)); 0 when there was none.
     #[serde(default)]
     pub garment_refit_points: usize,
+    /// Per connected component of the template, when it has several (garments fitted together;
+    /// docs/dressed.md "Several garments at once"): its figures against the scan; empty for a
+    /// template of one piece.
+    #[serde(default)]
+    pub components: Vec<ComponentFigures>,
     /// The normalized frame used.
     pub frame: Option<Frame>,
     /// Seconds per stage of the iterations, summed over the schedules run (under schedule
@@ -180,4 +241,63 @@ pub struct FitResult {
     pub residuals: Vec<f64>,
     /// Per template vertex, whether it has scan support ([`crate::quality`]).
     pub support: Vec<bool>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fit::{fit_simple, FitParams};
+    use crate::synthetic::grid_sheet;
+
+    #[test]
+    fn each_component_has_its_own_figures() {
+        // Two triangles (vertices 0–2 and 3–5) and a lone vertex 6 (no faces: not listed).
+        let faces = [[0, 1, 2], [3, 4, 5]];
+        let residuals = [1.0, 2.0, 3.0, 10.0, 10.0, 40.0, 99.0];
+        let support = [true, true, false, true, false, false, true];
+        let c = component_figures(&faces, &residuals, &support, 2.0);
+        assert_eq!(c.len(), 2);
+        assert_eq!((c[0].first_vertex, c[0].vertices), (0, 3));
+        assert_eq!((c[1].first_vertex, c[1].vertices), (3, 3));
+        assert!(
+            (c[0].fit_to_scan - 1.0).abs() < 1e-12,
+            "{}",
+            c[0].fit_to_scan
+        );
+        assert!((c[1].fit_to_scan - 10.0).abs() < 1e-12);
+        assert!((c[0].unsupported_share - 1.0 / 3.0).abs() < 1e-12);
+        assert!((c[1].unsupported_share - 2.0 / 3.0).abs() < 1e-12);
+        // One piece: nothing per component.
+        assert!(component_figures(&faces[..1], &residuals[..3], &support[..3], 2.0).is_empty());
+    }
+
+    #[test]
+    fn a_fit_of_two_garments_reports_each() {
+        // Two sheets side by side; the scan is the left one only, lifted a little: the right
+        // sheet ends far from every scan point and unsupported.
+        let (sheet, f) = grid_sheet(9, 9, 1.0, 1.0);
+        let n = sheet.len() as u32;
+        let mut v: Vec<[f64; 3]> = sheet.iter().map(|p| [p[0] - 0.8, p[1], 0.0]).collect();
+        v.extend(sheet.iter().map(|p| [p[0] + 0.8, p[1], 0.0]));
+        let mut faces = f.clone();
+        faces.extend(f.iter().map(|t| t.map(|i| i + n)));
+        let (dense, _) = grid_sheet(21, 21, 1.0, 1.0);
+        let scan: Vec<[f64; 3]> = dense.iter().map(|p| [p[0] - 0.8, p[1], 0.02]).collect();
+        let params = FitParams {
+            iterations: 20,
+            ..FitParams::default()
+        };
+        let r = fit_simple(&v, &faces, &scan, None, &params).unwrap();
+        let c = &r.diagnostics.components;
+        assert_eq!(c.len(), 2);
+        assert_eq!((c[0].vertices, c[1].vertices), (81, 81));
+        assert!(c[0].fit_to_scan < 0.05 && c[1].fit_to_scan > 0.2, "{c:?}");
+        assert!(
+            c[0].unsupported_share < 0.1 && c[1].unsupported_share > 0.9,
+            "{c:?}"
+        );
+        // A template of one piece reports none.
+        let one = fit_simple(&sheet, &f, &scan, None, &params).unwrap();
+        assert!(one.diagnostics.components.is_empty());
+    }
 }
