@@ -107,7 +107,7 @@ fn rim_outward(vertices: &[[f64; 3]], faces: &[[u32; 3]]) -> Vec<[f64; 3]> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fit::{fit_simple, fit_weighted, FitParams};
+    use crate::fit::{fit_anchored, fit_simple, fit_weighted, FitParams};
     use crate::synthetic::grid_sheet;
 
     /// A 1 × 1 sheet in z = 0 (9 × 9 vertices, edge 0.125).
@@ -225,5 +225,64 @@ mod tests {
         assert_eq!(observed.vertices, refit.vertices);
         assert!(seen.windows(2).all(|w| w[0].0 <= w[1].0), "{seen:?}");
         assert_eq!(seen.last(), Some(&(40, 40)));
+    }
+
+    #[test]
+    fn an_anchored_fit_is_refitted_with_its_rest_shape() {
+        // A warm start (the template moved a little) anchored to the template: the refit keeps
+        // the template as the rest shape, as the first fit had it.
+        let (template, faces, scan) = dressed_sheet();
+        let params = FitParams {
+            iterations: 30,
+            ..FitParams::default()
+        };
+        // The start bent the other way from the scan (a different shape from the rest).
+        let start: Vec<[f64; 3]> = template
+            .iter()
+            .map(|p| [p[0], p[1], -0.1 * (std::f64::consts::PI * p[0]).cos()])
+            .collect();
+        let mut once = params.clone();
+        once.schedule.garment_refit = 0.0;
+        let first = fit_anchored(
+            &start,
+            &template,
+            &faces,
+            &scan,
+            None,
+            None,
+            &once,
+            &mut |_| true,
+        )
+        .unwrap();
+        let refit = fit_anchored(
+            &start,
+            &template,
+            &faces,
+            &scan,
+            None,
+            None,
+            &params,
+            &mut |_| true,
+        )
+        .unwrap();
+        let weights = garment_weights(&scan, None, &first.vertices, &faces, 1.0);
+        assert_eq!(
+            refit.diagnostics.garment_refit_points,
+            weights.iter().filter(|&&w| w > 0.0).count()
+        );
+        let mut second = once.clone();
+        second.schedule.keep_margin = 0.0;
+        let again = fit_anchored(
+            &start,
+            &template,
+            &faces,
+            &scan,
+            None,
+            Some(&weights),
+            &second,
+            &mut |_| true,
+        )
+        .unwrap();
+        assert_eq!(refit.vertices, again.vertices);
     }
 }

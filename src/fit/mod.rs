@@ -380,9 +380,10 @@ fn fit_from(
     let mut start = prepared.start.clone();
     prepared.frame.inverse_in_place(&mut start);
     pass.store(1, Ordering::Relaxed);
+    // From the same start, with the same rest shape (a tracked frame stays anchored).
     let mut again = fit_from(
         &start,
-        None,
+        rest,
         template_faces,
         target,
         target_faces,
