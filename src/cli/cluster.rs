@@ -419,9 +419,12 @@ impl RunBook {
         let Some(found) = self.setup.found.get(index) else {
             return Err(format!("file index {index} out of 0..{}", self.total()));
         };
-        let mut entry = FileReport::pending(&found.name, &found.path, &self.setup.outputs[index]);
-        entry.status = Status::Error;
-        entry.error = Some(format!("{}: {message}", found.path.display()));
+        let entry = FileReport::failed(
+            &found.name,
+            &found.path,
+            &self.setup.outputs[index],
+            format!("{}: {message}", found.path.display()),
+        );
         self.record(index, entry)
     }
 
@@ -510,11 +513,13 @@ impl FileFitter {
         let tracker = match tracker {
             Ok(t) => Mutex::new(t),
             Err(e) => {
-                let mut report = FileReport::pending(&file.name, &file.scan, &file.output);
-                report.status = Status::Error;
-                report.error = Some(format!("sequence: {e}"));
                 let outcome = Outcome {
-                    report,
+                    report: FileReport::failed(
+                        &file.name,
+                        &file.scan,
+                        &file.output,
+                        format!("sequence: {e}"),
+                    ),
                     fitted: None,
                     metrics: None,
                 };

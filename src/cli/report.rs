@@ -180,6 +180,15 @@ impl FileReport {
             .unwrap_or_default()
     }
 
+    /// A file that failed before its fit could report: an `error` entry with `error`.
+    pub fn failed(name: &str, scan: &Path, output: &Path, error: String) -> Self {
+        Self {
+            status: Status::Error,
+            error: Some(error),
+            ..Self::pending(name, scan, output)
+        }
+    }
+
     /// A file not started yet.
     pub fn pending(name: &str, scan: &Path, output: &Path) -> Self {
         Self {
