@@ -177,6 +177,16 @@ mod tests {
         (template, faces, scan)
     }
 
+    /// `params` with the refit off (the first fit alone), and the refit's own second fit as
+    /// the driver runs it (the refit and the do-no-harm comparison off: the first fit made it).
+    fn first_and_second(params: &FitParams) -> (FitParams, FitParams) {
+        let mut first = params.clone();
+        first.schedule.garment_refit = 0.0;
+        let mut second = first.clone();
+        second.schedule.keep_margin = 0.0;
+        (first, second)
+    }
+
     #[test]
     fn a_dressed_scan_is_fitted_again_onto_the_points_the_first_fit_explains() {
         let (template, faces, scan) = dressed_sheet();
@@ -184,9 +194,8 @@ mod tests {
             iterations: 40,
             ..FitParams::default()
         };
+        let (once, second) = first_and_second(&params);
         let refit = fit_simple(&template, &faces, &scan, None, &params).unwrap();
-        let mut once = params.clone();
-        once.schedule.garment_refit = 0.0;
         let first = fit_simple(&template, &faces, &scan, None, &once).unwrap();
         assert_eq!(first.diagnostics.garment_refit_points, 0);
         // The second fit is the fit of the first's explained points, from the same start.
@@ -201,9 +210,6 @@ mod tests {
             weights[41 * 41 + 41 * 12..].iter().all(|&w| w == 0.0),
             "the far plane"
         );
-        // (With no second do-no-harm comparison: the first fit made it.)
-        let mut second = once.clone();
-        second.schedule.keep_margin = 0.0;
         let again = fit_weighted(
             &template,
             &faces,
@@ -229,60 +235,39 @@ mod tests {
 
     #[test]
     fn an_anchored_fit_is_refitted_with_its_rest_shape() {
-        // A warm start (the template moved a little) anchored to the template: the refit keeps
-        // the template as the rest shape, as the first fit had it.
+        // A warm start of another shape than the rest (bent the other way from the scan),
+        // anchored to the template: the refit keeps the template as the rest shape, as the
+        // first fit had it.
         let (template, faces, scan) = dressed_sheet();
         let params = FitParams {
             iterations: 30,
             ..FitParams::default()
         };
-        // The start bent the other way from the scan (a different shape from the rest).
         let start: Vec<[f64; 3]> = template
             .iter()
             .map(|p| [p[0], p[1], -0.1 * (std::f64::consts::PI * p[0]).cos()])
             .collect();
-        let mut once = params.clone();
-        once.schedule.garment_refit = 0.0;
-        let first = fit_anchored(
-            &start,
-            &template,
-            &faces,
-            &scan,
-            None,
-            None,
-            &once,
-            &mut |_| true,
-        )
-        .unwrap();
-        let refit = fit_anchored(
-            &start,
-            &template,
-            &faces,
-            &scan,
-            None,
-            None,
-            &params,
-            &mut |_| true,
-        )
-        .unwrap();
+        let anchored = |weights: Option<&[f64]>, params: &FitParams| {
+            fit_anchored(
+                &start,
+                &template,
+                &faces,
+                &scan,
+                None,
+                weights,
+                params,
+                &mut |_| true,
+            )
+            .unwrap()
+        };
+        let (once, second) = first_and_second(&params);
+        let first = anchored(None, &once);
+        let refit = anchored(None, &params);
         let weights = garment_weights(&scan, None, &first.vertices, &faces, 1.0);
         assert_eq!(
             refit.diagnostics.garment_refit_points,
             weights.iter().filter(|&&w| w > 0.0).count()
         );
-        let mut second = once.clone();
-        second.schedule.keep_margin = 0.0;
-        let again = fit_anchored(
-            &start,
-            &template,
-            &faces,
-            &scan,
-            None,
-            Some(&weights),
-            &second,
-            &mut |_| true,
-        )
-        .unwrap();
-        assert_eq!(refit.vertices, again.vertices);
+        assert_eq!(refit.vertices, anchored(Some(&weights), &second).vertices);
     }
 }
