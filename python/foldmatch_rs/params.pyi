@@ -252,6 +252,27 @@ class FitParams(Mapping[str, Any]):
         garment-only scan (about 1.7× the time of one fit on such scans; docs/method.md "Scans of
         dressed people"). 0: off (the `"paper"` preset).
         """
+    @property
+    def strain_limit(self) -> float:
+        """Strain limiting in the fine phase (Provot 1995): after every update, edges longer than
+        `(1 + strain_limit) ×` their length in the rest shape are moved back towards that length
+        by up to `strain_passes` Jacobi passes of position projections.
+        Cloth barely stretches, so a fit that stretches it has slid along the scan or been pulled
+        onto what is not the garment (docs/method.md "Strain limiting"). 0: off (the `"paper"`
+        preset); 0.05 in the `"tracking"` preset, whose rest shape is the first frame's own mesh.
+        """
+    @property
+    def strain_passes(self) -> int:
+        """Jacobi passes of `strain_limit` and
+        `compression_limit` per fine-phase iteration (fewer when a
+        pass moves nothing).
+        """
+    @property
+    def compression_limit(self) -> float:
+        """The same for compression: edges shorter than their rest length ÷ `(1 + compression_limit)`
+        are moved back. 0: off (the default: a scan cannot tell sub-edge wrinkles from
+        compression, and limiting it flips faces); 0.05 in the `"tracking"` preset.
+        """
 
     # ---- Acceleration
     @property

@@ -23,6 +23,7 @@ mod presets;
 mod result;
 mod schedule;
 mod setup;
+mod strain_limit;
 #[cfg(test)]
 mod tests;
 mod validate;
@@ -34,8 +35,9 @@ pub use params::{
     Selection, ACCURATE_ITERATIONS, AUTO_COARSE_RINGS, AUTO_COARSE_RINGS_MAX,
     COARSE_RINGS_REFERENCE_VERTICES, COARSE_SCAN_MAX_AUTO_STRIDE, COARSE_SCAN_POINTS_PER_VERTEX,
     DEFAULT_KEEP_MARGIN, DEFAULT_KNN_SLACK, DEFAULT_K_MAX, DEFAULT_LANDMARK_WEIGHT, DEFAULT_RHO,
-    DEFAULT_TWO_WAY_RIM, DEFAULT_TWO_WAY_TRUST, FAR_AWAY, FAST_TWO_WAY, MAX_SCAN_SAMPLE,
-    PAPER_K_MAX, PAPER_RHO, RIGID_SCAN_POINTS_PER_VERTEX, SCHEDULE_NAMES,
+    DEFAULT_STRAIN_LIMIT, DEFAULT_TWO_WAY_RIM, DEFAULT_TWO_WAY_TRUST, FAR_AWAY, FAST_TWO_WAY,
+    MAX_SCAN_SAMPLE, PAPER_K_MAX, PAPER_RHO, RIGID_SCAN_POINTS_PER_VERTEX, SCHEDULE_NAMES,
+    TRACKING_STRAIN_LIMIT,
 };
 pub use result::{ComponentFigures, Diagnostics, FitResult, IterationRecord, Progress, StageTimes};
 pub use schedule::{keeps_start, select_schedule};
@@ -245,6 +247,14 @@ fn fit_from(
         }
     };
     let observer: &mut (dyn FnMut(&Progress) -> bool + Send) = &mut observed;
+    // The first of the two fits runs without the strain limit: the scan's skin pulls on it, and
+    // an inextensible garment carries those pulls across itself (docs/method.md "Strain limiting").
+    let mut schedules = schedules;
+    if refit {
+        for s in &mut schedules {
+            s.schedule.strain_limit = 0.0;
+        }
+    }
     let mut runs: Vec<ScheduleRun> = schedules
         .into_iter()
         .map(|p| ScheduleRun::new(&prepared, p))

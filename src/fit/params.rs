@@ -68,6 +68,14 @@ pub enum Selection {
     ScanDistanceWide,
 }
 
+/// The default [`strain_limit`](crate::fit::Schedule::strain_limit) (docs/method.md "Strain
+/// limiting").
+pub const DEFAULT_STRAIN_LIMIT: f64 = 0.15;
+
+/// The `"tracking"` preset's [`strain_limit`](crate::fit::Schedule::strain_limit) and
+/// [`compression_limit`](crate::fit::Schedule::compression_limit).
+pub const TRACKING_STRAIN_LIMIT: f64 = 0.05;
+
 /// The default [`garment_refit`](crate::fit::Schedule::garment_refit): the garment is the scan
 /// within one trust unit of the first fit (docs/method.md "Scans of dressed people").
 pub const DEFAULT_GARMENT_REFIT: f64 = 1.0;
@@ -347,6 +355,21 @@ pub struct Schedule {
     /// garment-only scan (about 1.7× the time of one fit on such scans; docs/method.md "Scans of
     /// dressed people"). 0: off (the `"paper"` preset).
     pub garment_refit: f64,
+    /// Strain limiting in the fine phase (Provot 1995): after every update, edges longer than
+    /// `(1 + strain_limit) ×` their length in the rest shape are moved back towards that length
+    /// by up to [`strain_passes`](Self::strain_passes) Jacobi passes of position projections.
+    /// Cloth barely stretches, so a fit that stretches it has slid along the scan or been pulled
+    /// onto what is not the garment (docs/method.md "Strain limiting"). 0: off (the `"paper"`
+    /// preset); 0.05 in the `"tracking"` preset, whose rest shape is the first frame's own mesh.
+    pub strain_limit: f64,
+    /// Jacobi passes of [`strain_limit`](Self::strain_limit) and
+    /// [`compression_limit`](Self::compression_limit) per fine-phase iteration (fewer when a
+    /// pass moves nothing).
+    pub strain_passes: usize,
+    /// The same for compression: edges shorter than their rest length ÷ `(1 + compression_limit)`
+    /// are moved back. 0: off (the default: a scan cannot tell sub-edge wrinkles from
+    /// compression, and limiting it flips faces); 0.05 in the `"tracking"` preset.
+    pub compression_limit: f64,
 }
 
 /// Acceleration: samples and approximate neighborhoods that make a fit faster and change its
@@ -479,6 +502,9 @@ impl Default for Schedule {
             selection_at: 1.0,
             keep_margin: DEFAULT_KEEP_MARGIN,
             garment_refit: DEFAULT_GARMENT_REFIT,
+            strain_limit: DEFAULT_STRAIN_LIMIT,
+            strain_passes: 4,
+            compression_limit: 0.0,
         }
     }
 }

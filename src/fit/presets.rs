@@ -2,6 +2,7 @@
 
 use super::params::{
     FitParams, Method, Selection, ACCURATE_ITERATIONS, FAST_TWO_WAY, PAPER_K_MAX, PAPER_RHO,
+    TRACKING_STRAIN_LIMIT,
 };
 use crate::error::{FoldMatchError, Result};
 use crate::nbody::TwoWayPull;
@@ -24,6 +25,7 @@ impl FitParams {
         p.schedule.selection = Selection::Single;
         p.schedule.keep_margin = 0.0;
         p.schedule.garment_refit = 0.0;
+        p.schedule.strain_limit = 0.0;
         p.readings.regularization = Regularization::AffineInvariant;
         p
     }
@@ -35,7 +37,9 @@ impl FitParams {
     /// vertex are the values it was measured with on sequences. It keeps the default's
     /// rest-shape rigidity, whose rest shape in a sequence is the template, not the previous
     /// fit ([`crate::track`], docs/method.md "Tracking"): on the DiffCloth wind sequence it
-    /// halves the largest per-frame error of tracking without it (`bench/tracking.py`).
+    /// halves the largest per-frame error of tracking without it (`bench/tracking.py`). Its
+    /// strain and compression limits (5 %) hold the metric of the rest shape, the first
+    /// frame's own mesh, which simulated and captured cloth keeps within a few per cent.
     pub fn tracking() -> Self {
         let mut p = Self::default();
         p.schedule.two_way = 2.0;
@@ -45,6 +49,8 @@ impl FitParams {
         p.schedule.anneal_fraction = 0.0;
         p.schedule.selection = Selection::Single;
         p.schedule.keep_margin = 0.0;
+        p.schedule.strain_limit = TRACKING_STRAIN_LIMIT;
+        p.schedule.compression_limit = TRACKING_STRAIN_LIMIT;
         p
     }
 

@@ -7,6 +7,7 @@ use super::params::{FitParams, Method};
 use super::phases::{self, Phase, PhaseSample};
 use super::result::{Diagnostics, FitResult, IterationRecord, Progress};
 use super::setup::Prepared;
+use super::strain_limit::StrainLimit;
 use crate::error::{FoldMatchError, Result};
 use crate::math::vec3;
 use crate::rings::n_rings;
@@ -168,6 +169,9 @@ pub(super) struct ScheduleRun {
     pub(super) diagnostics: Diagnostics,
     /// Converged, or stopped by the observer.
     pub(super) finished: bool,
+    /// The fine phase's strain limiting ([`strain_limit`](crate::fit::Schedule::strain_limit);
+    /// `None` when off).
+    pub(super) strain: Option<StrainLimit>,
 }
 
 impl ScheduleRun {
@@ -222,6 +226,8 @@ impl ScheduleRun {
             snapshots: Vec::new(),
             diagnostics: prepared.diagnostics.clone(),
             finished: false,
+            strain: (params.schedule.strain_limit > 0.0 || params.schedule.compression_limit > 0.0)
+                .then(|| StrainLimit::new(&prepared.rest, &prepared.faces)),
             params,
         }
     }
@@ -288,6 +294,14 @@ impl ScheduleRun {
                 phases::fine(prepared, params, fine, old, new, ws, next)
             }
         };
+        if let (Phase::Fine, Some(strain)) = (phase, self.strain.as_mut()) {
+            strain.apply(
+                &mut self.next,
+                params.schedule.strain_limit,
+                params.schedule.compression_limit,
+                params.schedule.strain_passes,
+            );
+        }
         if let (Phase::Fine, Some(l)) = (phase, prepared.landmarks.as_ref()) {
             l.pull(params.landmark_weight, &mut self.next);
         }

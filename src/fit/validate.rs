@@ -143,6 +143,12 @@ impl FitParams {
             ),
             ("keep_margin", self.schedule.keep_margin, NON_NEGATIVE),
             ("garment_refit", self.schedule.garment_refit, NON_NEGATIVE),
+            ("strain_limit", self.schedule.strain_limit, NON_NEGATIVE),
+            (
+                "compression_limit",
+                self.schedule.compression_limit,
+                NON_NEGATIVE,
+            ),
             ("two_way", self.schedule.two_way, NON_NEGATIVE),
             ("two_way_trust", self.schedule.two_way_trust, NON_NEGATIVE),
             ("two_way_rim", self.schedule.two_way_rim, NON_NEGATIVE),

@@ -1,0 +1,238 @@
+//! Strain limiting (Provot 1995, "Deformation constraints in a mass-spring model to describe
+//! rigid cloth behavior"): cloth barely stretches, so after each update of the fine phase every
+//! edge longer than `(1 + s)` times its rest length, or shorter than its rest length ÷ `(1 + s)`,
+//! is moved back towards that band by a few Jacobi passes of position projections
+//! (docs/method.md "Strain limiting"). Where the scan pins the surface this changes little;
+//! where it does not (tangential sliding along the scan, hems pulled onto skin, surface the
+//! scanner did not see) it keeps the template's metric, which the rest-shape rigidity — faded
+//! to 0 by the last iteration — no longer does.
+
+use crate::math::vec3;
+use rayon::prelude::*;
+
+/// Every vertex's one-ring edges with their rest lengths (CSR), and the passes' buffers.
+pub(super) struct StrainLimit {
+    offsets: Vec<usize>,
+    neighbours: Vec<u32>,
+    rest_length: Vec<f64>,
+    /// The vertices a pass looks at (after the first pass: those moved by the last one and
+    /// their neighbours, the only ones whose edges changed).
+    candidates: Vec<u32>,
+    /// A pass's new position of every vertex it looks at (`None`: unmoved).
+    moves: Vec<Option<[f64; 3]>>,
+    /// The vertices a pass moved, with their new positions.
+    moved: Vec<(u32, [f64; 3])>,
+    /// The pass at which a vertex was last made a candidate (dedups `candidates`), and the
+    /// number of passes run so far.
+    marked: Vec<u32>,
+    stamp: u32,
+}
+
+impl StrainLimit {
+    /// The edges of `faces` with their lengths in `rest`.
+    pub(super) fn new(rest: &[[f64; 3]], faces: &[[u32; 3]]) -> Self {
+        let m = rest.len();
+        let mut pairs: Vec<(u32, u32)> = Vec::with_capacity(faces.len() * 6);
+        for f in faces {
+            for (a, b) in [(f[0], f[1]), (f[1], f[2]), (f[2], f[0])] {
+                pairs.push((a, b));
+                pairs.push((b, a));
+            }
+        }
+        pairs.sort_unstable();
+        pairs.dedup();
+        let mut offsets = vec![0usize; m + 1];
+        for &(a, _) in &pairs {
+            offsets[a as usize + 1] += 1;
+        }
+        for v in 0..m {
+            offsets[v + 1] += offsets[v];
+        }
+        let neighbours: Vec<u32> = pairs.iter().map(|&(_, b)| b).collect();
+        let rest_length = pairs
+            .iter()
+            .map(|&(a, b)| (vec3(&rest[a as usize]) - vec3(&rest[b as usize])).norm())
+            .collect();
+        Self {
+            offsets,
+            neighbours,
+            rest_length,
+            candidates: Vec::with_capacity(m),
+            moves: Vec::with_capacity(m),
+            moved: Vec::with_capacity(m),
+            marked: vec![0; m],
+            stamp: 0,
+        }
+    }
+
+    /// Up to `passes` Jacobi passes over `pos` (stopping at the first that moves nothing):
+    /// every vertex moves by the mean over its edges of the correction that brings the edge's
+    /// length into `[ℓ⁰ / (1 + c), (1 + s) ℓ⁰]` (s = 0: no upper bound, c = 0: no lower bound), i.e. twice the usual
+    /// half-correction per endpoint, an over-relaxed Jacobi step (ω = 2) that the averaging over
+    /// the one-ring keeps stable.
+    pub(super) fn apply(&mut self, pos: &mut [[f64; 3]], s: f64, c: f64, passes: usize) {
+        let hi = if s > 0.0 { 1.0 + s } else { f64::INFINITY };
+        let hi2 = hi * hi;
+        let lo = if c > 0.0 { 1.0 / (1.0 + c) } else { 0.0 };
+        let lo2 = lo * lo;
+        let m = pos.len();
+        for pass in 0..passes {
+            let (offsets, neighbours, rest_length) =
+                (&self.offsets, &self.neighbours, &self.rest_length);
+            let current: &[[f64; 3]] = pos;
+            let correct = |v: usize| -> Option<[f64; 3]> {
+                let p = vec3(&current[v]);
+                let (a, b) = (offsets[v], offsets[v + 1]);
+                let mut corr = crate::math::Vec3::zeros();
+                let mut any = false;
+                for e in a..b {
+                    let d = vec3(&current[neighbours[e] as usize]) - p;
+                    let l2 = d.norm_squared();
+                    let r2 = rest_length[e] * rest_length[e];
+                    if (l2 > hi2 * r2 || l2 < lo2 * r2) && l2 > 0.0 {
+                        let l = l2.sqrt();
+                        let target = l.clamp(lo * rest_length[e], hi * rest_length[e]);
+                        corr += (l - target) / l * d;
+                        any = true;
+                    }
+                }
+                any.then(|| (p + corr / (b - a) as f64).into())
+            };
+            if pass == 0 {
+                (0..m)
+                    .into_par_iter()
+                    .map(correct)
+                    .collect_into_vec(&mut self.moves);
+            } else {
+                self.candidates
+                    .par_iter()
+                    .map(|&v| correct(v as usize))
+                    .collect_into_vec(&mut self.moves);
+            }
+            if self.moves.iter().all(Option::is_none) {
+                break;
+            }
+            // The moved vertices (in pass 0 every vertex is a candidate, `moves[v]` is v's).
+            let looked_at = |i: usize| {
+                if pass == 0 {
+                    i as u32
+                } else {
+                    self.candidates[i]
+                }
+            };
+            self.moved.clear();
+            for (i, mv) in self.moves.iter().enumerate() {
+                if let Some(p) = mv {
+                    self.moved.push((looked_at(i), *p));
+                }
+            }
+            self.candidates.clear();
+            self.stamp = self.stamp.wrapping_add(1);
+            if self.stamp == 0 {
+                self.marked.fill(0);
+                self.stamp = 1;
+            }
+            let stamp = self.stamp;
+            for &(v, p) in &self.moved {
+                pos[v as usize] = p;
+                let (a, b) = (self.offsets[v as usize], self.offsets[v as usize + 1]);
+                for u in std::iter::once(v).chain(self.neighbours[a..b].iter().copied()) {
+                    if self.marked[u as usize] != stamp {
+                        self.marked[u as usize] = stamp;
+                        self.candidates.push(u);
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fit::{fit_simple, FitParams};
+    use crate::synthetic::grid_sheet;
+
+    /// Every edge's length in `pos` ÷ its rest length.
+    fn ratios(limit: &StrainLimit, pos: &[[f64; 3]]) -> Vec<f64> {
+        let mut out = Vec::new();
+        for v in 0..pos.len() {
+            for e in limit.offsets[v]..limit.offsets[v + 1] {
+                let u = limit.neighbours[e] as usize;
+                out.push((vec3(&pos[u]) - vec3(&pos[v])).norm() / limit.rest_length[e]);
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn stretched_edges_come_back_into_the_band_and_compressed_ones_only_when_limited() {
+        let (rest, faces) = grid_sheet(9, 9, 1.0, 1.0);
+        let mut limit = StrainLimit::new(&rest, &faces);
+        // Stretched 1.5× along x, shrunk 0.7× along y.
+        let deformed: Vec<[f64; 3]> = rest.iter().map(|p| [1.5 * p[0], 0.7 * p[1], 0.0]).collect();
+        let mut pos = deformed.clone();
+        limit.apply(&mut pos, 0.1, 0.0, 200);
+        let r = ratios(&limit, &pos);
+        let max = r.iter().copied().fold(0.0, f64::max);
+        assert!(max <= 1.11, "longest edge {max}");
+        // Compression is not limited: the y edges keep about their 0.7.
+        let min = r.iter().copied().fold(f64::INFINITY, f64::min);
+        assert!(min < 0.75, "shortest edge {min}");
+        // With a compression limit they come back too.
+        let mut pos = deformed;
+        limit.apply(&mut pos, 0.1, 0.1, 200);
+        let min = ratios(&limit, &pos)
+            .into_iter()
+            .fold(f64::INFINITY, f64::min);
+        assert!(min >= 1.0 / 1.11, "shortest edge {min}");
+    }
+
+    #[test]
+    fn a_shape_within_the_band_is_left_exactly_as_it_is() {
+        let (rest, faces) = grid_sheet(9, 9, 1.0, 1.0);
+        let mut limit = StrainLimit::new(&rest, &faces);
+        // Bent and moved rigidly: no edge longer than 1.05× its rest length.
+        let shape: Vec<[f64; 3]> = rest
+            .iter()
+            .map(|p| [p[0] + 3.0, p[1], 0.1 * (3.0 * p[0]).sin()])
+            .collect();
+        let mut pos = shape.clone();
+        limit.apply(&mut pos, 0.1, 0.0, 4);
+        assert_eq!(pos, shape);
+    }
+
+    #[test]
+    fn a_fit_onto_a_stretched_scan_keeps_its_edges_within_the_limit() {
+        let (template, faces) = grid_sheet(11, 11, 1.0, 1.0);
+        // The scan: the sheet 1.4× as wide, slightly curved.
+        let mut scan = Vec::new();
+        for i in 0..57 {
+            for j in 0..41 {
+                let (x, y) = (-0.7 + 1.4 * i as f64 / 56.0, -0.5 + j as f64 / 40.0);
+                scan.push([x, y, 0.05 * (2.0 * x).cos()]);
+            }
+        }
+        let longest = |limit_value: f64| {
+            let mut params = FitParams {
+                iterations: 40,
+                ..FitParams::default()
+            };
+            params.schedule.strain_limit = limit_value;
+            let fit = fit_simple(&template, &faces, &scan, None, &params).unwrap();
+            let limit = StrainLimit::new(&template, &faces);
+            ratios(&limit, &fit.vertices)
+                .into_iter()
+                .fold(0.0, f64::max)
+        };
+        let free = longest(0.0);
+        let limited = longest(0.1);
+        // Four Jacobi passes per iteration do not reach the band exactly where the scan keeps
+        // pulling, but hold the stretch to a fraction of the free fit's.
+        assert!(free > 1.3, "the free fit stretches: {free}");
+        assert!(
+            limited - 1.0 < 0.6 * (free - 1.0),
+            "the limited fit keeps its edges: {limited} (free: {free})"
+        );
+    }
+}
