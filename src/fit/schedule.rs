@@ -227,7 +227,13 @@ impl ScheduleRun {
             diagnostics: prepared.diagnostics.clone(),
             finished: false,
             strain: (params.schedule.strain_limit > 0.0 || params.schedule.compression_limit > 0.0)
-                .then(|| StrainLimit::new(&prepared.rest, &prepared.faces)),
+                .then(|| {
+                    let pinned = prepared
+                        .landmarks
+                        .as_ref()
+                        .map_or(&[][..], |l| &l.vertices[..]);
+                    StrainLimit::new(&prepared.rest, &prepared.faces, pinned)
+                }),
             params,
         }
     }

@@ -12,6 +12,7 @@ use rayon::prelude::*;
 
 /// Every vertex's one-ring edges with their rest lengths (CSR), and the passes' buffers.
 pub(super) struct StrainLimit {
+    pinned: Vec<bool>,
     offsets: Vec<usize>,
     neighbours: Vec<u32>,
     rest_length: Vec<f64>,
@@ -29,8 +30,9 @@ pub(super) struct StrainLimit {
 }
 
 impl StrainLimit {
-    /// The edges of `faces` with their lengths in `rest`.
-    pub(super) fn new(rest: &[[f64; 3]], faces: &[[u32; 3]]) -> Self {
+    /// The edges of `faces` with their lengths in `rest`; the `pinned` vertices (landmarks,
+    /// docs/method.md "Landmarks") are never moved, their neighbours take the corrections.
+    pub(super) fn new(rest: &[[f64; 3]], faces: &[[u32; 3]], pinned: &[u32]) -> Self {
         let m = rest.len();
         let mut pairs: Vec<(u32, u32)> = Vec::with_capacity(faces.len() * 6);
         for f in faces {
@@ -53,7 +55,12 @@ impl StrainLimit {
             .iter()
             .map(|&(a, b)| (vec3(&rest[a as usize]) - vec3(&rest[b as usize])).norm())
             .collect();
+        let mut is_pinned = vec![false; m];
+        for &v in pinned {
+            is_pinned[v as usize] = true;
+        }
         Self {
+            pinned: is_pinned,
             offsets,
             neighbours,
             rest_length,
@@ -77,10 +84,17 @@ impl StrainLimit {
         let lo2 = lo * lo;
         let m = pos.len();
         for pass in 0..passes {
-            let (offsets, neighbours, rest_length) =
-                (&self.offsets, &self.neighbours, &self.rest_length);
+            let (offsets, neighbours, rest_length, pinned) = (
+                &self.offsets,
+                &self.neighbours,
+                &self.rest_length,
+                &self.pinned,
+            );
             let current: &[[f64; 3]] = pos;
             let correct = |v: usize| -> Option<[f64; 3]> {
+                if pinned[v] {
+                    return None;
+                }
                 let p = vec3(&current[v]);
                 let (a, b) = (offsets[v], offsets[v + 1]);
                 let mut corr = crate::math::Vec3::zeros();
@@ -168,7 +182,7 @@ mod tests {
     #[test]
     fn stretched_edges_come_back_into_the_band_and_compressed_ones_only_when_limited() {
         let (rest, faces) = grid_sheet(9, 9, 1.0, 1.0);
-        let mut limit = StrainLimit::new(&rest, &faces);
+        let mut limit = StrainLimit::new(&rest, &faces, &[]);
         // Stretched 1.5× along x, shrunk 0.7× along y.
         let deformed: Vec<[f64; 3]> = rest.iter().map(|p| [1.5 * p[0], 0.7 * p[1], 0.0]).collect();
         let mut pos = deformed.clone();
@@ -189,9 +203,21 @@ mod tests {
     }
 
     #[test]
+    fn pinned_vertices_stay_and_their_neighbours_move() {
+        let (rest, faces) = grid_sheet(5, 5, 1.0, 1.0);
+        let mut limit = StrainLimit::new(&rest, &faces, &[12]);
+        let mut pos = rest.clone();
+        pos[12][0] += 0.2; // the centre, pulled by its landmark
+        let before = pos.clone();
+        limit.apply(&mut pos, 0.05, 0.0, 4);
+        assert_eq!(pos[12], before[12]);
+        assert!(pos[13][0] > before[13][0], "a neighbour follows");
+    }
+
+    #[test]
     fn a_shape_within_the_band_is_left_exactly_as_it_is() {
         let (rest, faces) = grid_sheet(9, 9, 1.0, 1.0);
-        let mut limit = StrainLimit::new(&rest, &faces);
+        let mut limit = StrainLimit::new(&rest, &faces, &[]);
         // Bent and moved rigidly: no edge longer than 1.05× its rest length.
         let shape: Vec<[f64; 3]> = rest
             .iter()
@@ -220,7 +246,7 @@ mod tests {
             };
             params.schedule.strain_limit = limit_value;
             let fit = fit_simple(&template, &faces, &scan, None, &params).unwrap();
-            let limit = StrainLimit::new(&template, &faces);
+            let limit = StrainLimit::new(&template, &faces, &[]);
             ratios(&limit, &fit.vertices)
                 .into_iter()
                 .fold(0.0, f64::max)
