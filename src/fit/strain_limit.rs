@@ -1,11 +1,11 @@
 //! Strain limiting (Provot 1995, "Deformation constraints in a mass-spring model to describe
 //! rigid cloth behavior"): cloth barely stretches, so after each update of the fine phase every
-//! edge longer than `(1 + s)` times its rest length, or shorter than its rest length ÷ `(1 + s)`,
-//! is moved back towards that band by a few Jacobi passes of position projections
-//! (docs/method.md "Strain limiting"). Where the scan pins the surface this changes little;
-//! where it does not (tangential sliding along the scan, hems pulled onto skin, surface the
-//! scanner did not see) it keeps the template's metric, which the rest-shape rigidity — faded
-//! to 0 by the last iteration — no longer does.
+//! edge longer than `(1 + s)` times its rest length (and, when a compression limit c is set,
+//! every edge shorter than its rest length ÷ `(1 + c)`) is moved back towards that band by a few
+//! Jacobi passes of position projections (docs/method.md "Strain limiting"). Where the scan pins
+//! the surface this changes little; where it does not (tangential sliding along the scan, hems
+//! pulled onto skin, surface the scanner did not see) it keeps the template's metric, which the
+//! rest-shape rigidity — faded to 0 by the last iteration — no longer does.
 
 use crate::math::vec3;
 use rayon::prelude::*;
@@ -74,9 +74,9 @@ impl StrainLimit {
 
     /// Up to `passes` Jacobi passes over `pos` (stopping at the first that moves nothing):
     /// every vertex moves by the mean over its edges of the correction that brings the edge's
-    /// length into `[ℓ⁰ / (1 + c), (1 + s) ℓ⁰]` (s = 0: no upper bound, c = 0: no lower bound), i.e. twice the usual
-    /// half-correction per endpoint, an over-relaxed Jacobi step (ω = 2) that the averaging over
-    /// the one-ring keeps stable.
+    /// length into `[ℓ⁰ / (1 + c), (1 + s) ℓ⁰]` (s = 0: no upper bound, c = 0: no lower bound),
+    /// i.e. twice the usual half-correction per endpoint, an over-relaxed Jacobi step (ω = 2)
+    /// that the averaging over the one-ring keeps stable.
     pub(super) fn apply(&mut self, pos: &mut [[f64; 3]], s: f64, c: f64, passes: usize) {
         let hi = if s > 0.0 { 1.0 + s } else { f64::INFINITY };
         let hi2 = hi * hi;
@@ -211,7 +211,8 @@ mod tests {
         let before = pos.clone();
         limit.apply(&mut pos, 0.05, 0.0, 4);
         assert_eq!(pos[12], before[12]);
-        assert!(pos[13][0] > before[13][0], "a neighbour follows");
+        // Its left neighbour's edge is stretched 1.8×: the neighbour follows it.
+        assert!(pos[11][0] > before[11][0], "a neighbour follows");
     }
 
     #[test]
