@@ -361,6 +361,10 @@ fn fit_from(
             d.stage_seconds.add(&other.ws.times);
         }
     }
+    if refit {
+        // The caller's parameters, not the first fit's (run without the strain limit).
+        chosen.params = params.clone();
+    }
     chosen.diagnostics.kept_start = kept_start;
     let finish = clock.elapsed().as_secs_f64() - setup - iterations;
     chosen.diagnostics.wall_seconds = [setup, iterations, finish];
