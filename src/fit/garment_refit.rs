@@ -177,13 +177,16 @@ mod tests {
         (template, faces, scan)
     }
 
-    /// `params` with the refit off (the first fit alone), and the refit's own second fit as
-    /// the driver runs it (the refit and the do-no-harm comparison off: the first fit made it).
+    /// The driver's first fit (the refit off, and the strain limit, docs/method.md "Strain
+    /// limiting") and its second fit (the refit and the do-no-harm comparison off: the first
+    /// fit made it).
     fn first_and_second(params: &FitParams) -> (FitParams, FitParams) {
+        let mut second = params.clone();
+        second.schedule.garment_refit = 0.0;
+        second.schedule.keep_margin = 0.0;
         let mut first = params.clone();
         first.schedule.garment_refit = 0.0;
-        let mut second = first.clone();
-        second.schedule.keep_margin = 0.0;
+        first.schedule.strain_limit = 0.0;
         (first, second)
     }
 

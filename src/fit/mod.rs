@@ -212,7 +212,7 @@ fn fit_from(
     let kept: Option<Vec<usize>> = target_weights
         .filter(|w| w.contains(&0.0))
         .map(|w| (0..w.len()).filter(|&j| w[j] > 0.0).collect());
-    let schedules = params.candidate_schedules();
+    let mut schedules = params.candidate_schedules();
     let clock = std::time::Instant::now();
     // Landmarks, when given, decide the pre-alignment (in Prepared::new) in its place.
     let placed = match landmarks {
@@ -249,7 +249,6 @@ fn fit_from(
     let observer: &mut (dyn FnMut(&Progress) -> bool + Send) = &mut observed;
     // The first of the two fits runs without the strain limit: the scan's skin pulls on it, and
     // an inextensible garment carries those pulls across itself (docs/method.md "Strain limiting").
-    let mut schedules = schedules;
     if refit {
         for s in &mut schedules {
             s.schedule.strain_limit = 0.0;

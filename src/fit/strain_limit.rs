@@ -8,13 +8,15 @@
 //! rest-shape rigidity — faded to 0 by the last iteration — no longer does.
 
 use crate::math::vec3;
+use crate::rings::{adjacency, Neighborhoods};
 use rayon::prelude::*;
 
-/// Every vertex's one-ring edges with their rest lengths (CSR), and the passes' buffers.
+/// Every vertex's one-ring ([`adjacency`]) with the rest length of each of its edges, and the
+/// passes' buffers.
 pub(super) struct StrainLimit {
     pinned: Vec<bool>,
-    offsets: Vec<usize>,
-    neighbours: Vec<u32>,
+    ring: Neighborhoods,
+    /// `rest_length[e]`: the rest length of the edge to `ring.members[e]`.
     rest_length: Vec<f64>,
     /// The vertices a pass looks at (after the first pass: those moved by the last one and
     /// their neighbours, the only ones whose edges changed).
@@ -23,8 +25,8 @@ pub(super) struct StrainLimit {
     moves: Vec<Option<[f64; 3]>>,
     /// The vertices a pass moved, with their new positions.
     moved: Vec<(u32, [f64; 3])>,
-    /// The pass at which a vertex was last made a candidate (dedups `candidates`), and the
-    /// number of passes run so far.
+    /// The pass (`stamp`, counted over every call) at which a vertex was last made a candidate,
+    /// which dedups `candidates`.
     marked: Vec<u32>,
     stamp: u32,
 }
@@ -34,26 +36,13 @@ impl StrainLimit {
     /// docs/method.md "Landmarks") are never moved, their neighbours take the corrections.
     pub(super) fn new(rest: &[[f64; 3]], faces: &[[u32; 3]], pinned: &[u32]) -> Self {
         let m = rest.len();
-        let mut pairs: Vec<(u32, u32)> = Vec::with_capacity(faces.len() * 6);
-        for f in faces {
-            for (a, b) in [(f[0], f[1]), (f[1], f[2]), (f[2], f[0])] {
-                pairs.push((a, b));
-                pairs.push((b, a));
-            }
-        }
-        pairs.sort_unstable();
-        pairs.dedup();
-        let mut offsets = vec![0usize; m + 1];
-        for &(a, _) in &pairs {
-            offsets[a as usize + 1] += 1;
-        }
-        for v in 0..m {
-            offsets[v + 1] += offsets[v];
-        }
-        let neighbours: Vec<u32> = pairs.iter().map(|&(_, b)| b).collect();
-        let rest_length = pairs
-            .iter()
-            .map(|&(a, b)| (vec3(&rest[a as usize]) - vec3(&rest[b as usize])).norm())
+        let ring = adjacency(faces, m);
+        let rest_length = (0..m)
+            .flat_map(|v| {
+                ring.of(v)
+                    .iter()
+                    .map(move |&u| (vec3(&rest[v]) - vec3(&rest[u as usize])).norm())
+            })
             .collect();
         let mut is_pinned = vec![false; m];
         for &v in pinned {
@@ -61,8 +50,7 @@ impl StrainLimit {
         }
         Self {
             pinned: is_pinned,
-            offsets,
-            neighbours,
+            ring,
             rest_length,
             candidates: Vec::with_capacity(m),
             moves: Vec::with_capacity(m),
@@ -85,8 +73,8 @@ impl StrainLimit {
         let m = pos.len();
         for pass in 0..passes {
             let (offsets, neighbours, rest_length, pinned) = (
-                &self.offsets,
-                &self.neighbours,
+                &self.ring.offsets,
+                &self.ring.members,
                 &self.rest_length,
                 &self.pinned,
             );
@@ -149,8 +137,7 @@ impl StrainLimit {
             let stamp = self.stamp;
             for &(v, p) in &self.moved {
                 pos[v as usize] = p;
-                let (a, b) = (self.offsets[v as usize], self.offsets[v as usize + 1]);
-                for u in std::iter::once(v).chain(self.neighbours[a..b].iter().copied()) {
+                for u in std::iter::once(v).chain(self.ring.of(v as usize).iter().copied()) {
                     if self.marked[u as usize] != stamp {
                         self.marked[u as usize] = stamp;
                         self.candidates.push(u);
@@ -171,8 +158,8 @@ mod tests {
     fn ratios(limit: &StrainLimit, pos: &[[f64; 3]]) -> Vec<f64> {
         let mut out = Vec::new();
         for v in 0..pos.len() {
-            for e in limit.offsets[v]..limit.offsets[v + 1] {
-                let u = limit.neighbours[e] as usize;
+            for e in limit.ring.offsets[v]..limit.ring.offsets[v + 1] {
+                let u = limit.ring.members[e] as usize;
                 out.push((vec3(&pos[u]) - vec3(&pos[v])).norm() / limit.rest_length[e]);
             }
         }
