@@ -11,7 +11,10 @@ Printed per frame: f_R (RMS to the truth ÷ the scan's diagonal, in %), the 95th
 the edge-length ratios ``max(ℓ/ℓ⁰, ℓ⁰/ℓ)`` to the template of the fit and of the truth, whether
 the frame was flagged, and its time; then the summary against issue 28's targets: frame 0's
 f_R ≤ 0.4 %, no frame above 1 %, every frame's edge p95 within 1.15× the truth's, the mean
-time per frame ≤ the default's single fit of frame 0 (timed in the same run).
+time per frame ≤ the default's single fit — the alternative that tracking replaces: every frame
+fitted on its own from the template by ``fm.fit``'s default, timed in the same run (its f_R is
+printed too; frame 0's single fit alone, which starts on its own truth and so refreshes almost
+no correspondence, is printed for reference).
 
 ``--mode chained`` runs what ``foldmatch sequence`` did before tracking: each frame fitted by
 ``fm.fit`` with the previous fit as its template (no rest shape, no flags).
@@ -87,10 +90,14 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     settings = dict(kv.split("=", 1) for kv in args.set)
     params = {k: json.loads(v) for k, v in settings.items()}
 
-    started = time.perf_counter()
-    single = fm.fit(template, faces, scans[0], threads=args.threads)
-    single_seconds = time.perf_counter() - started
-    single_fr = f_r(single.vertices, frames[0][1], scans[0])
+    # The alternative to tracking: the default's single fit of every frame from the template.
+    single_times, single_frs = [], []
+    for (_, truth, _), scan in zip(frames, scans):
+        started = time.perf_counter()
+        single = fm.fit(template, faces, scan, threads=args.threads)
+        single_times.append(time.perf_counter() - started)
+        single_frs.append(100 * f_r(single.vertices, truth, scan))
+    single_seconds = float(np.mean(single_times))
 
     rows = []
     if args.mode == "track":
@@ -143,7 +150,9 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         "flagged": sum(r["flagged"] for r in rows),
         "seconds_per_frame": per_frame,
         "default_single_fit_seconds": single_seconds,
-        "default_single_fit_f_R_pct": 100 * single_fr,
+        "default_single_fit_frame0_seconds": single_times[0],
+        "default_single_fit_max_f_R_pct": max(single_frs),
+        "default_single_fit_mean_f_R_pct": float(np.mean(single_frs)),
     }
     checks = [
         (
@@ -169,8 +178,10 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     ]
     print(
         f"{args.sequence} ({len(rows)} frames, {args.mode}): mean f_R {summary['mean_f_R_pct']:.3f} %, "
-        f"{summary['flagged']} flagged; {per_frame:.2f} s per frame, the default's single fit of frame 0 "
-        f"{single_seconds:.2f} s (f_R {summary['default_single_fit_f_R_pct']:.3f} %)"
+        f"{summary['flagged']} flagged; {per_frame:.3f} s per frame\n"
+        f"the default's single fit of every frame from the template: {single_seconds:.3f} s per frame "
+        f"(frame 0, which starts on its own truth: {single_times[0]:.3f} s), max f_R "
+        f"{summary['default_single_fit_max_f_R_pct']:.3f} %, mean {summary['default_single_fit_mean_f_R_pct']:.3f} %"
     )
     for label, value, met in checks:
         print(f"  {'met ' if met else 'MISS'} {label}: {value:.3f}")
