@@ -255,7 +255,9 @@ pub const GARMENT_FRAME_RATIO: f64 = 1.5;
 pub const DRESSED_TRUST_FACTOR: f64 = 0.75;
 
 /// The scan points that the template as given explains, where the scan is much larger than the
-/// template ([`GARMENT_FRAME_RATIO`]; `None` otherwise, or when the two-way trust radius is off):
+/// template ([`GARMENT_FRAME_RATIO`]) or `several` says that it holds other garments too (the
+/// template is one of several, docs/method.md "Several garments"); `None` otherwise, or when
+/// the two-way trust radius is off:
 /// those within the two-way trust radius ([`two_way_trust`](crate::fit::Schedule::two_way_trust))
 /// of the template's nearest vertex. The paper's constants (ε, G, Δt, ρ) are set for a frame in
 /// which the garment's scan has unit diagonal; a dressed body's skin and hair would stretch that
@@ -265,9 +267,12 @@ pub(super) fn explained_points(
     template: &[[f64; 3]],
     faces: &[[u32; 3]],
     params: &FitParams,
+    several: bool,
 ) -> Option<Vec<u32>> {
     let diag = |p: &[[f64; 3]]| Frame::of_target(p).scale;
-    if params.schedule.two_way_trust <= 0.0 || diag(scan) <= GARMENT_FRAME_RATIO * diag(template) {
+    if params.schedule.two_way_trust <= 0.0
+        || (!several && diag(scan) <= GARMENT_FRAME_RATIO * diag(template))
+    {
         return None;
     }
     let radius =

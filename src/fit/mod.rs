@@ -15,6 +15,7 @@
 
 mod attraction;
 mod garment_refit;
+mod garments;
 mod landmark_pull;
 mod model;
 mod params;
@@ -29,6 +30,7 @@ mod tests;
 mod validate;
 
 pub use attraction::{DRESSED_TRUST_FACTOR, GARMENT_FRAME_RATIO};
+pub use garments::GARMENT_MIN_SHARE;
 pub use model::{deformation_model, TemplateTopology, Workspace};
 pub use params::{
     Acceleration, FitParams, Method, ModelConstants, Prealign, Readings, RotationSource, Schedule,
@@ -128,7 +130,7 @@ pub fn fit_with_landmarks(
     params: &FitParams,
     observer: &mut (dyn FnMut(&Progress) -> bool + Send),
 ) -> Result<FitResult> {
-    fit_from(
+    garments::fit_garments(
         template_vertices,
         None,
         template_faces,
@@ -171,7 +173,7 @@ pub fn fit_anchored(
             ),
         ));
     }
-    fit_from(
+    garments::fit_garments(
         start,
         Some(rest),
         template_faces,
@@ -184,8 +186,9 @@ pub fn fit_anchored(
     )
 }
 
-/// The fit of [`fit_with_landmarks`] and [`fit_anchored`]: from `template_vertices`, with
-/// `rest` (`None`: the template itself) as the rest shape.
+/// The fit of one garment ([`garments::fit_garments`] splits a template of several): from
+/// `template_vertices`, with `rest` (`None`: the template itself) as the rest shape; `several`:
+/// the template is one garment of several, so the scan holds more than it whatever its size.
 #[allow(clippy::too_many_arguments)]
 fn fit_from(
     template_vertices: &[[f64; 3]],
@@ -195,6 +198,7 @@ fn fit_from(
     target_faces: Option<&[[u32; 3]]>,
     target_weights: Option<&[f64]>,
     landmarks: Option<&Landmarks>,
+    several: bool,
     params: &FitParams,
     observer: &mut (dyn FnMut(&Progress) -> bool + Send),
 ) -> Result<FitResult> {
@@ -231,6 +235,7 @@ fn fit_from(
         target_weights,
         kept.as_deref(),
         landmarks,
+        several,
         &schedules,
     )?;
     // A scan that holds more than the garment is fitted twice: the second fit onto the points
@@ -402,6 +407,7 @@ fn fit_from(
         target_faces,
         Some(&weights),
         landmarks,
+        several,
         &inner,
         observer,
     )?;
@@ -413,7 +419,7 @@ fn fit_from(
 /// The template moved by the global pre-alignment of [`FitParams::prealign`] (`Rigid`,
 /// `Similarity`: [`crate::prealign::align`] onto the scan points that remain), so that the fit,
 /// and its result, are in the scan's frame as given; `None` when the template stays as given.
-fn prealigned(
+pub(super) fn prealigned(
     template_vertices: &[[f64; 3]],
     target: &[[f64; 3]],
     kept: Option<&[usize]>,

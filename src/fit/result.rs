@@ -7,7 +7,7 @@ use crate::quality::Quality;
 use serde::{Deserialize, Serialize};
 
 /// One iteration's figures.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct IterationRecord {
     /// 1-based iteration number.
     pub iteration: usize,
@@ -35,8 +35,14 @@ impl Progress {
     /// This progress of one of two passes over `total` iterations each (`pass` 0 or 1), as
     /// progress over `total` iterations in all: each pass counts half.
     pub(super) fn of_passes(&self, pass: usize, total: usize) -> Progress {
+        self.of_parts(pass, 2, total)
+    }
+
+    /// This progress of part `part` of `parts` that each count `total` iterations, as progress
+    /// over `total` iterations in all: each part counts `1 / parts`.
+    pub(super) fn of_parts(&self, part: usize, parts: usize, total: usize) -> Progress {
         Progress {
-            iteration: (pass * total + self.iteration).div_ceil(2),
+            iteration: (part * total + self.iteration).div_ceil(parts.max(1)),
             iterations: total,
             record: self.record,
         }
@@ -177,9 +183,9 @@ pub struct Diagnostics {
     /// ([`garment_refit`](super::Schedule::garment_refit)); 0 when there was none.
     #[serde(default)]
     pub garment_refit_points: usize,
-    /// Per connected component of the template, when it has several (garments fitted together;
-    /// docs/dressed.md "Several garments at once"): its figures against the scan; empty for a
-    /// template of one piece.
+    /// Per connected component of the template, when it has several (garments, each fitted on
+    /// its own; docs/dressed.md "Several garments at once"): its figures against the scan;
+    /// empty for a template of one piece.
     #[serde(default)]
     pub components: Vec<ComponentFigures>,
     /// The normalized frame used.

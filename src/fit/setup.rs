@@ -89,6 +89,7 @@ impl Prepared {
         weights: Option<&[f64]>,
         kept: Option<&[usize]>,
         landmarks: Option<&Landmarks>,
+        several: bool,
         schedules: &[FitParams],
     ) -> Result<Self> {
         let params = &schedules[0];
@@ -119,7 +120,7 @@ impl Prepared {
 
         // Normalized frame (docs/method.md, "Frame"), of the points that remain, or of those the
         // template explains where the scan holds far more than the garment (a dressed body).
-        let garment = explained_points(fitted, template_vertices, template_faces, params);
+        let garment = explained_points(fitted, template_vertices, template_faces, params, several);
         let garment_points: Option<Vec<[f64; 3]>> = garment
             .as_ref()
             .map(|g| g.iter().map(|&j| fitted[j as usize]).collect());

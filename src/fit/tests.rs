@@ -904,16 +904,34 @@ fn two_sheets_case(dz: f64) -> Case {
 }
 
 #[test]
-fn rigid_phase_moves_each_garment_by_its_own_rigid_motion_on_a_dressed_scan() {
+fn rigid_phase_moves_each_piece_by_its_own_rigid_motion_on_a_dressed_scan() {
     // One rigid motion cannot lift one sheet and lower the other: it would tilt both about the
     // y axis. On a scan that holds more than the template (here a far "body" plane 1.5 below,
     // 6 × 6 wide), one motion per connected component (docs/method.md "Rigid phase") moves
-    // each sheet straight to its own scan, keeping each sheet's shape.
+    // each sheet straight to its own scan, keeping each sheet's shape. (Fitted through `fit`,
+    // two sheets this size are two garments, each fitted on its own (`garments`); a template
+    // whose second piece is smaller, a sleeve cut loose, is fitted whole, as here.)
     let (v, f, garments) = two_sheets_case(0.05);
     let (body, _) = crate::synthetic::grid_sheet(25, 25, 6.0, 6.0);
     let mut x = garments.clone();
     x.extend(body.iter().map(|p| [p[0], p[1], -1.5]));
-    let r = fit_simple(&v, &f, &x, None, &rigid_only(30)).unwrap();
+    let whole = |x: &[[f64; 3]]| {
+        let params = rigid_only(30);
+        super::fit_from(
+            &v,
+            None,
+            &f,
+            x,
+            None,
+            None,
+            None,
+            false,
+            &params,
+            &mut |_| true,
+        )
+        .unwrap()
+    };
+    let r = whole(&x);
     assert!(
         r.diagnostics.frame.unwrap().scale < 3.0,
         "the garment frame is in use"
@@ -931,7 +949,7 @@ fn rigid_phase_moves_each_garment_by_its_own_rigid_motion_on_a_dressed_scan() {
     }
     // The same template on the garments alone: its components are taken as pieces of one
     // garment and move by one rigid motion, which tilts them.
-    let one = fit_simple(&v, &f, &garments, None, &rigid_only(30)).unwrap();
+    let one = whole(&garments);
     assert_rigidly_moved(&v, &one.vertices);
     let z: Vec<f64> = one.vertices[..half].iter().map(|p| p[2]).collect();
     let spread =
