@@ -181,7 +181,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         f"{summary['flagged']} flagged; {per_frame:.3f} s per frame\n"
         f"the default's single fit of every frame from the template: {single_seconds:.3f} s per frame "
         f"(frame 0, which starts on its own truth: {single_times[0]:.3f} s), max f_R "
-        f"{summary['default_single_fit_max_f_R_pct']:.3f} %, mean {summary['default_single_fit_mean_f_R_pct']:.3f} %"
+        f"{summary['default_single_fit_max_f_R_pct']:.3f} %, "
+        f"mean {summary['default_single_fit_mean_f_R_pct']:.3f} %"
     )
     for label, value, met in checks:
         print(f"  {'met ' if met else 'MISS'} {label}: {value:.3f}")
