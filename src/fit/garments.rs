@@ -95,7 +95,9 @@ fn garments(vertices: &[[f64; 3]], faces: &[[u32; 3]]) -> Option<Vec<Garment>> {
 /// (landmarks or pre-alignment), then each garment fitted on its own from there (its landmarks,
 /// its rest shape) onto the whole scan, the results put back together in the template's
 /// numbering; a template of one garment is fitted as it is. A garment with no scan near it
-/// ([`PRESENT_SHARE`]) is not fitted. The observer sees the garments' iterations as one count;
+/// ([`PRESENT_SHARE`]) is not fitted, unless none has (then each fit refuses a template far
+/// from its scan, [`FoldMatchError::FarAway`](crate::error::FoldMatchError::FarAway), or finds
+/// it). The observer sees the garments' iterations as one count;
 /// when it stops the fit, the garments not reached keep their placed positions. The verdict
 /// and the per-component figures are those of the whole fit.
 #[allow(clippy::too_many_arguments)]
@@ -154,18 +156,26 @@ pub(super) fn fit_garments(
     let mut each = params.clone();
     each.prealign = super::Prealign::None;
     let live_index = PointIndex::new(&live);
+    let pick = |g: &Garment, all: &[[f64; 3]]| -> Vec<[f64; 3]> {
+        g.vertices.iter().map(|&v| all[v as usize]).collect()
+    };
+    let mut present: Vec<bool> = garments
+        .iter()
+        .map(|g| has_scan(&pick(g, &placed), &live_index))
+        .collect();
+    // None near the scan: the template is elsewhere, and each fit says so (or finds it).
+    if !present.contains(&true) {
+        present.fill(true);
+    }
     let parts = garments.len();
     let mut fits: Vec<Option<FitResult>> = Vec::with_capacity(parts);
     for (i, g) in garments.iter().enumerate() {
-        let pick = |all: &[[f64; 3]]| -> Vec<[f64; 3]> {
-            g.vertices.iter().map(|&v| all[v as usize]).collect()
-        };
-        let vertices = pick(&placed);
-        if !has_scan(&vertices, &live_index) {
+        if !present[i] {
             fits.push(None);
             continue;
         }
-        let rest = rest.map(pick);
+        let vertices = pick(g, &placed);
+        let rest = rest.map(|r| pick(g, r));
         let landmarks = landmarks.and_then(|l| garment_landmarks(l, &g.vertices));
         let mut observed = |p: &Progress| observer(&p.of_parts(i, parts, params.iterations));
         let fit = fit_from(
@@ -554,6 +564,24 @@ mod tests {
         .unwrap();
         assert!(r.diagnostics.stopped_by_callback);
         assert_eq!(&r.vertices[81..], &v[81..]);
+    }
+
+    #[test]
+    fn a_template_of_garments_far_from_the_scan_is_refused_as_one_garment_is() {
+        let (v, f) = two_sheets(9);
+        let far: Vec<[f64; 3]> = v.iter().map(|p| [p[0] + 50.0, p[1], p[2]]).collect();
+        let err = fit(
+            &far,
+            &f,
+            &dressed_scan(),
+            None,
+            &FitParams::default(),
+            &mut |_| true,
+        );
+        assert!(
+            matches!(err, Err(crate::error::FoldMatchError::FarAway { .. })),
+            "{err:?}"
+        );
     }
 
     #[test]
