@@ -131,6 +131,16 @@ pub(super) fn fit_garments(
     };
     if let Some(r) = rest {
         crate::mesh::validate_points("rest", r)?;
+        if r.len() != template_vertices.len() {
+            return Err(crate::error::FoldMatchError::shape(
+                "rest",
+                format!(
+                    "has {} vertices, the template {}",
+                    r.len(),
+                    template_vertices.len()
+                ),
+            ));
+        }
     }
     crate::mesh::validate_points("target", target)?;
     if let Some(w) = target_weights {
