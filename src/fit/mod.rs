@@ -419,7 +419,7 @@ fn fit_from(
 /// The template moved by the global pre-alignment of [`FitParams::prealign`] (`Rigid`,
 /// `Similarity`: [`crate::prealign::align`] onto the scan points that remain), so that the fit,
 /// and its result, are in the scan's frame as given; `None` when the template stays as given.
-pub(super) fn prealigned(
+fn prealigned(
     template_vertices: &[[f64; 3]],
     target: &[[f64; 3]],
     kept: Option<&[usize]>,
