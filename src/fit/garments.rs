@@ -146,26 +146,31 @@ pub(super) fn fit_garments(
     if let Some(w) = target_weights {
         super::validate_weights(w, target.len())?;
     }
-    let live: Vec<[f64; 3]> = match target_weights {
-        Some(w) => (0..target.len())
-            .filter(|&j| w[j] > 0.0)
-            .map(|j| target[j])
-            .collect(),
-        None => target.to_vec(),
+    // The scan points that remain (weight > 0), with their indices where some weigh 0.
+    let kept: Option<Vec<usize>> = target_weights
+        .filter(|w| w.contains(&0.0))
+        .map(|w| (0..w.len()).filter(|&j| w[j] > 0.0).collect());
+    let remaining: Vec<[f64; 3]>;
+    let live: &[[f64; 3]] = match &kept {
+        Some(k) => {
+            remaining = k.iter().map(|&j| target[j]).collect();
+            &remaining
+        }
+        None => target,
     };
     // Placed as a whole: the pre-alignment (or the landmarks' rigid fit) moves every garment
     // by one motion, and each garment's fit starts from there.
     let placed = placed_whole(
         template_vertices,
         target,
-        target_weights,
-        &live,
+        kept.as_deref(),
+        live,
         landmarks,
         params,
     )?;
     let mut each = params.clone();
     each.prealign = super::Prealign::None;
-    let live_index = PointIndex::new(&live);
+    let live_index = PointIndex::new(live);
     let pick = |g: &Garment, all: &[[f64; 3]]| -> Vec<[f64; 3]> {
         g.vertices.iter().map(|&v| all[v as usize]).collect()
     };
@@ -211,7 +216,7 @@ pub(super) fn fit_garments(
         rest.unwrap_or(&placed),
         template_faces,
         target,
-        target_weights,
+        (live, kept.as_deref()),
         params,
         &garments,
         fits,
@@ -245,7 +250,7 @@ fn has_scan(vertices: &[[f64; 3]], scan: &PointIndex) -> bool {
 fn placed_whole(
     template_vertices: &[[f64; 3]],
     target: &[[f64; 3]],
-    target_weights: Option<&[f64]>,
+    kept: Option<&[usize]>,
     live: &[[f64; 3]],
     landmarks: Option<&Landmarks>,
     params: &FitParams,
@@ -268,13 +273,8 @@ fn placed_whole(
             .map(|p| (crate::math::vec3(p) + offset).into())
             .collect());
     }
-    let kept: Option<Vec<usize>> = target_weights
-        .filter(|w| w.contains(&0.0))
-        .map(|w| (0..w.len()).filter(|&j| w[j] > 0.0).collect());
-    Ok(
-        super::prealigned(template_vertices, target, kept.as_deref(), params)?
-            .unwrap_or_else(|| template_vertices.to_vec()),
-    )
+    Ok(super::prealigned(template_vertices, target, kept, params)?
+        .unwrap_or_else(|| template_vertices.to_vec()))
 }
 
 /// The landmarks on the garment's vertices (`vertices`, increasing), in its numbering.
@@ -301,7 +301,7 @@ fn assemble(
     rest: &[[f64; 3]],
     faces: &[[u32; 3]],
     target: &[[f64; 3]],
-    target_weights: Option<&[f64]>,
+    (live, kept): (&[[f64; 3]], Option<&[usize]>),
     params: &FitParams,
     garments: &[Garment],
     fits: Vec<Option<FitResult>>,
@@ -374,24 +374,14 @@ fn assemble(
     let snapshots = merged_snapshots(&fitted, &vertices);
     // The verdict of the whole fit, against the scan points of positive weight that the
     // template explains where the scan holds more than the garments.
-    let kept: Vec<[f64; 3]>;
-    let kept_index: Vec<usize>;
-    let (live, live_index): (&[[f64; 3]], Option<&[usize]>) = match target_weights {
-        Some(w) if w.contains(&0.0) => {
-            kept_index = (0..target.len()).filter(|&j| w[j] > 0.0).collect();
-            kept = kept_index.iter().map(|&j| target[j]).collect();
-            (&kept, Some(&kept_index))
-        }
-        _ => (target, None),
-    };
     let assessed: Option<Vec<usize>> = match explained_points(live, &vertices, faces, params, false)
     {
         Some(e) => Some(
             e.iter()
-                .map(|&j| live_index.map_or(j as usize, |k| k[j as usize]))
+                .map(|&j| kept.map_or(j as usize, |k| k[j as usize]))
                 .collect(),
         ),
-        None => live_index.map(<[usize]>::to_vec),
+        None => kept.map(<[usize]>::to_vec),
     };
     let assessment = crate::quality::assess_points(
         rest,
