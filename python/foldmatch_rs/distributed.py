@@ -278,13 +278,24 @@ def run_books(
             owner[future] = (book, file["index"])
     interrupted = False
     try:
-        for future in as_completed(list(owner), raise_errors=False):
+        pending = as_completed(list(owner), raise_errors=False)
+        for future in pending:
+            if future.status not in ("finished", "error", "cancelled"):
+                # Completed on a worker that died before the result was read: the scheduler
+                # recomputes it elsewhere, so wait for it again.
+                pending.add(future)
+                continue
             book, index = owner.pop(future)
-            if future.status == "finished":
-                result = future.result()
-                book.record(index, result if kind == "batch" else result[0])
-            else:
+            if future.status != "finished":
                 book.record_failure(index, _failure(future))
+                continue
+            try:
+                result = future.result()
+            except Exception as error:  # its worker died again while the result was fetched
+                lost = f"its Dask task's result was lost: {type(error).__name__}: {error}"
+                book.record_failure(index, lost)
+                continue
+            book.record(index, result if kind == "batch" else result[0])
     except KeyboardInterrupt:
         interrupted = True
         client.cancel(list(owner))

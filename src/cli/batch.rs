@@ -222,6 +222,7 @@ impl Setup {
         let output = &self.outputs[i];
         for path in [output.clone(), preview_path(output)] {
             let staged = stage_path(&path);
+            crate::io::remove_orphaned_temps(&staged);
             if staged.is_file() {
                 if done {
                     let _ = std::fs::rename(&staged, &path);
@@ -313,6 +314,11 @@ impl Shared {
         let mut ok = entry.status == Status::Ok;
         self.report.files[i] = entry;
         self.write(RunState::Running);
+        // An attempt killed mid-write (a Dask worker that died) left its temporary file; the
+        // file is done now, so no write to its staged path is under way.
+        for (stage, _) in commits {
+            crate::io::remove_orphaned_temps(stage);
+        }
         for (stage, output) in commits.iter().filter(|(s, _)| s.is_file()) {
             if !ok {
                 let _ = std::fs::remove_file(stage);

@@ -386,6 +386,28 @@ pub(crate) fn write_atomically(
     }
 }
 
+/// Removes the temporary files [`write_atomically`] left for `path` when the process that wrote
+/// them was killed mid-write (`.NAME.tmp.*` beside it). Only for a path no write is under way
+/// to; best effort (a file that cannot be listed or removed is left).
+pub(crate) fn remove_orphaned_temps(path: &Path) {
+    let (Some(name), dir) = (path.file_name(), path.parent()) else {
+        return;
+    };
+    let dir = match dir {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    let prefix = format!(".{}.tmp.", name.to_string_lossy());
+    let Ok(entries) = fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        if entry.file_name().to_string_lossy().starts_with(&prefix) {
+            let _ = fs::remove_file(entry.path());
+        }
+    }
+}
+
 /// Runs `emit` on a buffered wrapper of a `Write` sink and flushes it, mapping I/O errors to
 /// [`FoldMatchError::Io`] with the pseudo-path `<stream>`.
 pub(crate) fn write_to_stream<W: Write>(
@@ -548,6 +570,14 @@ mod tests {
         write_mesh(&p, &mesh, &[], false).unwrap();
         assert_eq!(read_mesh(&p).unwrap(), mesh);
         assert_eq!(dir.entries(), vec!["out.ply".to_string()]);
+        // A writer killed mid-write leaves its temporary file; it is removed for that path only.
+        fs::write(dir.join(".out.ply.tmp.99999.0"), b"partial").unwrap();
+        fs::write(dir.join(".other.ply.tmp.99999.0"), b"partial").unwrap();
+        remove_orphaned_temps(&p);
+        assert_eq!(
+            dir.entries(),
+            vec![".other.ply.tmp.99999.0".to_string(), "out.ply".to_string()]
+        );
     }
 
     #[test]
