@@ -46,21 +46,51 @@ impl Neighborhoods {
 }
 
 /// Vertex adjacency (one-ring) of a triangle mesh in CSR form, sorted, without duplicates.
+/// Built in place (counted, filled, each row sorted and deduplicated, then compacted): no list
+/// per vertex.
 pub fn adjacency(faces: &[[u32; 3]], n_vertices: usize) -> Neighborhoods {
-    let mut rows: Vec<Vec<u32>> = vec![Vec::new(); n_vertices];
-    for f in faces {
-        for (a, b) in [(f[0], f[1]), (f[1], f[2]), (f[2], f[0])] {
-            if a != b {
-                rows[a as usize].push(b);
-                rows[b as usize].push(a);
+    let half_edges = || {
+        faces
+            .iter()
+            .flat_map(|f| [(f[0], f[1]), (f[1], f[2]), (f[2], f[0])])
+            .filter(|(a, b)| a != b)
+    };
+    let mut start = vec![0usize; n_vertices + 1];
+    for (a, b) in half_edges() {
+        start[a as usize + 1] += 1;
+        start[b as usize + 1] += 1;
+    }
+    for v in 0..n_vertices {
+        start[v + 1] += start[v];
+    }
+    let mut filled = start.clone();
+    let mut members = vec![0u32; start[n_vertices]];
+    for (a, b) in half_edges() {
+        members[filled[a as usize]] = b;
+        filled[a as usize] += 1;
+        members[filled[b as usize]] = a;
+        filled[b as usize] += 1;
+    }
+    // Sort and deduplicate every row where it lies, then move the rows down over the gaps.
+    let mut offsets = Vec::with_capacity(n_vertices + 1);
+    offsets.push(0);
+    let mut end = 0;
+    for v in 0..n_vertices {
+        let row = &mut members[start[v]..start[v + 1]];
+        row.sort_unstable();
+        let mut kept = 0;
+        for i in 0..row.len() {
+            if i == 0 || row[i] != row[kept - 1] {
+                row[kept] = row[i];
+                kept += 1;
             }
         }
+        members.copy_within(start[v]..start[v] + kept, end);
+        end += kept;
+        offsets.push(end);
     }
-    for r in &mut rows {
-        r.sort_unstable();
-        r.dedup();
-    }
-    Neighborhoods::from_rows(rows)
+    members.truncate(end);
+    Neighborhoods { offsets, members }
 }
 
 /// The n-ring neighborhoods of every vertex: all vertices at graph distance ≤ `rings`
@@ -383,6 +413,30 @@ mod tests {
             }
         }
         f
+    }
+
+    #[test]
+    fn adjacency_is_every_mesh_neighbour_once_in_order() {
+        // A grid, a face given twice (either winding), a degenerate face and an isolated vertex.
+        let mut faces = grid(6, 5);
+        faces.push(faces[3]);
+        faces.push([faces[7][0], faces[7][2], faces[7][1]]);
+        faces.push([4, 4, 9]);
+        let n = 30 + 1;
+        let adj = adjacency(&faces, n);
+        for v in 0..n as u32 {
+            let mut want: Vec<u32> = faces
+                .iter()
+                .filter(|f| f.contains(&v))
+                .flat_map(|f| f.iter().copied())
+                .filter(|&u| u != v)
+                .collect();
+            want.sort_unstable();
+            want.dedup();
+            assert_eq!(adj.of(v as usize), &want[..], "vertex {v}");
+        }
+        assert!(adj.of(30).is_empty());
+        assert_eq!(adj.members.len(), *adj.offsets.last().unwrap());
     }
 
     #[test]

@@ -324,8 +324,10 @@ fn fit_from(
         .filter(|g| !g.is_empty())
         .or(prepared.garment.as_deref());
     let kept_start = params.schedule.keep_margin > 0.0 && {
-        let fitted = median_scan_distance(target, target_weights, garment, &vertices);
-        let start = median_scan_distance(target, target_weights, garment, &start_vertices);
+        let (fitted, start) = rayon::join(
+            || median_scan_distance(target, target_weights, garment, &vertices),
+            || median_scan_distance(target, target_weights, garment, &start_vertices),
+        );
         keeps_start(start, fitted, params.schedule.keep_margin)
     };
     let vertices = if kept_start {

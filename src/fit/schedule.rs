@@ -56,14 +56,17 @@ pub(super) fn median_scan_distance(
             &all
         }
     };
-    let points: Vec<[f64; 3]> = chosen.iter().map(|&j| target[j]).collect();
-    let d = crate::metrics::nearest_distances(&points, fitted);
+    let index = crate::knn::PointIndex::new(fitted);
+    let d: Vec<f64> = chosen
+        .par_iter()
+        .map(|&j| index.nearest_one(&target[j]).1.sqrt())
+        .collect();
     let w: Vec<f64> = chosen
         .iter()
         .map(|&j| weights.map_or(1.0, |w| w[j]))
         .collect();
     let mut order: Vec<usize> = (0..d.len()).filter(|&i| w[i] > 0.0).collect();
-    order.sort_by(|&a, &b| d[a].total_cmp(&d[b]));
+    order.par_sort_unstable_by(|&a, &b| d[a].total_cmp(&d[b]).then(a.cmp(&b)));
     let half = 0.5 * order.iter().map(|&i| w[i]).sum::<f64>();
     let mut acc = 0.0;
     for &i in &order {

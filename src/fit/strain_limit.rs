@@ -18,17 +18,11 @@ pub(super) struct StrainLimit {
     ring: Neighborhoods,
     /// `rest_length[e]`: the rest length of the edge to `ring.members[e]`.
     rest_length: Vec<f64>,
-    /// The vertices a pass looks at (after the first pass: those moved by the last one and
-    /// their neighbours, the only ones whose edges changed).
-    candidates: Vec<u32>,
-    /// A pass's new position of every vertex it looks at (`None`: unmoved).
+    /// A pass's new position of every vertex (`None`: unmoved).
     moves: Vec<Option<[f64; 3]>>,
-    /// The vertices a pass moved, with their new positions.
-    moved: Vec<(u32, [f64; 3])>,
-    /// The pass (`stamp`, counted over every call) at which a vertex was last made a candidate,
-    /// which dedups `candidates`.
-    marked: Vec<u32>,
-    stamp: u32,
+    /// Whether the last pass moved the vertex: after the first pass only the vertices moved
+    /// and their neighbours, whose edges changed, are looked at.
+    moved: Vec<bool>,
 }
 
 impl StrainLimit {
@@ -52,11 +46,8 @@ impl StrainLimit {
             pinned: is_pinned,
             ring,
             rest_length,
-            candidates: Vec::with_capacity(m),
-            moves: Vec::with_capacity(m),
-            moved: Vec::with_capacity(m),
-            marked: vec![0; m],
-            stamp: 0,
+            moves: vec![None; m],
+            moved: vec![false; m],
         }
     }
 
@@ -64,27 +55,32 @@ impl StrainLimit {
     /// every vertex moves by the mean over its edges of the correction that brings the edge's
     /// length into `[ℓ⁰ / (1 + c), (1 + s) ℓ⁰]` (s = 0: no upper bound, c = 0: no lower bound),
     /// i.e. twice the usual half-correction per endpoint, an over-relaxed Jacobi step (ω = 2)
-    /// that the averaging over the one-ring keeps stable.
+    /// that the averaging over the one-ring keeps stable. Every stage of a pass runs in
+    /// parallel over the vertices, with no allocation.
     pub(super) fn apply(&mut self, pos: &mut [[f64; 3]], s: f64, c: f64, passes: usize) {
         let hi = if s > 0.0 { 1.0 + s } else { f64::INFINITY };
         let hi2 = hi * hi;
         let lo = if c > 0.0 { 1.0 / (1.0 + c) } else { 0.0 };
         let lo2 = lo * lo;
-        let m = pos.len();
         for pass in 0..passes {
-            let (offsets, neighbours, rest_length, pinned) = (
+            let (offsets, neighbours, rest_length, pinned, moved) = (
                 &self.ring.offsets,
                 &self.ring.members,
                 &self.rest_length,
                 &self.pinned,
+                &self.moved,
             );
             let current: &[[f64; 3]] = pos;
-            let correct = |v: usize| -> Option<[f64; 3]> {
-                if pinned[v] {
-                    return None;
+            self.moves.par_iter_mut().enumerate().for_each(|(v, out)| {
+                *out = None;
+                let (a, b) = (offsets[v], offsets[v + 1]);
+                // After the first pass, an edge changed only where an end moved.
+                if pinned[v]
+                    || (pass > 0 && !moved[v] && !neighbours[a..b].iter().any(|&u| moved[u as usize]))
+                {
+                    return;
                 }
                 let p = vec3(&current[v]);
-                let (a, b) = (offsets[v], offsets[v + 1]);
                 let mut corr = crate::math::Vec3::zeros();
                 let mut any = false;
                 for e in a..b {
@@ -98,51 +94,25 @@ impl StrainLimit {
                         any = true;
                     }
                 }
-                any.then(|| (p + corr / (b - a) as f64).into())
-            };
-            if pass == 0 {
-                (0..m)
-                    .into_par_iter()
-                    .map(correct)
-                    .collect_into_vec(&mut self.moves);
-            } else {
-                self.candidates
-                    .par_iter()
-                    .map(|&v| correct(v as usize))
-                    .collect_into_vec(&mut self.moves);
-            }
-            if self.moves.iter().all(Option::is_none) {
-                break;
-            }
-            // The moved vertices (in pass 0 every vertex is a candidate, `moves[v]` is v's).
-            let looked_at = |i: usize| {
-                if pass == 0 {
-                    i as u32
-                } else {
-                    self.candidates[i]
+                if any {
+                    *out = Some((p + corr / (b - a) as f64).into());
                 }
-            };
-            self.moved.clear();
-            for (i, mv) in self.moves.iter().enumerate() {
-                if let Some(p) = mv {
-                    self.moved.push((looked_at(i), *p));
-                }
-            }
-            self.candidates.clear();
-            self.stamp = self.stamp.wrapping_add(1);
-            if self.stamp == 0 {
-                self.marked.fill(0);
-                self.stamp = 1;
-            }
-            let stamp = self.stamp;
-            for &(v, p) in &self.moved {
-                pos[v as usize] = p;
-                for u in std::iter::once(v).chain(self.ring.of(v as usize).iter().copied()) {
-                    if self.marked[u as usize] != stamp {
-                        self.marked[u as usize] = stamp;
-                        self.candidates.push(u);
+            });
+            let moves = &self.moves;
+            let any = pos
+                .par_iter_mut()
+                .zip(self.moved.par_iter_mut())
+                .zip(moves.par_iter())
+                .map(|((p, flag), mv)| {
+                    *flag = mv.is_some();
+                    if let Some(q) = mv {
+                        *p = *q;
                     }
-                }
+                    *flag
+                })
+                .reduce(|| false, |a, b| a || b);
+            if !any {
+                break;
             }
         }
     }

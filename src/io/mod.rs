@@ -389,6 +389,7 @@ pub(crate) fn write_atomically(
 /// Removes the temporary files [`write_atomically`] left for `path` when the process that wrote
 /// them was killed mid-write (`.NAME.tmp.*` beside it). Only for a path no write is under way
 /// to; best effort (a file that cannot be listed or removed is left).
+#[cfg_attr(not(feature = "cli"), allow(dead_code))] // the batch commands
 pub(crate) fn remove_orphaned_temps(path: &Path) {
     let (Some(name), dir) = (path.file_name(), path.parent()) else {
         return;

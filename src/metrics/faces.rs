@@ -35,7 +35,7 @@ impl EdgeLengths {
             .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])])
             .map(|(a, b)| (a.min(b), a.max(b)))
             .collect();
-        edges.sort_unstable();
+        edges.par_sort_unstable();
         edges.dedup();
         let rest: Vec<f64> = edges.iter().map(|&e| edge_length(template, e)).collect();
         let (edges, rest) = edges

@@ -374,16 +374,29 @@ pub fn judged(mut quality: Quality, thresholds: &VerdictThresholds) -> Quality {
 /// The faces incident to each vertex (CSR; degenerate faces included: they still bound the
 /// surface a scan point may be nearest to).
 fn vertex_faces(faces: &[[u32; 3]], m: usize) -> Neighborhoods {
-    let mut rows: Vec<Vec<u32>> = vec![Vec::new(); m];
-    for (f, tri) in faces.iter().enumerate() {
-        for &v in tri {
-            let row = &mut rows[v as usize];
-            if row.last() != Some(&(f as u32)) {
-                row.push(f as u32);
-            }
+    // A face is listed once per distinct corner (a corner repeated in a degenerate face once).
+    let corners = |tri: &[u32; 3]| {
+        let [a, b, c] = *tri;
+        [Some(a), (b != a).then_some(b), (c != a && c != b).then_some(c)]
+    };
+    let mut offsets = vec![0usize; m + 1];
+    for tri in faces {
+        for v in corners(tri).into_iter().flatten() {
+            offsets[v as usize + 1] += 1;
         }
     }
-    Neighborhoods::from_rows(rows)
+    for v in 0..m {
+        offsets[v + 1] += offsets[v];
+    }
+    let mut filled = offsets.clone();
+    let mut members = vec![0u32; offsets[m]];
+    for (f, tri) in faces.iter().enumerate() {
+        for v in corners(tri).into_iter().flatten() {
+            members[filled[v as usize]] = f as u32;
+            filled[v as usize] += 1;
+        }
+    }
+    Neighborhoods { offsets, members }
 }
 
 /// Arithmetic mean in index order (0 when empty).
@@ -467,6 +480,23 @@ fn face_shares(y: &[[f64; 3]], fit: &[[f64; 3]], faces: &[[u32; 3]]) -> FaceShar
     let rings = n_rings_of(&adjacency(faces, y.len()), 2);
     let diag = bbox_diagonal(y);
     let min_area = crate::metrics::DEFAULT_DEGENERATE_AREA_REL * diag * diag;
+    let evaluated_face = |f: &[u32; 3]| 0.5 * crate::math::vec3(&cross_of(y, f)).norm() > min_area;
+    // The rotation of each face's first corner's 2-ring, once per corner (faces share corners).
+    let mut is_first = vec![false; y.len()];
+    for f in faces.iter().filter(|f| evaluated_face(f)) {
+        is_first[f[0] as usize] = true;
+    }
+    let rotations: Vec<crate::math::Mat3> = (0..y.len())
+        .into_par_iter()
+        .map(|v| {
+            if !is_first[v] {
+                return crate::math::Mat3::identity();
+            }
+            let ring = rings.of(v);
+            let (c_old, c_new) = crate::rotation::ring_centroids(ring, y, fit);
+            crate::rotation::kabsch(ring, y, fit, &c_old, &c_new, false)
+        })
+        .collect();
     let (evaluated, flipped, collapsed) = faces
         .par_iter()
         .map(|f| {
@@ -476,9 +506,7 @@ fn face_shares(y: &[[f64; 3]], fit: &[[f64; 3]], faces: &[[u32; 3]]) -> FaceShar
                 return (0usize, 0usize, 0usize);
             }
             let n_fit = crate::math::vec3(&cross_of(fit, f));
-            let ring = rings.of(f[0] as usize);
-            let (c_old, c_new) = crate::rotation::ring_centroids(ring, y, fit);
-            let r = crate::rotation::kabsch(ring, y, fit, &c_old, &c_new, false);
+            let r = rotations[f[0] as usize];
             let flip = (r * n).dot(&n_fit) < 0.0;
             let collapse = 0.5 * n_fit.norm() / area < DEFAULT_TAU_S;
             (1, usize::from(flip), usize::from(collapse))
