@@ -47,6 +47,7 @@ pub use schedule::{keeps_start, select_schedule};
 use crate::error::{FoldMatchError, Result};
 use crate::landmarks::Landmarks;
 use crate::math::vec3;
+use rayon::prelude::*;
 use schedule::{drive, median_scan_distance, selection_distance, ScheduleRun};
 use setup::Prepared;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -276,7 +277,7 @@ fn fit_from(
         let vertices: Vec<Vec<[f64; 3]>> =
             runs.iter().map(|r| r.user_vertices(&prepared)).collect();
         let distances: Vec<f64> = vertices
-            .iter()
+            .par_iter()
             .map(|v| selection_distance(target, target_weights, prepared.garment.as_deref(), v))
             .collect();
         let rest_edges = crate::metrics::EdgeLengths::new(rest_shape, &prepared.faces);

@@ -22,18 +22,33 @@ pub(super) fn selection_distance(
     garment: Option<&[usize]>,
     fitted: &[[f64; 3]],
 ) -> f64 {
-    let chosen: Vec<[f64; 3]>;
-    let (points, w): (&[[f64; 3]], Option<Vec<f64>>) = match garment {
-        Some(g) => {
-            chosen = g.iter().map(|&j| target[j]).collect();
-            (&chosen, weights.map(|w| g.iter().map(|&j| w[j]).collect()))
-        }
-        None => (target, weights.map(<[f64]>::to_vec)),
+    let d = nearest_vertex_distances(target, garment, fitted);
+    let w: Option<Vec<f64>> = match garment {
+        Some(g) => weights.map(|w| g.iter().map(|&j| w[j]).collect()),
+        None => weights.map(<[f64]>::to_vec),
     };
-    let d = crate::metrics::nearest_distances(points, fitted);
     match w {
         Some(w) => d.iter().zip(&w).map(|(d, w)| d * w).sum::<f64>() / w.iter().sum::<f64>(),
         None => d.iter().sum::<f64>() / d.len() as f64,
+    }
+}
+
+/// The distance from each scan point (those of `garment`, else all) to its nearest vertex of
+/// `fitted`, in that order: the fit's own k-d tree ([`PointIndex`](crate::knn::PointIndex)),
+/// parallel queries.
+fn nearest_vertex_distances(
+    target: &[[f64; 3]],
+    garment: Option<&[usize]>,
+    fitted: &[[f64; 3]],
+) -> Vec<f64> {
+    if fitted.is_empty() {
+        return vec![f64::INFINITY; garment.map_or(target.len(), <[usize]>::len)];
+    }
+    let index = crate::knn::PointIndex::new(fitted);
+    let distance = |p: &[f64; 3]| index.nearest_one(p).1.sqrt();
+    match garment {
+        Some(g) => g.par_iter().map(|&j| distance(&target[j])).collect(),
+        None => target.par_iter().map(distance).collect(),
     }
 }
 
@@ -56,11 +71,7 @@ pub(super) fn median_scan_distance(
             &all
         }
     };
-    let index = crate::knn::PointIndex::new(fitted);
-    let d: Vec<f64> = chosen
-        .par_iter()
-        .map(|&j| index.nearest_one(&target[j]).1.sqrt())
-        .collect();
+    let d = nearest_vertex_distances(target, garment, fitted);
     let w: Vec<f64> = chosen
         .iter()
         .map(|&j| weights.map_or(1.0, |w| w[j]))
