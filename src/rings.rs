@@ -126,12 +126,25 @@ pub fn n_rings_of(adjacency: &Neighborhoods, rings: usize) -> Neighborhoods {
         .collect();
     let mut offsets = Vec::with_capacity(m + 1);
     offsets.push(0);
-    let mut members = Vec::with_capacity(chunks.iter().map(|c| c.0.len()).sum());
-    for (chunk, ends) in chunks {
-        let base = members.len();
-        members.extend_from_slice(&chunk);
+    let mut base = 0;
+    for (chunk, ends) in &chunks {
         offsets.extend(ends.iter().map(|e| base + e));
+        base += chunk.len();
     }
+    // The chunks copied into place in parallel (the 12-rings of the paper-sized template are
+    // 5.6M members: a serial copy was a fifth of their build).
+    let mut members = vec![0u32; base];
+    let mut places: Vec<&mut [u32]> = Vec::with_capacity(chunks.len());
+    let mut rest = &mut members[..];
+    for (chunk, _) in &chunks {
+        let (place, tail) = rest.split_at_mut(chunk.len());
+        places.push(place);
+        rest = tail;
+    }
+    places
+        .into_par_iter()
+        .zip(chunks.par_iter())
+        .for_each(|(place, (chunk, _))| place.copy_from_slice(chunk));
     Neighborhoods { offsets, members }
 }
 

@@ -261,7 +261,7 @@ fn fit_from(
         }
     }
     let mut runs: Vec<ScheduleRun> = schedules
-        .into_iter()
+        .into_par_iter()
         .map(|p| ScheduleRun::new(&prepared, p))
         .collect();
     let setup = clock.elapsed().as_secs_f64();
@@ -272,6 +272,8 @@ fn fit_from(
         total
     };
     drive(&prepared, &mut runs, 1..=compare_at, total, observer)?;
+    // The template's edges: schedule selection's spreads and the verdict's.
+    let rest_edges = crate::metrics::EdgeLengths::new(rest_shape, &prepared.faces);
     // The candidates are compared on their fitted vertices alone.
     let mut selection = (runs.len() > 1).then(|| {
         let vertices: Vec<Vec<[f64; 3]>> =
@@ -280,7 +282,6 @@ fn fit_from(
             .par_iter()
             .map(|v| selection_distance(target, target_weights, prepared.garment.as_deref(), v))
             .collect();
-        let rest_edges = crate::metrics::EdgeLengths::new(rest_shape, &prepared.faces);
         let spreads: Vec<f64> = vertices.iter().map(|v| rest_edges.spread(v)).collect();
         let best = select_schedule(&distances, &spreads, params.schedule.selection_margin);
         (best, vertices, distances, spreads)
@@ -340,13 +341,16 @@ fn fit_from(
     // The verdict against the points the fit was drawn to: those of positive weight, or on a
     // scan that holds more than the garment, those the template explains.
     let assessed = prepared.garment.as_deref().or(kept.as_deref());
-    let assessment = crate::quality::assess_points(
-        rest_shape,
-        &prepared.faces,
-        &vertices,
-        target,
+    let two_rings =
+        (params.method == Method::FoldMatch && params.model.rings == 2).then_some(&prepared.rings);
+    let assessment = crate::quality::assess_points_with(
+        (rest_shape, &prepared.faces, &vertices, target),
         assessed,
         &crate::quality::VerdictThresholds::default(),
+        two_rings.map(|two_rings| crate::quality::KnownMesh {
+            two_rings,
+            edges: &rest_edges,
+        }),
     )?;
     // Only the chosen run is finished (its wrinkle fields are a whole Eq. 4–8 pass).
     let mut chosen = winner.finish(&prepared, vertices, assessment);

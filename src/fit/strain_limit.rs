@@ -76,7 +76,9 @@ impl StrainLimit {
                 let (a, b) = (offsets[v], offsets[v + 1]);
                 // After the first pass, an edge changed only where an end moved.
                 if pinned[v]
-                    || (pass > 0 && !moved[v] && !neighbours[a..b].iter().any(|&u| moved[u as usize]))
+                    || (pass > 0
+                        && !moved[v]
+                        && !neighbours[a..b].iter().any(|&u| moved[u as usize]))
                 {
                     return;
                 }

@@ -202,6 +202,24 @@ pub struct AssessInput<'a> {
 /// [`FoldMatchError::NonFinite`], [`FoldMatchError::FaceIndex`], and
 /// [`FoldMatchError::Parameter`] for invalid thresholds.
 pub fn assess(input: &AssessInput<'_>, thresholds: &VerdictThresholds) -> Result<Assessment> {
+    assess_with(input, thresholds, None)
+}
+
+/// What a fit already holds of the template's mesh figures, so that its verdict does not build
+/// them again: every vertex's 2-ring (the order of [`n_rings_of`]) and the template's edges
+/// ([`EdgeLengths::new`] of the template vertices and faces assessed).
+#[derive(Clone, Copy)]
+pub(crate) struct KnownMesh<'a> {
+    pub two_rings: &'a Neighborhoods,
+    pub edges: &'a EdgeLengths,
+}
+
+/// [`assess`], with the mesh figures a fit already holds.
+pub(crate) fn assess_with(
+    input: &AssessInput<'_>,
+    thresholds: &VerdictThresholds,
+    known: Option<KnownMesh<'_>>,
+) -> Result<Assessment> {
     thresholds.validate()?;
     let AssessInput {
         template_vertices: y,
@@ -256,15 +274,22 @@ pub fn assess(input: &AssessInput<'_>, thresholds: &VerdictThresholds) -> Result
     let fit_to_scan = relative(mean(&residuals));
     let scan_to_fit = relative(mean(&scan_distances));
     let spacing = scan_spacing(scan, &scan_index);
-    let edges = EdgeLengths::new(y, faces);
-    let fitted_edge = median_edge(&edges, fit);
+    let built_edges;
+    let edges = match known {
+        Some(k) => k.edges,
+        None => {
+            built_edges = EdgeLengths::new(y, faces);
+            &built_edges
+        }
+    };
+    let fitted_edge = median_edge(edges, fit);
     let support_radius = SUPPORT_RADIUS_FACTOR * spacing.max(fitted_edge);
     // Distances below the support radius are sampling, not disagreement.
     let asymmetry =
         (fit_to_scan - scan_to_fit) / (fit_to_scan + scan_to_fit + relative(support_radius));
 
     let ratios = edges.ratios(fit);
-    let rest_edge = median_edge(&edges, y);
+    let rest_edge = median_edge(edges, y);
     let edge_distortion = distortion_p95(&ratios);
 
     let neighbour = SUPPORT_NEIGHBOUR_EDGES * rest_edge;
@@ -280,7 +305,7 @@ pub fn assess(input: &AssessInput<'_>, thresholds: &VerdictThresholds) -> Result
         .collect();
     let unsupported_share = support.iter().filter(|&&s| !s).count() as f64 / support.len() as f64;
 
-    let faces_figures = face_shares(y, fit, faces);
+    let faces_figures = face_shares(y, fit, faces, known.map(|k| k.two_rings));
     let quality = Quality {
         verdict: Verdict::Ok,
         reasons: Vec::new(),
@@ -313,6 +338,25 @@ pub fn assess_points(
     points: Option<&[usize]>,
     thresholds: &VerdictThresholds,
 ) -> Result<Assessment> {
+    let input = (template_vertices, faces, fitted_vertices, scan);
+    assess_points_with(input, points, thresholds, None)
+}
+
+/// Template vertices, faces, fitted vertices and scan points.
+pub(crate) type MeshAndScan<'a> = (
+    &'a [[f64; 3]],
+    &'a [[u32; 3]],
+    &'a [[f64; 3]],
+    &'a [[f64; 3]],
+);
+
+/// [`assess_points`], with the mesh figures a fit already holds.
+pub(crate) fn assess_points_with(
+    (template_vertices, faces, fitted_vertices, scan): MeshAndScan<'_>,
+    points: Option<&[usize]>,
+    thresholds: &VerdictThresholds,
+    known: Option<KnownMesh<'_>>,
+) -> Result<Assessment> {
     let chosen: Vec<[f64; 3]>;
     let scan_points = match points {
         Some(p) => {
@@ -327,7 +371,7 @@ pub fn assess_points(
         fitted_vertices,
         scan: scan_points,
     };
-    let mut a = assess(&input, thresholds)?;
+    let mut a = assess_with(&input, thresholds, known)?;
     if let Some(p) = points {
         for c in &mut a.correspondences {
             *c = p[*c as usize] as u32;
@@ -377,7 +421,11 @@ fn vertex_faces(faces: &[[u32; 3]], m: usize) -> Neighborhoods {
     // A face is listed once per distinct corner (a corner repeated in a degenerate face once).
     let corners = |tri: &[u32; 3]| {
         let [a, b, c] = *tri;
-        [Some(a), (b != a).then_some(b), (c != a && c != b).then_some(c)]
+        [
+            Some(a),
+            (b != a).then_some(b),
+            (c != a && c != b).then_some(c),
+        ]
     };
     let mut offsets = vec![0usize; m + 1];
     for tri in faces {
@@ -470,14 +518,26 @@ struct FaceShares {
 /// A face is flipped when its fitted normal points against its template normal rotated by
 /// the Kabsch rotation of the 2-ring of its first corner (template → fit): a fit may turn
 /// the whole garment or a sleeve, which is no flip.
-fn face_shares(y: &[[f64; 3]], fit: &[[f64; 3]], faces: &[[u32; 3]]) -> FaceShares {
+fn face_shares(
+    y: &[[f64; 3]],
+    fit: &[[f64; 3]],
+    faces: &[[u32; 3]],
+    two_rings: Option<&Neighborhoods>,
+) -> FaceShares {
     if faces.is_empty() {
         return FaceShares {
             flipped: 0.0,
             collapsed: 0.0,
         };
     }
-    let rings = n_rings_of(&adjacency(faces, y.len()), 2);
+    let built;
+    let rings = match two_rings {
+        Some(r) => r,
+        None => {
+            built = n_rings_of(&adjacency(faces, y.len()), 2);
+            &built
+        }
+    };
     let diag = bbox_diagonal(y);
     let min_area = crate::metrics::DEFAULT_DEGENERATE_AREA_REL * diag * diag;
     let evaluated_face = |f: &[u32; 3]| 0.5 * crate::math::vec3(&cross_of(y, f)).norm() > min_area;
