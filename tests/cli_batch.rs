@@ -471,6 +471,9 @@ fn kill_9_mid_batch_then_resume_fits_nothing_twice() {
     )
     .unwrap();
     let staged = format!(".{first}.staged.ply");
+    // And a kill in the middle of writing the last output's staged file: its temporary file.
+    let torn = format!("..{}.staged.ply.tmp.99999.0", written[written.len() - 1]);
+    std::fs::write(d.join("out").join(&torn), b"ply\nformat ascii 1.0\n").unwrap();
     let stamps = mtimes(&d.join("out"), &[staged.as_str()]);
     let others: Vec<&str> = written[1..].iter().map(String::as_str).collect();
     let other_stamps = mtimes(&d.join("out"), &others);
@@ -504,6 +507,7 @@ fn kill_9_mid_batch_then_resume_fits_nothing_twice() {
         "refitted an output"
     );
     assert!(!d.join("out").join(&staged).exists());
+    assert!(!d.join("out").join(&torn).exists(), "{torn} left behind");
     let report = json(&d.join("out/report.json"));
     assert_eq!(report["state"], "complete");
     assert_eq!(report["summary"]["skipped"], recorded);
