@@ -341,15 +341,19 @@ impl ScheduleRun {
                     *vl = (delta / dt).into();
                 }
             });
-        if let Some(bad) = next.iter().position(|p| !p.iter().all(|x| x.is_finite())) {
-            return Err(FoldMatchError::Numerical(format!(
-                "vertex {bad} became non-finite at iteration {it}"
-            )));
+        // A non-finite position makes its displacement non-finite: checked in parallel, the
+        // vertex looked for only then.
+        if self.disp.par_iter().any(|d| !d.is_finite()) {
+            if let Some(bad) = next.iter().position(|p| !p.iter().all(|x| x.is_finite())) {
+                return Err(FoldMatchError::Numerical(format!(
+                    "vertex {bad} became non-finite at iteration {it}"
+                )));
+            }
         }
         std::mem::swap(&mut self.pos, &mut self.next);
-        // Sequential reduction: identical for any thread count.
+        // Sequential sum: identical for any thread count (a maximum is, in any order).
         let mean = self.disp.iter().sum::<f64>() / m as f64;
-        let max = self.disp.iter().copied().fold(0.0, f64::max);
+        let max = self.disp.par_iter().copied().reduce(|| 0.0, f64::max);
         let record = IterationRecord {
             iteration: it,
             mean_displacement: mean,
