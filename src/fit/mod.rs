@@ -347,7 +347,7 @@ fn fit_from(
         (rest_shape, &prepared.faces, &vertices, target),
         assessed,
         &crate::quality::VerdictThresholds::default(),
-        two_rings.map(|two_rings| crate::quality::KnownMesh {
+        Some(crate::quality::KnownMesh {
             two_rings,
             edges: &rest_edges,
         }),

@@ -206,11 +206,11 @@ pub fn assess(input: &AssessInput<'_>, thresholds: &VerdictThresholds) -> Result
 }
 
 /// What a fit already holds of the template's mesh figures, so that its verdict does not build
-/// them again: every vertex's 2-ring (the order of [`n_rings_of`]) and the template's edges
-/// ([`EdgeLengths::new`] of the template vertices and faces assessed).
+/// them again: the template's edges ([`EdgeLengths::new`] of the template vertices and faces
+/// assessed) and, when it has them, every vertex's 2-ring (the order of [`n_rings_of`]).
 #[derive(Clone, Copy)]
 pub(crate) struct KnownMesh<'a> {
-    pub two_rings: &'a Neighborhoods,
+    pub two_rings: Option<&'a Neighborhoods>,
     pub edges: &'a EdgeLengths,
 }
 
@@ -305,7 +305,7 @@ pub(crate) fn assess_with(
         .collect();
     let unsupported_share = support.iter().filter(|&&s| !s).count() as f64 / support.len() as f64;
 
-    let faces_figures = face_shares(y, fit, faces, known.map(|k| k.two_rings));
+    let faces_figures = face_shares(y, fit, faces, known.and_then(|k| k.two_rings));
     let quality = Quality {
         verdict: Verdict::Ok,
         reasons: Vec::new(),
