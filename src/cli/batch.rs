@@ -222,7 +222,6 @@ impl Setup {
         let output = &self.outputs[i];
         for path in [output.clone(), preview_path(output)] {
             let staged = stage_path(&path);
-            crate::io::remove_orphaned_temps(&staged);
             if staged.is_file() {
                 if done {
                     let _ = std::fs::rename(&staged, &path);
@@ -314,11 +313,6 @@ impl Shared {
         let mut ok = entry.status == Status::Ok;
         self.report.files[i] = entry;
         self.write(RunState::Running);
-        // An attempt killed mid-write (a Dask worker that died) left its temporary file; the
-        // file is done now, so no write to its staged path is under way.
-        for (stage, _) in commits {
-            crate::io::remove_orphaned_temps(stage);
-        }
         for (stage, output) in commits.iter().filter(|(s, _)| s.is_file()) {
             if !ok {
                 let _ = std::fs::remove_file(stage);
@@ -376,6 +370,19 @@ pub(super) fn log_file(ui: &Ui, done: usize, total: usize, entry: &FileReport) {
 /// Exit code and summary line of a finished run.
 /// `interrupted`: the run was stopped (Ctrl-C) before every file was attempted.
 pub(super) fn finish(ui: &Ui, shared: &mut Shared, what: &str, interrupted: bool) -> i32 {
+    // An attempt killed while writing its staged output (a Dask worker that died, an earlier run
+    // killed before this `--resume`) left a temporary file: no write is under way now.
+    let folders: std::collections::BTreeSet<&Path> = shared
+        .report
+        .files
+        .iter()
+        .filter_map(|f| Path::new(&f.output).parent())
+        .collect();
+    for folder in folders {
+        crate::io::remove_torn_writes(folder, |target| {
+            target.starts_with('.') && target.contains(".staged.")
+        });
+    }
     shared.write(if interrupted {
         RunState::Interrupted
     } else {

@@ -386,24 +386,23 @@ pub(crate) fn write_atomically(
     }
 }
 
-/// Removes the temporary files [`write_atomically`] left for `path` when the process that wrote
-/// them was killed mid-write (`.NAME.tmp.*` beside it). Only for a path no write is under way
-/// to; best effort (a file that cannot be listed or removed is left).
+/// Removes, in `dir`, the temporary files that [`write_atomically`] left when the process
+/// writing them was killed mid-write (`.NAME.tmp.PID.N`) and whose target NAME satisfies
+/// `target`. Only where no write to such a target is under way; best effort (a file that cannot
+/// be listed or removed is left). One listing of `dir`.
 #[cfg_attr(not(feature = "cli"), allow(dead_code))] // the batch commands
-pub(crate) fn remove_orphaned_temps(path: &Path) {
-    let (Some(name), dir) = (path.file_name(), path.parent()) else {
-        return;
-    };
-    let dir = match dir {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    let prefix = format!(".{}.tmp.", name.to_string_lossy());
+pub(crate) fn remove_torn_writes(dir: &Path, target: impl Fn(&str) -> bool) {
     let Ok(entries) = fs::read_dir(dir) else {
         return;
     };
     for entry in entries.flatten() {
-        if entry.file_name().to_string_lossy().starts_with(&prefix) {
+        let name = entry.file_name();
+        let name = name.to_string_lossy();
+        let torn = name
+            .strip_prefix('.')
+            .and_then(|rest| rest.rfind(".tmp.").map(|at| &rest[..at]))
+            .is_some_and(&target);
+        if torn {
             let _ = fs::remove_file(entry.path());
         }
     }
@@ -571,10 +570,10 @@ mod tests {
         write_mesh(&p, &mesh, &[], false).unwrap();
         assert_eq!(read_mesh(&p).unwrap(), mesh);
         assert_eq!(dir.entries(), vec!["out.ply".to_string()]);
-        // A writer killed mid-write leaves its temporary file; it is removed for that path only.
+        // A writer killed mid-write leaves its temporary file; it is removed for its target only.
         fs::write(dir.join(".out.ply.tmp.99999.0"), b"partial").unwrap();
         fs::write(dir.join(".other.ply.tmp.99999.0"), b"partial").unwrap();
-        remove_orphaned_temps(&p);
+        remove_torn_writes(p.parent().unwrap(), |target| target == "out.ply");
         assert_eq!(
             dir.entries(),
             vec![".other.ply.tmp.99999.0".to_string(), "out.ply".to_string()]
