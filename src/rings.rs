@@ -32,6 +32,25 @@ impl Neighborhoods {
         &self.members[self.offsets[k]..self.offsets[k + 1]]
     }
 
+    /// Builds `n` CSR rows from `(row, member)` pairs, each row's members in the order the
+    /// pairs give them (a counting sort: no list per row). `pairs` is called twice (count, fill).
+    pub fn from_pairs<I: Iterator<Item = (u32, u32)>>(n: usize, pairs: impl Fn() -> I) -> Self {
+        let mut offsets = vec![0usize; n + 1];
+        for (row, _) in pairs() {
+            offsets[row as usize + 1] += 1;
+        }
+        for v in 0..n {
+            offsets[v + 1] += offsets[v];
+        }
+        let mut filled = offsets.clone();
+        let mut members = vec![0u32; offsets[n]];
+        for (row, member) in pairs() {
+            members[filled[row as usize]] = member;
+            filled[row as usize] += 1;
+        }
+        Self { offsets, members }
+    }
+
     /// Builds CSR rows from per-vertex lists.
     pub fn from_rows(rows: Vec<Vec<u32>>) -> Self {
         let mut offsets = Vec::with_capacity(rows.len() + 1);
@@ -49,28 +68,16 @@ impl Neighborhoods {
 /// Built in place (counted, filled, each row sorted and deduplicated, then compacted): no list
 /// per vertex.
 pub fn adjacency(faces: &[[u32; 3]], n_vertices: usize) -> Neighborhoods {
-    let half_edges = || {
+    let Neighborhoods {
+        offsets: start,
+        mut members,
+    } = Neighborhoods::from_pairs(n_vertices, || {
         faces
             .iter()
             .flat_map(|f| [(f[0], f[1]), (f[1], f[2]), (f[2], f[0])])
             .filter(|(a, b)| a != b)
-    };
-    let mut start = vec![0usize; n_vertices + 1];
-    for (a, b) in half_edges() {
-        start[a as usize + 1] += 1;
-        start[b as usize + 1] += 1;
-    }
-    for v in 0..n_vertices {
-        start[v + 1] += start[v];
-    }
-    let mut filled = start.clone();
-    let mut members = vec![0u32; start[n_vertices]];
-    for (a, b) in half_edges() {
-        members[filled[a as usize]] = b;
-        filled[a as usize] += 1;
-        members[filled[b as usize]] = a;
-        filled[b as usize] += 1;
-    }
+            .flat_map(|(a, b)| [(a, b), (b, a)])
+    });
     // Sort and deduplicate every row where it lies, then move the rows down over the gaps.
     let mut offsets = Vec::with_capacity(n_vertices + 1);
     offsets.push(0);

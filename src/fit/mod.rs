@@ -344,7 +344,12 @@ fn fit_from(
     let two_rings =
         (params.method == Method::FoldMatch && params.model.rings == 2).then_some(&prepared.rings);
     let assessment = crate::quality::assess_points_with(
-        (rest_shape, &prepared.faces, &vertices, target),
+        &crate::quality::AssessInput {
+            template_vertices: rest_shape,
+            faces: &prepared.faces,
+            fitted_vertices: &vertices,
+            scan: target,
+        },
         assessed,
         &crate::quality::VerdictThresholds::default(),
         Some(crate::quality::KnownMesh {

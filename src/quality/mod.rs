@@ -338,21 +338,18 @@ pub fn assess_points(
     points: Option<&[usize]>,
     thresholds: &VerdictThresholds,
 ) -> Result<Assessment> {
-    let input = (template_vertices, faces, fitted_vertices, scan);
-    assess_points_with(input, points, thresholds, None)
+    let input = AssessInput {
+        template_vertices,
+        faces,
+        fitted_vertices,
+        scan,
+    };
+    assess_points_with(&input, points, thresholds, None)
 }
-
-/// Template vertices, faces, fitted vertices and scan points.
-pub(crate) type MeshAndScan<'a> = (
-    &'a [[f64; 3]],
-    &'a [[u32; 3]],
-    &'a [[f64; 3]],
-    &'a [[f64; 3]],
-);
 
 /// [`assess_points`], with the mesh figures a fit already holds.
 pub(crate) fn assess_points_with(
-    (template_vertices, faces, fitted_vertices, scan): MeshAndScan<'_>,
+    whole: &AssessInput<'_>,
     points: Option<&[usize]>,
     thresholds: &VerdictThresholds,
     known: Option<KnownMesh<'_>>,
@@ -360,16 +357,14 @@ pub(crate) fn assess_points_with(
     let chosen: Vec<[f64; 3]>;
     let scan_points = match points {
         Some(p) => {
-            chosen = p.iter().map(|&j| scan[j]).collect();
+            chosen = p.iter().map(|&j| whole.scan[j]).collect();
             &chosen[..]
         }
-        None => scan,
+        None => whole.scan,
     };
     let input = AssessInput {
-        template_vertices,
-        faces,
-        fitted_vertices,
         scan: scan_points,
+        ..*whole
     };
     let mut a = assess_with(&input, thresholds, known)?;
     if let Some(p) = points {
@@ -427,24 +422,14 @@ fn vertex_faces(faces: &[[u32; 3]], m: usize) -> Neighborhoods {
             (c != a && c != b).then_some(c),
         ]
     };
-    let mut offsets = vec![0usize; m + 1];
-    for tri in faces {
-        for v in corners(tri).into_iter().flatten() {
-            offsets[v as usize + 1] += 1;
-        }
-    }
-    for v in 0..m {
-        offsets[v + 1] += offsets[v];
-    }
-    let mut filled = offsets.clone();
-    let mut members = vec![0u32; offsets[m]];
-    for (f, tri) in faces.iter().enumerate() {
-        for v in corners(tri).into_iter().flatten() {
-            members[filled[v as usize]] = f as u32;
-            filled[v as usize] += 1;
-        }
-    }
-    Neighborhoods { offsets, members }
+    Neighborhoods::from_pairs(m, || {
+        faces.iter().enumerate().flat_map(move |(f, tri)| {
+            corners(tri)
+                .into_iter()
+                .flatten()
+                .map(move |v| (v, f as u32))
+        })
+    })
 }
 
 /// Arithmetic mean in index order (0 when empty).
