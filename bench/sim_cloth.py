@@ -224,6 +224,9 @@ class SimResult:
     final: np.ndarray
     pinned: np.ndarray
     info: dict[str, Any] = field(default_factory=dict)
+    #: The positions after every ``record_every``-th frame (``simulate(..., record_every=k)``),
+    #: shape (frames, vertices, 3); None when not recorded.
+    frames: np.ndarray | None = None
 
 
 def _wind_field(scene: Scene, rng: np.random.Generator) -> Any:
@@ -244,9 +247,10 @@ def _wind_field(scene: Scene, rng: np.random.Generator) -> Any:
     return accel
 
 
-def simulate(scene: Scene, verbose: bool = False) -> SimResult:
+def simulate(scene: Scene, verbose: bool = False, record_every: int = 0) -> SimResult:
     """Run the scene on Warp's CPU device; returns the rest mesh, the final positions and the
-    run's figures (seconds, the largest speed at the end, edge-length ratios)."""
+    run's figures (seconds, the largest speed at the end, edge-length ratios); with
+    ``record_every`` = k > 0 also the positions after frames k, 2k, … (``SimResult.frames``)."""
     import warp as wp
 
     wp.config.quiet = True
@@ -321,6 +325,7 @@ def simulate(scene: Scene, verbose: bool = False) -> SimResult:
 
     dt = 1.0 / scene.fps / scene.substeps
     build_s = time.perf_counter() - t0
+    recorded: list[np.ndarray] = []
     for frame in range(scene.frames):
         if ring is not None and frame <= scene.gather_frames:
             share = min(1.0, frame / scene.gather_frames)
@@ -344,6 +349,8 @@ def simulate(scene: Scene, verbose: bool = False) -> SimResult:
         if scene.air_damping > 0:
             qd = s0.particle_qd.numpy()
             s0.particle_qd.assign(qd * (1.0 - scene.air_damping))
+        if record_every > 0 and (frame + 1) % record_every == 0:
+            recorded.append(s0.particle_q.numpy().astype(float))
         if verbose and frame % 30 == 0:
             speed = np.linalg.norm(s0.particle_qd.numpy(), axis=1).max()
             print(
@@ -361,7 +368,8 @@ def simulate(scene: Scene, verbose: bool = False) -> SimResult:
         "edge_ratio_p01_p50_p99": [round(float(x), 4) for x in np.percentile(ratios, [1, 50, 99])],
         "scene": asdict(scene),
     }
-    return SimResult(rest, faces, final, pins, info)
+    frames = np.stack(recorded) if recorded else None
+    return SimResult(rest, faces, final, pins, info, frames)
 
 
 def edge_ratios(rest: np.ndarray, final: np.ndarray, faces: np.ndarray, pins: np.ndarray) -> np.ndarray:

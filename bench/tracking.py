@@ -19,10 +19,14 @@ no correspondence, is printed for reference).
 ``--mode chained`` runs what ``foldmatch sequence`` did before tracking: each frame fitted by
 ``fm.fit`` with the previous fit as its template (no rest shape, no flags).
 
-Tune on ``iter0``; ``iter17`` is the held-out sequence.
+``--sequence sim-flag`` runs the simulated sequence of bench/sim_sequence.py (a flag in gusty
+wind, Newton's cloth solver, 9 frames 0.1 s apart; its first frame's mesh the template).
+
+Tune on ``iter0``; ``iter17`` and ``sim-flag`` are held out.
 
     python -m bench.tracking                      # iter0, every frame
     python -m bench.tracking --sequence iter17    # the held-out sequence
+    python -m bench.tracking --sequence sim-flag  # the simulated held-out sequence
     python -m bench.tracking --every 5            # frames 0, 50, ..., 250 of iter0
 """
 
@@ -38,6 +42,8 @@ import numpy as np
 from .cases import REAL_NOISE, REAL_POINTS, SHARED_DATA, bbox_diagonal, load_mesh, sample_surface
 
 WIND = SHARED_DATA / "diffcloth" / "tshirt1000_wind_sim"
+#: The simulated sequence with per-frame truth (bench/sim_sequence.py: a flag in gusty wind).
+SIM_SEQUENCE = "sim-flag"
 
 #: Issue 28's tracking targets.
 FIRST_FRAME_MAX = 0.4
@@ -49,6 +55,10 @@ def frames_of(
     sequence: str, every: int = 1, limit: int | None = None
 ) -> list[tuple[int, np.ndarray, np.ndarray]]:
     """(frame number, vertices, faces) of the sequence's frames in order, every ``every``-th."""
+    if sequence == SIM_SEQUENCE:
+        from . import sim_sequence
+
+        return sim_sequence.frames()[::every][:limit]
     files = sorted(WIND.joinpath(sequence).glob("*.obj"), key=lambda p: int(p.stem))
     files = files[::every][:limit]
     return [(int(p.stem), *load_mesh(p)) for p in files]
@@ -216,7 +226,7 @@ def chained(
 
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--sequence", default="iter0", choices=["iter0", "iter17"])
+    ap.add_argument("--sequence", default="iter0", choices=["iter0", "iter17", SIM_SEQUENCE])
     ap.add_argument("--every", type=int, default=1, help="every k-th frame of the sequence (default 1)")
     ap.add_argument("--limit", type=int, default=None, help="at most this many frames")
     ap.add_argument("--mode", default="track", choices=["track", "chained"])

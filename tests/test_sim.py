@@ -98,3 +98,56 @@ def test_the_simulator_reproduces_the_stored_state(tiny):
     np.testing.assert_array_equal(r.faces, tiny.faces)
     np.testing.assert_allclose(r.rest, tiny.rest, atol=1e-6)
     assert np.abs(r.final - tiny.final).max() < 2e-3
+
+
+def test_stored_flag_sequence_is_a_physical_motion_with_per_frame_truth():
+    """bench/sim_sequence.py's flag in gusty wind (the tracking benchmark's simulated,
+    held-out sequence): every frame keeps the cloth's edge lengths, the pole edge stays where
+    it is pinned, and the flag moves between frames."""
+    from bench import sim_sequence
+
+    frames = sim_sequence.frames()
+    scene = sim_sequence.SCENE
+    assert len(frames) == 24
+    numbers = [n for n, _, _ in frames]
+    assert numbers == sorted(numbers) and np.all(np.diff(numbers) == sim_sequence.EVERY)
+    rest, faces = sim_cloth.rest_mesh(scene)
+    pole = sim_cloth.pinned(scene)
+    diagonal = cases.bbox_diagonal(frames[0][1])
+    motions = []
+    for i, (_, positions, frame_faces) in enumerate(frames):
+        np.testing.assert_array_equal(frame_faces, faces)
+        ratios = sim_cloth.edge_ratios(rest, positions, faces, pole)
+        assert 0.9 < np.percentile(ratios, 1) and np.percentile(ratios, 99) < 1.15
+        np.testing.assert_allclose(positions[pole], rest[pole], atol=1e-5)
+        if i:
+            motions.append(np.linalg.norm(positions - frames[i - 1][1], axis=1).mean() / diagonal)
+    # a flapping flag: every frame moves, by up to a few per cent of the diagonal
+    assert min(motions) > 0.003 and max(motions) > 0.015, motions
+
+
+def test_tracking_benchmark_runs_on_the_simulated_sequence():
+    """`python -m bench.tracking --sequence sim-flag` on its first frames: the template is
+    the first frame's mesh, which the tracker keeps, and every figure is reported."""
+    import argparse
+
+    from bench import tracking
+
+    args = argparse.Namespace(
+        sequence=tracking.SIM_SEQUENCE,
+        every=1,
+        limit=3,
+        mode="track",
+        preset="tracking",
+        iterations=40,
+        prediction=0.5,
+        reanchor=False,
+        set=[],
+        threads=None,
+        json=None,
+    )
+    summary = tracking.run(args)
+    assert summary["frames"] == [n for n, _, _ in tracking.frames_of(tracking.SIM_SEQUENCE)][:3]
+    assert summary["first_f_R_pct"] <= tracking.FIRST_FRAME_MAX
+    # the later frames moved 1.5–2 % of the diagonal; tracked, they stay well within that
+    assert 0 < summary["max_f_R_pct"] < 2.0
