@@ -36,6 +36,7 @@ pub mod limits;
 pub mod math;
 pub mod mesh;
 pub mod metrics;
+pub mod min_cut;
 pub mod nbody;
 pub mod normalize;
 pub mod prealign;

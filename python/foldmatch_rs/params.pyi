@@ -253,6 +253,18 @@ class FitParams(Mapping[str, Any]):
         dressed people"). 0: off (the `"paper"` preset).
         """
     @property
+    def garment_cut(self) -> float:
+        """The garment cut after the garment refit: the scan's points are separated into the
+        garment and the body by a minimum cut of their neighbour graph, whose edges are cheap to
+        cut where the scan's surface steps (from the garment onto the skin under it) or has a
+        gap; the seeds are the points the refit explains three rings or more inside its rim and
+        the points far from it. The template is fitted a third time, from its start, onto the
+        garment's side — which reaches past the refit's rim as far as the garment's surface runs
+        on, and not across the step (about 1.5× the time of the refit alone; docs/method.md
+        "Scans of dressed people"). The step is `garment_cut ×` the scan's median distance from
+        a point to its neighbours' plane (its noise). 0: off, the refit stands.
+        """
+    @property
     def strain_limit(self) -> float:
         """Strain limiting in the fine phase (Provot 1995): after every update, edges longer than
         `(1 + strain_limit) ×` their length in the rest shape are moved back towards that length

@@ -49,6 +49,27 @@ pub(super) fn garment_weights(
     out
 }
 
+/// Every vertex's distance in edges (rings) from the boundary of the mesh: 0 on it;
+/// `u32::MAX` in a component without boundary.
+pub(super) fn rim_rings(faces: &[[u32; 3]], n_vertices: usize) -> Vec<u32> {
+    let ring = crate::rings::adjacency(faces, n_vertices);
+    let mut rings = vec![u32::MAX; n_vertices];
+    let mut queue: std::collections::VecDeque<u32> =
+        crate::mesh::boundary_vertices(faces, n_vertices).into();
+    for &v in &queue {
+        rings[v as usize] = 0;
+    }
+    while let Some(v) = queue.pop_front() {
+        for &u in ring.of(v as usize) {
+            if rings[u as usize] == u32::MAX {
+                rings[u as usize] = rings[v as usize] + 1;
+                queue.push_back(u);
+            }
+        }
+    }
+    rings
+}
+
 /// Every vertex's outward direction on the boundary of the mesh `(vertices, faces)`: in the
 /// surface, normal to the boundary — the unit vector from the centroid of the vertex's
 /// one-ring to the vertex, less its component along the boundary (the direction between its
@@ -193,10 +214,12 @@ mod tests {
     #[test]
     fn a_dressed_scan_is_fitted_again_onto_the_points_the_first_fit_explains() {
         let (template, faces, scan) = dressed_sheet();
-        let params = FitParams {
+        let mut params = FitParams {
             iterations: 40,
             ..FitParams::default()
         };
+        // The refit alone (the garment cut's third fit: garment_cut.rs).
+        params.schedule.garment_cut = 0.0;
         let (once, second) = first_and_second(&params);
         let refit = fit_simple(&template, &faces, &scan, None, &params).unwrap();
         let first = fit_simple(&template, &faces, &scan, None, &once).unwrap();
@@ -242,10 +265,11 @@ mod tests {
         // anchored to the template: the refit keeps the template as the rest shape, as the
         // first fit had it.
         let (template, faces, scan) = dressed_sheet();
-        let params = FitParams {
+        let mut params = FitParams {
             iterations: 30,
             ..FitParams::default()
         };
+        params.schedule.garment_cut = 0.0;
         let start: Vec<[f64; 3]> = template
             .iter()
             .map(|p| [p[0], p[1], -0.1 * (std::f64::consts::PI * p[0]).cos()])
@@ -272,5 +296,53 @@ mod tests {
             weights.iter().filter(|&&w| w > 0.0).count()
         );
         assert_eq!(refit.vertices, anchored(Some(&weights), &second).vertices);
+    }
+
+    #[test]
+    fn the_garment_cut_fits_a_third_time_onto_the_cut_of_the_refit() {
+        let (template, faces, scan) = dressed_sheet();
+        let params = FitParams {
+            iterations: 40,
+            ..FitParams::default()
+        };
+        let mut refit_only = params.clone();
+        refit_only.schedule.garment_cut = 0.0;
+        let refit = fit_simple(&template, &faces, &scan, None, &refit_only).unwrap();
+        let full = fit_simple(&template, &faces, &scan, None, &params).unwrap();
+        let cut = crate::fit::garment_cut::garment_cut_weights(
+            &scan,
+            None,
+            &refit.vertices,
+            &faces,
+            1.0,
+            params.schedule.garment_cut,
+        );
+        let points = cut.iter().filter(|&&w| w > 0.0).count();
+        assert_eq!(full.diagnostics.garment_refit_points, points);
+        assert!(
+            cut[41 * 41 + 41 * 12..].iter().all(|&w| w == 0.0),
+            "the far plane is the body's"
+        );
+        let (_, second) = first_and_second(&params);
+        let third = fit_weighted(
+            &template,
+            &faces,
+            &scan,
+            None,
+            Some(&cut),
+            &second,
+            &mut |_| true,
+        )
+        .unwrap();
+        assert_eq!(full.vertices, third.vertices);
+        // The observer saw one run of the iterations over the three passes.
+        let mut seen = Vec::new();
+        crate::fit::fit(&template, &faces, &scan, None, &params, &mut |p| {
+            seen.push(p.iteration);
+            true
+        })
+        .unwrap();
+        assert!(seen.windows(2).all(|w| w[0] <= w[1]), "{seen:?}");
+        assert_eq!(seen.last(), Some(&40));
     }
 }

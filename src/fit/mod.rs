@@ -14,6 +14,7 @@
 //! All per-vertex buffers are allocated once per fit ([`Workspace`]).
 
 mod attraction;
+mod garment_cut;
 mod garment_refit;
 mod garments;
 mod landmark_pull;
@@ -239,15 +240,20 @@ fn fit_from(
         several,
         &schedules,
     )?;
-    // A scan that holds more than the garment is fitted twice: the second fit onto the points
-    // the first explains (docs/method.md "Scans of dressed people"); each reports half the
-    // iterations to the observer.
+    // A scan that holds more than the garment is fitted more than once: the second fit onto the points
+    // the first explains, a third onto the garment cut's points (docs/method.md "Scans of
+    // dressed people"); each reports its share of the iterations to the observer.
     let refit = params.schedule.garment_refit > 0.0 && prepared.garment.is_some();
+    let passes = if params.schedule.garment_cut > 0.0 {
+        3
+    } else {
+        2
+    };
     let total = params.iterations;
     let pass = AtomicUsize::new(0);
     let mut observed = |p: &Progress| {
         if refit {
-            observer(&p.of_passes(pass.load(Ordering::Relaxed), total))
+            observer(&p.of_parts(pass.load(Ordering::Relaxed), passes, total))
         } else {
             observer(p)
         }
@@ -425,7 +431,39 @@ fn fit_from(
     )?;
     again.params = params.clone();
     again.diagnostics.garment_refit_points = garment_points;
-    Ok(again)
+    if params.schedule.garment_cut <= 0.0 || again.diagnostics.stopped_by_callback {
+        return Ok(again);
+    }
+    // The garment cut: the garment's points by the seam where the scan steps onto the skin,
+    // seeded by the refit, and a third fit onto them from the same start.
+    let cut = garment_cut::garment_cut_weights(
+        target,
+        target_weights,
+        &again.vertices,
+        &prepared.faces,
+        params.schedule.garment_refit,
+        params.schedule.garment_cut,
+    );
+    let cut_points = cut.iter().filter(|&&w| w > 0.0).count();
+    if cut_points < template_vertices.len() / 4 || cut_points == live {
+        return Ok(again);
+    }
+    pass.store(2, Ordering::Relaxed);
+    let mut third = fit_from(
+        &start,
+        rest,
+        template_faces,
+        target,
+        target_faces,
+        Some(&cut),
+        landmarks,
+        several,
+        &inner,
+        observer,
+    )?;
+    third.params = params.clone();
+    third.diagnostics.garment_refit_points = cut_points;
+    Ok(third)
 }
 
 /// The template moved by the global pre-alignment of [`FitParams::prealign`] (`Rigid`,

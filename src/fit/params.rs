@@ -80,6 +80,11 @@ pub const TRACKING_STRAIN_LIMIT: f64 = 0.05;
 /// within one trust unit of the first fit (docs/method.md "Scans of dressed people").
 pub const DEFAULT_GARMENT_REFIT: f64 = 1.0;
 
+/// The default [`garment_cut`](crate::fit::Schedule::garment_cut): a step of twice the scan's
+/// median distance from a point to its neighbours' plane is cheap to cut (docs/method.md "Scans
+/// of dressed people").
+pub const DEFAULT_GARMENT_CUT: f64 = 2.0;
+
 /// The default [`keep_margin`](crate::fit::Schedule::keep_margin): started exactly at the truth
 /// of a real garment resampled with noise, the fits come 2–9 % closer to the scan than the truth
 /// (they follow its noise); a start 10 % farther from the scan than the fit is worth moving
@@ -355,6 +360,16 @@ pub struct Schedule {
     /// garment-only scan (about 1.7× the time of one fit on such scans; docs/method.md "Scans of
     /// dressed people"). 0: off (the `"paper"` preset).
     pub garment_refit: f64,
+    /// The garment cut after the garment refit: the scan's points are separated into the
+    /// garment and the body by a minimum cut of their neighbour graph, whose edges are cheap to
+    /// cut where the scan's surface steps (from the garment onto the skin under it) or has a
+    /// gap; the seeds are the points the refit explains three rings or more inside its rim and
+    /// the points far from it. The template is fitted a third time, from its start, onto the
+    /// garment's side — which reaches past the refit's rim as far as the garment's surface runs
+    /// on, and not across the step (about 1.5× the time of the refit alone; docs/method.md
+    /// "Scans of dressed people"). The step is `garment_cut ×` the scan's median distance from
+    /// a point to its neighbours' plane (its noise). 0: off, the refit stands.
+    pub garment_cut: f64,
     /// Strain limiting in the fine phase (Provot 1995): after every update, edges longer than
     /// `(1 + strain_limit) ×` their length in the rest shape are moved back towards that length
     /// by up to [`strain_passes`](Self::strain_passes) Jacobi passes of position projections.
@@ -502,6 +517,7 @@ impl Default for Schedule {
             selection_at: 1.0,
             keep_margin: DEFAULT_KEEP_MARGIN,
             garment_refit: DEFAULT_GARMENT_REFIT,
+            garment_cut: DEFAULT_GARMENT_CUT,
             strain_limit: DEFAULT_STRAIN_LIMIT,
             strain_passes: 4,
             compression_limit: 0.0,

@@ -32,12 +32,6 @@ pub struct Progress {
 }
 
 impl Progress {
-    /// This progress of one of two passes over `total` iterations each (`pass` 0 or 1), as
-    /// progress over `total` iterations in all: each pass counts half.
-    pub(super) fn of_passes(&self, pass: usize, total: usize) -> Progress {
-        self.of_parts(pass, 2, total)
-    }
-
     /// This progress of part `part` of `parts` that each count `total` iterations, as progress
     /// over `total` iterations in all: each part counts `1 / parts`.
     pub(super) fn of_parts(&self, part: usize, parts: usize, total: usize) -> Progress {

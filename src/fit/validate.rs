@@ -143,6 +143,7 @@ impl FitParams {
             ),
             ("keep_margin", self.schedule.keep_margin, NON_NEGATIVE),
             ("garment_refit", self.schedule.garment_refit, NON_NEGATIVE),
+            ("garment_cut", self.schedule.garment_cut, NON_NEGATIVE),
             ("strain_limit", self.schedule.strain_limit, NON_NEGATIVE),
             (
                 "compression_limit",

@@ -1,0 +1,224 @@
+//! The garment cut on a dressed-body scan (docs/method.md "Scans of dressed people"): the
+//! garment's points separated from the skin at the seam where the scan's surface steps, by a
+//! minimum cut (Boykov & Jolly 2001, "Interactive graph cuts").
+//!
+//! The garment refit's points ([`garment_weights`]: what a fit explains) hold the skin next to
+//! the hems, cuffs and collar that the fit reached and miss the garment's rows past its fitted
+//! rim. Where a garment ends on a body, the scan's surface steps: the skin continues under the
+//! cloth, a cloth thickness or a loose hem's gap below it, so the garment's local plane does not
+//! hold the skin. Every scan point is a node, joined to its nearest neighbours by edges that
+//! are cheap to cut where the two points leave each other's local plane (a step) or lie far apart
+//! (a gap); the points of a refit explained by vertices three rings or more inside the rim are
+//! the garment's seeds, the points far from every vertex the body's. The garment is the
+//! seeds' side of the cheapest cut: past the fitted rim as far as the garment's surface runs on,
+//! and not across the step onto the skin.
+
+use super::garment_refit::{garment_weights, rim_rings};
+use crate::knn::PointIndex;
+use crate::math::{sym_eigen3, vec3, Mat3, Vec3};
+use crate::min_cut::CutGraph;
+use rayon::prelude::*;
+
+/// Neighbours whose plane gives a point's normal (and its residual, the noise's measure).
+const PLANE_NEIGHBOURS: usize = 16;
+/// Neighbours a point is joined to in the graph.
+const GRAPH_NEIGHBOURS: usize = 10;
+/// The seeds of the garment: points whose nearest fitted vertex is this many rings or more
+/// from the template's boundary.
+const SEED_RINGS: u32 = 3;
+/// The seeds of the body: points not explained, farther from every fitted vertex than this
+/// multiple of the explained points' median distance.
+const BODY_DISTANCE: f64 = 8.0;
+/// The least noise assumed, as a share of the scan's median nearest-neighbour distance: a scan
+/// without noise (a mesh's vertices, a synthetic scan) still has steps of that order between
+/// neighbours on its curved surface.
+const STEP_FLOOR: f64 = 0.125;
+/// Edge capacities are `exp(−step²/τ²) · exp(−gap²)` in units of 1 / this.
+const CAPACITY_UNITS: f64 = 1000.0;
+
+/// The refit's weights of the scan points by the garment cut: the given weight (1 when none)
+/// on the garment's side of the cut, 0 elsewhere. `step_multiple` sets τ, the step at which an
+/// edge is cheap to cut, in multiples of the scan's median distance from a point to its
+/// neighbours' plane (its noise, in the scan's own units; at least [`STEP_FLOOR`] × the median
+/// nearest-neighbour distance). Falls back to [`garment_weights`]
+/// when the fit explains no seed of the garment or no point lies far enough to be the body's.
+pub(super) fn garment_cut_weights(
+    target: &[[f64; 3]],
+    weights: Option<&[f64]>,
+    fitted: &[[f64; 3]],
+    faces: &[[u32; 3]],
+    radius_multiple: f64,
+    step_multiple: f64,
+) -> Vec<f64> {
+    let explained = garment_weights(target, weights, fitted, faces, radius_multiple);
+    let given = |j: usize| weights.map_or(1.0, |w| w[j]);
+    let live: Vec<usize> = (0..target.len()).filter(|&j| given(j) > 0.0).collect();
+    let k = PLANE_NEIGHBOURS.min(live.len().saturating_sub(1));
+    if k < 3 {
+        return explained;
+    }
+    let scan: Vec<[f64; 3]> = live.iter().map(|&j| target[j]).collect();
+    let n = scan.len();
+    let index = PointIndex::new(&scan);
+    let row = k + 1;
+    let (mut idx, mut d2) = (vec![0u32; n * row], vec![0.0; n * row]);
+    index.nearest_all(&scan, row, &mut idx, &mut d2);
+    // Per point: its neighbours' plane normal and its own distance from that plane.
+    let planes: Vec<(Vec3, f64)> = (0..n)
+        .into_par_iter()
+        .map(|p| {
+            let members = &idx[p * row..(p + 1) * row];
+            let centroid = members
+                .iter()
+                .fold(Vec3::zeros(), |c, &q| c + vec3(&scan[q as usize]))
+                / row as f64;
+            let mut cov = Mat3::zeros();
+            for &q in members {
+                let d = vec3(&scan[q as usize]) - centroid;
+                cov += d * d.transpose();
+            }
+            let normal: Vec3 = sym_eigen3(&cov).vectors.column(2).into();
+            (normal, (vec3(&scan[p]) - centroid).dot(&normal).abs())
+        })
+        .collect();
+    let median = |mut v: Vec<f64>| {
+        let mid = v.len() / 2;
+        *v.select_nth_unstable_by(mid, f64::total_cmp).1
+    };
+    let spacing = median((0..n).map(|p| d2[p * row + 1].sqrt()).collect());
+    let noise = median(planes.iter().map(|p| p.1).collect());
+    // On a scan without noise, a fold's own curvature between neighbours sets the scale.
+    let tau = step_multiple * noise.max(STEP_FLOOR * spacing);
+    if !(tau > 0.0 && spacing > 0.0) {
+        return explained;
+    }
+    let mut graph = CutGraph::new(n);
+    let graph_k = GRAPH_NEIGHBOURS.min(k);
+    for p in 0..n {
+        let (np, x) = (planes[p].0, vec3(&scan[p]));
+        for &q in &idx[p * row + 1..p * row + 1 + graph_k] {
+            let offset = vec3(&scan[q as usize]) - x;
+            let step = offset
+                .dot(&np)
+                .abs()
+                .max(offset.dot(&planes[q as usize].0).abs());
+            let gap = ((offset.norm() - 2.0 * spacing) / (2.0 * spacing)).max(0.0);
+            let capacity = (-(step / tau).powi(2) - gap * gap).exp();
+            graph.add_edge(p as u32, q, (CAPACITY_UNITS * capacity) as i64);
+        }
+    }
+    // The seeds, by the fitted vertex nearest to each point.
+    let rings = rim_rings(faces, fitted.len());
+    let fitted_index = PointIndex::new(fitted);
+    let nearest: Vec<(u32, f64)> = scan
+        .par_iter()
+        .map(|x| fitted_index.nearest_one(x))
+        .collect();
+    let is_explained: Vec<bool> = live.iter().map(|&j| explained[j] > 0.0).collect();
+    let explained_distances: Vec<f64> = (0..n)
+        .filter(|&p| is_explained[p])
+        .map(|p| nearest[p].1.sqrt())
+        .collect();
+    if explained_distances.is_empty() {
+        return explained;
+    }
+    let explained_distance = median(explained_distances);
+    let garment: Vec<u32> = (0..n as u32)
+        .filter(|&p| {
+            is_explained[p as usize] && rings[nearest[p as usize].0 as usize] >= SEED_RINGS
+        })
+        .collect();
+    let far = BODY_DISTANCE * explained_distance;
+    let body: Vec<u32> = (0..n as u32)
+        .filter(|&p| !is_explained[p as usize] && nearest[p as usize].1.sqrt() > far)
+        .collect();
+    if garment.is_empty() || body.is_empty() {
+        return explained;
+    }
+    let side = graph.source_side(&garment, &body);
+    let mut out = vec![0.0; target.len()];
+    for (p, &j) in live.iter().enumerate() {
+        if side[p] {
+            out[j] = given(j);
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synthetic::grid_sheet;
+
+    /// A deterministic jitter in [−a, a] (the scanner's noise; a noiseless plane has no
+    /// residual to measure a step against).
+    fn jitter(i: usize, a: f64) -> f64 {
+        let h = (i as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15) >> 11;
+        a * (2.0 * (h as f64 / (1u64 << 53) as f64) - 1.0)
+    }
+
+    /// A garment (the plane z = 0 over x ∈ [−0.5, 0.5]) whose fit ends short of its edge (at
+    /// x = ±0.4), skin continuing past the edge x = 0.5 three centimetres under it (a step), and
+    /// the rest of a body far away: the cut keeps the garment's rows past the fitted rim, which
+    /// the explained points miss, and leaves the skin and the body out.
+    #[test]
+    fn the_garment_reaches_past_the_fitted_rim_and_stops_at_the_step() {
+        let (template, faces) = grid_sheet(9, 9, 1.0, 1.0);
+        let fitted: Vec<[f64; 3]> = template.iter().map(|p| [0.8 * p[0], p[1], 0.0]).collect();
+        let mut scan = Vec::new();
+        let mut kind = Vec::new(); // 0 garment inside the fit, 1 past its rim, 2 skin, 3 body
+        for i in 0..66 {
+            for j in 0..51 {
+                let (x, y) = (-0.5 + 0.02 * i as f64, -0.5 + 0.02 * j as f64);
+                let z = if x > 0.5 { -0.03 } else { 0.0 };
+                scan.push([x, y, z + jitter(scan.len(), 0.002)]);
+                kind.push(if x > 0.5 {
+                    2
+                } else if x > 0.49 {
+                    4 // the garment's last row, on the step itself: either side
+                } else if x.abs() > 0.42 {
+                    1
+                } else {
+                    0
+                });
+            }
+        }
+        let (body, _) = grid_sheet(25, 25, 3.0, 3.0);
+        for p in &body {
+            scan.push([p[0], p[1], -1.5 + jitter(scan.len(), 0.002)]);
+            kind.push(3);
+        }
+        let explained = garment_weights(&scan, None, &fitted, &faces, 1.0);
+        let cut = garment_cut_weights(&scan, None, &fitted, &faces, 1.0, 2.0);
+        let share = |w: &[f64], k: u8| {
+            let of: Vec<f64> = (0..scan.len())
+                .filter(|&i| kind[i] == k)
+                .map(|i| w[i])
+                .collect();
+            of.iter().filter(|&&v| v > 0.0).count() as f64 / of.len() as f64
+        };
+        assert!(
+            share(&explained, 1) < 0.6,
+            "the explained points miss the rows past the rim"
+        );
+        assert!(
+            share(&cut, 0) > 0.99 && share(&cut, 1) > 0.95,
+            "{} {}",
+            share(&cut, 0),
+            share(&cut, 1)
+        );
+        assert!(
+            share(&cut, 2) < 0.05,
+            "the skin past the step: {}",
+            share(&cut, 2)
+        );
+        assert_eq!(share(&cut, 3), 0.0);
+        // Given weights carry over; weight-0 points stay out.
+        let mut given = vec![1.0; scan.len()];
+        given[0] = 0.0;
+        given[1] = 0.5;
+        let weighted = garment_cut_weights(&scan, Some(&given), &fitted, &faces, 1.0, 2.0);
+        assert_eq!(weighted[0], 0.0);
+        assert_eq!(weighted[1], 0.5);
+    }
+}
