@@ -36,6 +36,17 @@ const STEP_FLOOR: f64 = 0.125;
 /// Edge capacities are `exp(−step²/τ²) · exp(−gap²)` in units of 1 / this.
 const CAPACITY_UNITS: f64 = 1000.0;
 
+/// A scan point's role in the cut.
+#[derive(Clone, Copy)]
+enum Node {
+    /// A seed of the garment (contracted into the source).
+    Garment,
+    /// A seed of the body (contracted into the sink).
+    Body,
+    /// Contested: its index among the graph's free nodes.
+    Free(u32),
+}
+
 /// The refit's weights of the scan points by the garment cut: the given weight (1 when none)
 /// on the garment's side of the cut, 0 elsewhere. `step_multiple` sets τ, the step at which an
 /// edge is cheap to cut, in multiples of the scan's median distance from a point to its
@@ -92,21 +103,6 @@ pub(super) fn garment_cut_weights(
     if !(tau > 0.0 && spacing > 0.0) {
         return explained;
     }
-    let mut graph = CutGraph::new(n);
-    let graph_k = GRAPH_NEIGHBOURS.min(k);
-    for p in 0..n {
-        let (np, x) = (planes[p].0, vec3(&scan[p]));
-        for &q in &idx[p * row + 1..p * row + 1 + graph_k] {
-            let offset = vec3(&scan[q as usize]) - x;
-            let step = offset
-                .dot(&np)
-                .abs()
-                .max(offset.dot(&planes[q as usize].0).abs());
-            let gap = ((offset.norm() - 2.0 * spacing) / (2.0 * spacing)).max(0.0);
-            let capacity = (-(step / tau).powi(2) - gap * gap).exp();
-            graph.add_edge(p as u32, q, (CAPACITY_UNITS * capacity) as i64);
-        }
-    }
     // The seeds, by the fitted vertex nearest to each point.
     let rings = rim_rings(faces, fitted.len());
     let fitted_index = PointIndex::new(fitted);
@@ -122,23 +118,70 @@ pub(super) fn garment_cut_weights(
     if explained_distances.is_empty() {
         return explained;
     }
-    let explained_distance = median(explained_distances);
-    let garment: Vec<u32> = (0..n as u32)
-        .filter(|&p| {
-            is_explained[p as usize] && rings[nearest[p as usize].0 as usize] >= SEED_RINGS
+    let far = BODY_DISTANCE * median(explained_distances);
+    // The seeds are contracted into the two terminals (an exact reduction: a seed is on its
+    // side of every cut), so the maximum flow runs on the contested points alone.
+    let (mut free, mut garment_seeds, mut body_seeds) = (0u32, 0usize, 0usize);
+    let node: Vec<Node> = (0..n)
+        .map(|p| {
+            let (v, d2) = nearest[p];
+            if is_explained[p] && rings[v as usize] >= SEED_RINGS {
+                garment_seeds += 1;
+                Node::Garment
+            } else if !is_explained[p] && d2.sqrt() > far {
+                body_seeds += 1;
+                Node::Body
+            } else {
+                free += 1;
+                Node::Free(free - 1)
+            }
         })
         .collect();
-    let far = BODY_DISTANCE * explained_distance;
-    let body: Vec<u32> = (0..n as u32)
-        .filter(|&p| !is_explained[p as usize] && nearest[p as usize].1.sqrt() > far)
-        .collect();
-    if garment.is_empty() || body.is_empty() {
+    if garment_seeds == 0 || body_seeds == 0 {
         return explained;
     }
-    let side = graph.source_side(&garment, &body);
+    let (source, sink) = (free, free + 1);
+    let id = |p: u32| match node[p as usize] {
+        Node::Free(i) => i,
+        Node::Garment => source,
+        Node::Body => sink,
+    };
+    let graph_k = GRAPH_NEIGHBOURS.min(k);
+    let capacities: Vec<i64> = (0..n * graph_k)
+        .into_par_iter()
+        .map(|e| {
+            let (p, q) = (
+                e / graph_k,
+                idx[(e / graph_k) * row + 1 + e % graph_k] as usize,
+            );
+            let offset = vec3(&scan[q]) - vec3(&scan[p]);
+            let step = offset
+                .dot(&planes[p].0)
+                .abs()
+                .max(offset.dot(&planes[q].0).abs());
+            let gap = ((offset.norm() - 2.0 * spacing) / (2.0 * spacing)).max(0.0);
+            (CAPACITY_UNITS * (-(step / tau).powi(2) - gap * gap).exp()) as i64
+        })
+        .collect();
+    let mut graph = CutGraph::new(free as usize + 2);
+    for (e, &capacity) in capacities.iter().enumerate() {
+        let p = (e / graph_k) as u32;
+        let q = idx[(e / graph_k) * row + 1 + e % graph_k];
+        let (a, b) = (id(p), id(q));
+        // Between two seeds of one side: inside a terminal; of both sides: cut in every cut.
+        if a.min(b) < source {
+            graph.add_edge(a, b, capacity);
+        }
+    }
+    let side = graph.source_side(&[source], &[sink]);
+    let side = |p: usize| match node[p] {
+        Node::Free(i) => side[i as usize],
+        Node::Garment => true,
+        Node::Body => false,
+    };
     let mut out = vec![0.0; target.len()];
     for (p, &j) in live.iter().enumerate() {
-        if side[p] {
+        if side(p) {
             out[j] = given(j);
         }
     }
