@@ -19,6 +19,11 @@ use crate::math::{sym_eigen3, vec3, Mat3, Vec3};
 use crate::min_cut::CutGraph;
 use rayon::prelude::*;
 
+/// At most this many cuts, each followed by a fit onto its garment's side: the next cut is
+/// seeded by the last fit, and made only while the garment's points still change.
+pub(super) const MAX_CUTS: usize = 2;
+/// The garment's points have settled when at most this share of them changed side.
+pub(super) const SETTLED: f64 = 0.01;
 /// Neighbours whose plane gives a point's normal (and its residual, the noise's measure).
 const PLANE_NEIGHBOURS: usize = 16;
 /// Neighbours a point is joined to in the graph.

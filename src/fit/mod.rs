@@ -444,26 +444,58 @@ fn fit_from(
         params.schedule.garment_refit,
         params.schedule.garment_cut,
     );
-    let cut_points = cut.iter().filter(|&&w| w > 0.0).count();
+    let mut cut_points = cut.iter().filter(|&&w| w > 0.0).count();
     if cut_points < template_vertices.len() / 4 || cut_points == live {
         return Ok(again);
     }
-    pass.store(2, Ordering::Relaxed);
-    let mut third = fit_from(
-        &start,
-        rest,
-        template_faces,
-        target,
-        target_faces,
-        Some(&cut),
-        landmarks,
-        several,
-        &inner,
-        observer,
-    )?;
-    third.params = params.clone();
-    third.diagnostics.garment_refit_points = cut_points;
-    Ok(third)
+    let mut cut = cut;
+    let mut fitted: Option<FitResult> = None;
+    // Cut again from the fit onto the cut while the garment's points still change: a cut
+    // seeded by a refit that was wrong over a region is wrong there too.
+    for round in 0..garment_cut::MAX_CUTS {
+        if let Some(last) = fitted.as_ref() {
+            let again = garment_cut::garment_cut_weights(
+                target,
+                target_weights,
+                &last.vertices,
+                &prepared.faces,
+                params.schedule.garment_refit,
+                params.schedule.garment_cut,
+            );
+            let points = again.iter().filter(|&&w| w > 0.0).count();
+            let changed = again
+                .iter()
+                .zip(&cut)
+                .filter(|(a, b)| (**a > 0.0) != (**b > 0.0))
+                .count();
+            let settled = changed as f64 <= garment_cut::SETTLED * cut_points as f64;
+            if settled || points < template_vertices.len() / 4 || points == live {
+                break;
+            }
+            (cut, cut_points) = (again, points);
+        }
+        pass.store(2 + round, Ordering::Relaxed);
+        let mut next = fit_from(
+            &start,
+            rest,
+            template_faces,
+            target,
+            target_faces,
+            Some(&cut),
+            landmarks,
+            several,
+            &inner,
+            observer,
+        )?;
+        next.params = params.clone();
+        next.diagnostics.garment_refit_points = cut_points;
+        let stopped = next.diagnostics.stopped_by_callback;
+        fitted = Some(next);
+        if stopped {
+            break;
+        }
+    }
+    Ok(fitted.expect("the first cut is always fitted"))
 }
 
 /// The template moved by the global pre-alignment of [`FitParams::prealign`] (`Rigid`,

@@ -366,7 +366,8 @@ pub struct Schedule {
     /// gap; the seeds are the points the refit explains three rings or more inside its rim and
     /// the points far from it. The template is fitted a third time, from its start, onto the
     /// garment's side — which reaches past the refit's rim as far as the garment's surface runs
-    /// on, and not across the step (about 1.5× the time of the refit alone; docs/method.md
+    /// on, and not across the step; when a second cut from that fit moves more than 1 % of the
+    /// points, a fourth fit onto it (about 1.5× the time of the refit alone; docs/method.md
     /// "Scans of dressed people"). The step is `garment_cut ×` the scan's median distance from
     /// a point to its neighbours' plane (its noise). 0: off, the refit stands.
     pub garment_cut: f64,

@@ -33,10 +33,13 @@ pub struct Progress {
 
 impl Progress {
     /// This progress of part `part` of `parts` that each count `total` iterations, as progress
-    /// over `total` iterations in all: each part counts `1 / parts`.
+    /// over `total` iterations in all: each part counts `1 / parts` (a part past the last, as
+    /// a repeated garment cut's fit, reports the end).
     pub(super) fn of_parts(&self, part: usize, parts: usize, total: usize) -> Progress {
         Progress {
-            iteration: (part * total + self.iteration).div_ceil(parts.max(1)),
+            iteration: (part * total + self.iteration)
+                .div_ceil(parts.max(1))
+                .min(total),
             iterations: total,
             record: self.record,
         }
