@@ -11,7 +11,7 @@
 //!   `κ = (4ac − b²) / (1 + d² + e²)²`. Neighbourhoods too small or too flat to fit get κ = 0.
 
 use crate::knn::PointIndex;
-use crate::math::{sym_eigen3, vec3, Mat3, Vec3};
+use crate::math::{sym_eigen3, vec3, Mat3, SymEigen3, Vec3};
 use nalgebra::{Matrix6, Vector6};
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -100,9 +100,10 @@ pub fn gaussian_curvature_points(points: &[[f64; 3]], index: &PointIndex) -> Vec
         .collect()
 }
 
-/// Fits the quadric in the PCA frame of `neighbours` around `origin` and returns κ at origin.
-fn quadric_curvature(points: &[[f64; 3]], origin: &[f64; 3], neighbours: &[u32]) -> f64 {
-    let o = vec3(origin);
+/// The centroid of the points `neighbours` of `points` and the eigen-decomposition of their
+/// scatter matrix (the PCA frame: `vectors.column(2)`, of the least eigenvalue, is the normal of
+/// their best-fitting plane).
+pub(crate) fn neighbourhood_frame(points: &[[f64; 3]], neighbours: &[u32]) -> (Vec3, SymEigen3) {
     let mut centroid = Vec3::zeros();
     for &j in neighbours {
         centroid += vec3(&points[j as usize]);
@@ -113,7 +114,13 @@ fn quadric_curvature(points: &[[f64; 3]], origin: &[f64; 3], neighbours: &[u32])
         let d = vec3(&points[j as usize]) - centroid;
         cov += d * d.transpose();
     }
-    let frame = sym_eigen3(&cov);
+    (centroid, sym_eigen3(&cov))
+}
+
+/// Fits the quadric in the PCA frame of `neighbours` around `origin` and returns κ at origin.
+fn quadric_curvature(points: &[[f64; 3]], origin: &[f64; 3], neighbours: &[u32]) -> f64 {
+    let o = vec3(origin);
+    let (_, frame) = neighbourhood_frame(points, neighbours);
     let (e1, e2, e3) = (
         frame.vectors.column(0),
         frame.vectors.column(1),

@@ -8,6 +8,7 @@ use super::result::{timed, Diagnostics, StageTimes};
 use super::setup::{mean_edge_length, Prepared};
 use crate::knn::{NeighborCache, PointIndex, TargetNeighbours};
 use crate::math::{vec3, Vec3};
+use crate::metrics::upper_median;
 use crate::nbody;
 use crate::normalize::Frame;
 use crate::rings::Neighborhoods;
@@ -153,9 +154,7 @@ impl Attraction {
         for (d, row) in nearest.iter_mut().zip(nn_d2.chunks_exact(k)) {
             *d = row[0];
         }
-        let mid = nearest.len() / 2;
-        let (_, median2, _) = nearest.select_nth_unstable_by(mid, f64::total_cmp);
-        trust * median2.sqrt().max(edge_length)
+        trust * upper_median(nearest).sqrt().max(edge_length)
     }
 
     /// Γᵏ_X of the points `pos` among the scan points `scan`, the two-way pulls on them, and
@@ -294,7 +293,7 @@ pub(super) fn trust_unit(template: &[[f64; 3]], faces: &[[u32; 3]], scan: &[[f64
         .par_iter()
         .map(|v| scan_index.nearest_one(v).1)
         .collect();
-    let mid = nearest.len() / 2;
-    let median = nearest.select_nth_unstable_by(mid, f64::total_cmp).1.sqrt();
-    median.max(mean_edge_length(template, faces))
+    upper_median(&mut nearest)
+        .sqrt()
+        .max(mean_edge_length(template, faces))
 }

@@ -2,7 +2,7 @@
 //! garment's points separated from the skin at the seam where the scan's surface steps, by a
 //! minimum cut (Boykov & Jolly 2001, "Interactive graph cuts").
 //!
-//! The garment refit's points ([`garment_weights`]: what a fit explains) hold the skin next to
+//! The garment refit's points ([`explain`]: what a fit explains) hold the skin next to
 //! the hems, cuffs and collar that the fit reached and miss the garment's rows past its fitted
 //! rim. Where a garment ends on a body, the scan's surface steps: the skin continues under the
 //! cloth, a cloth thickness or a loose hem's gap below it, so the garment's local plane does not
@@ -13,9 +13,11 @@
 //! seeds' side of the cheapest cut: past the fitted rim as far as the garment's surface runs on,
 //! and not across the step onto the skin.
 
-use super::garment_refit::{garment_weights, rim_rings};
+use super::garment_refit::{explain, garment_points, rim_rings};
+use crate::curvature::neighbourhood_frame;
 use crate::knn::PointIndex;
-use crate::math::{sym_eigen3, vec3, Mat3, Vec3};
+use crate::math::{vec3, Vec3};
+use crate::metrics::upper_median;
 use crate::min_cut::CutGraph;
 use rayon::prelude::*;
 
@@ -56,8 +58,8 @@ enum Node {
 /// on the garment's side of the cut, 0 elsewhere. `step_multiple` sets τ, the step at which an
 /// edge is cheap to cut, in multiples of the scan's median distance from a point to its
 /// neighbours' plane (its noise, in the scan's own units; at least [`STEP_FLOOR`] × the median
-/// nearest-neighbour distance). Falls back to [`garment_weights`]
-/// when the fit explains no seed of the garment or no point lies far enough to be the body's.
+/// nearest-neighbour distance). Falls back to the explained points
+/// ([`garment_weights`](super::garment_refit::garment_weights)) when the fit explains no seed of the garment or no point lies far enough to be the body's.
 pub(super) fn garment_cut_weights(
     target: &[[f64; 3]],
     weights: Option<&[f64]>,
@@ -66,62 +68,42 @@ pub(super) fn garment_cut_weights(
     radius_multiple: f64,
     step_multiple: f64,
 ) -> Vec<f64> {
-    let explained = garment_weights(target, weights, fitted, faces, radius_multiple);
-    let given = |j: usize| weights.map_or(1.0, |w| w[j]);
-    let live: Vec<usize> = (0..target.len()).filter(|&j| given(j) > 0.0).collect();
-    let k = PLANE_NEIGHBOURS.min(live.len().saturating_sub(1));
+    let e = explain(target, weights, fitted, faces, radius_multiple);
+    let explained = || e.weights(target.len(), weights, |p| e.explained[p]);
+    let (scan, n) = (&e.scan, e.scan.len());
+    let k = PLANE_NEIGHBOURS.min(n.saturating_sub(1));
     if k < 3 {
-        return explained;
+        return explained();
     }
-    let scan: Vec<[f64; 3]> = live.iter().map(|&j| target[j]).collect();
-    let n = scan.len();
-    let index = PointIndex::new(&scan);
+    let index = PointIndex::new(scan);
     let row = k + 1;
     let (mut idx, mut d2) = (vec![0u32; n * row], vec![0.0; n * row]);
-    index.nearest_all(&scan, row, &mut idx, &mut d2);
+    index.nearest_all(scan, row, &mut idx, &mut d2);
     // Per point: its neighbours' plane normal and its own distance from that plane.
     let planes: Vec<(Vec3, f64)> = (0..n)
         .into_par_iter()
         .map(|p| {
-            let members = &idx[p * row..(p + 1) * row];
-            let centroid = members
-                .iter()
-                .fold(Vec3::zeros(), |c, &q| c + vec3(&scan[q as usize]))
-                / row as f64;
-            let mut cov = Mat3::zeros();
-            for &q in members {
-                let d = vec3(&scan[q as usize]) - centroid;
-                cov += d * d.transpose();
-            }
-            let normal: Vec3 = sym_eigen3(&cov).vectors.column(2).into();
+            let (centroid, frame) = neighbourhood_frame(scan, &idx[p * row..(p + 1) * row]);
+            let normal: Vec3 = frame.vectors.column(2).into();
             (normal, (vec3(&scan[p]) - centroid).dot(&normal).abs())
         })
         .collect();
-    let median = |mut v: Vec<f64>| {
-        let mid = v.len() / 2;
-        *v.select_nth_unstable_by(mid, f64::total_cmp).1
-    };
+    let median = |mut v: Vec<f64>| upper_median(&mut v);
     let spacing = median((0..n).map(|p| d2[p * row + 1].sqrt()).collect());
     let noise = median(planes.iter().map(|p| p.1).collect());
     // On a scan without noise, a fold's own curvature between neighbours sets the scale.
     let tau = step_multiple * noise.max(STEP_FLOOR * spacing);
     if !(tau > 0.0 && spacing > 0.0) {
-        return explained;
+        return explained();
     }
     // The seeds, by the fitted vertex nearest to each point.
     let rings = rim_rings(faces, fitted.len());
-    let fitted_index = PointIndex::new(fitted);
-    let nearest: Vec<(u32, f64)> = scan
-        .par_iter()
-        .map(|x| fitted_index.nearest_one(x))
-        .collect();
-    let is_explained: Vec<bool> = live.iter().map(|&j| explained[j] > 0.0).collect();
     let explained_distances: Vec<f64> = (0..n)
-        .filter(|&p| is_explained[p])
-        .map(|p| nearest[p].1.sqrt())
+        .filter(|&p| e.explained[p])
+        .map(|p| e.nearest[p].1.sqrt())
         .collect();
     if explained_distances.is_empty() {
-        return explained;
+        return explained();
     }
     let far = BODY_DISTANCE * median(explained_distances);
     // The seeds are contracted into the two terminals (an exact reduction: a seed is on its
@@ -129,11 +111,11 @@ pub(super) fn garment_cut_weights(
     let (mut free, mut garment_seeds, mut body_seeds) = (0u32, 0usize, 0usize);
     let node: Vec<Node> = (0..n)
         .map(|p| {
-            let (v, d2) = nearest[p];
-            if is_explained[p] && rings[v as usize] >= SEED_RINGS {
+            let (v, d2) = e.nearest[p];
+            if e.explained[p] && rings[v as usize] >= SEED_RINGS {
                 garment_seeds += 1;
                 Node::Garment
-            } else if !is_explained[p] && d2.sqrt() > far {
+            } else if !e.explained[p] && d2.sqrt() > far {
                 body_seeds += 1;
                 Node::Body
             } else {
@@ -143,22 +125,26 @@ pub(super) fn garment_cut_weights(
         })
         .collect();
     if garment_seeds == 0 || body_seeds == 0 {
-        return explained;
+        return explained();
     }
     let (source, sink) = (free, free + 1);
-    let id = |p: u32| match node[p as usize] {
+    let id = |p: usize| match node[p] {
         Node::Free(i) => i,
         Node::Garment => source,
         Node::Body => sink,
     };
+    // Edge e joins point e / K to its (e % K + 1)-th nearest neighbour.
     let graph_k = GRAPH_NEIGHBOURS.min(k);
+    let ends = |e: usize| {
+        (
+            e / graph_k,
+            idx[(e / graph_k) * row + 1 + e % graph_k] as usize,
+        )
+    };
     let capacities: Vec<i64> = (0..n * graph_k)
         .into_par_iter()
         .map(|e| {
-            let (p, q) = (
-                e / graph_k,
-                idx[(e / graph_k) * row + 1 + e % graph_k] as usize,
-            );
+            let (p, q) = ends(e);
             let offset = vec3(&scan[q]) - vec3(&scan[p]);
             let step = offset
                 .dot(&planes[p].0)
@@ -170,8 +156,7 @@ pub(super) fn garment_cut_weights(
         .collect();
     let mut graph = CutGraph::new(free as usize + 2);
     for (e, &capacity) in capacities.iter().enumerate() {
-        let p = (e / graph_k) as u32;
-        let q = idx[(e / graph_k) * row + 1 + e % graph_k];
+        let (p, q) = ends(e);
         let (a, b) = (id(p), id(q));
         // Between two seeds of one side: inside a terminal; of both sides: cut in every cut.
         if a.min(b) < source {
@@ -179,22 +164,27 @@ pub(super) fn garment_cut_weights(
         }
     }
     let side = graph.source_side(&[source], &[sink]);
-    let side = |p: usize| match node[p] {
+    e.weights(target.len(), weights, |p| match node[p] {
         Node::Free(i) => side[i as usize],
         Node::Garment => true,
         Node::Body => false,
-    };
-    let mut out = vec![0.0; target.len()];
-    for (p, &j) in live.iter().enumerate() {
-        if side(p) {
-            out[j] = given(j);
-        }
-    }
-    out
+    })
+}
+
+/// Whether the garment's points of two cuts (their weights) are the same up to [`SETTLED`]: at
+/// most that share of the first cut's points changed side.
+pub(super) fn settled(before: &[f64], after: &[f64]) -> bool {
+    let changed = before
+        .iter()
+        .zip(after)
+        .filter(|(a, b)| (**a > 0.0) != (**b > 0.0))
+        .count();
+    changed as f64 <= SETTLED * garment_points(before) as f64
 }
 
 #[cfg(test)]
 mod tests {
+    use super::super::garment_refit::garment_weights;
     use super::*;
     use crate::synthetic::grid_sheet;
 

@@ -13,12 +13,79 @@ use crate::math::{vec3, Vec3};
 use rayon::prelude::*;
 use std::collections::HashMap;
 
+/// The scan points of positive weight and which of them a fit explains ([`explain`]).
+pub(super) struct Explanation {
+    /// The indices of the scan points of positive weight (the given weight; all without one).
+    pub(super) live: Vec<usize>,
+    /// Those points.
+    pub(super) scan: Vec<[f64; 3]>,
+    /// Per live point: its nearest fitted vertex and the squared distance to it.
+    pub(super) nearest: Vec<(u32, f64)>,
+    /// Per live point: whether the fit explains it.
+    pub(super) explained: Vec<bool>,
+}
+
+impl Explanation {
+    /// Per scan point: its given weight (1 when none) where `keep(p)` holds for its index `p`
+    /// among the live points, 0 elsewhere.
+    pub(super) fn weights(
+        &self,
+        n: usize,
+        weights: Option<&[f64]>,
+        keep: impl Fn(usize) -> bool,
+    ) -> Vec<f64> {
+        let mut out = vec![0.0; n];
+        for (p, &j) in self.live.iter().enumerate() {
+            if keep(p) {
+                out[j] = weights.map_or(1.0, |w| w[j]);
+            }
+        }
+        out
+    }
+}
+
+/// The points that `fitted` explains. A point is explained when its nearest fitted vertex is
+/// within `radius_multiple ×` the larger of the median vertex-to-scan distance and the mean
+/// edge length ([`garment_refit`](crate::fit::Schedule::garment_refit)), and, when that vertex
+/// lies on the template's boundary, the point is not outward of it (on the far side of the plane
+/// through the vertex normal to its outward direction in the surface). Points of weight 0 are
+/// left out.
+pub(super) fn explain(
+    target: &[[f64; 3]],
+    weights: Option<&[f64]>,
+    fitted: &[[f64; 3]],
+    faces: &[[u32; 3]],
+    radius_multiple: f64,
+) -> Explanation {
+    let live: Vec<usize> = (0..target.len())
+        .filter(|&j| weights.map_or(1.0, |w| w[j]) > 0.0)
+        .collect();
+    let scan: Vec<[f64; 3]> = live.iter().map(|&j| target[j]).collect();
+    let radius = radius_multiple * trust_unit(fitted, faces, &scan);
+    let outward = rim_outward(fitted, faces);
+    let fitted_index = PointIndex::new(fitted);
+    let nearest: Vec<(u32, f64)> = scan
+        .par_iter()
+        .map(|p| fitted_index.nearest_one(p))
+        .collect();
+    let explained = scan
+        .iter()
+        .zip(&nearest)
+        .map(|(p, &(v, d2))| {
+            let v = v as usize;
+            d2 <= radius * radius && (vec3(p) - vec3(&fitted[v])).dot(&vec3(&outward[v])) <= 0.0
+        })
+        .collect();
+    Explanation {
+        live,
+        scan,
+        nearest,
+        explained,
+    }
+}
+
 /// The refit's weights of the scan points: the given weight (1 when none) on the points that
-/// `fitted` explains, 0 elsewhere. A point is explained when its nearest fitted vertex is within
-/// `radius_multiple ×` the larger of the median vertex-to-scan distance and the mean edge length
-/// ([`garment_refit`](crate::fit::Schedule::garment_refit)), and, when that vertex lies on the
-/// template's boundary, the point is not outward of it (on the far side of the plane through the
-/// vertex normal to its outward direction in the surface). Points of weight 0 stay 0.
+/// `fitted` explains ([`explain`]), 0 elsewhere.
 pub(super) fn garment_weights(
     target: &[[f64; 3]],
     weights: Option<&[f64]>,
@@ -26,27 +93,13 @@ pub(super) fn garment_weights(
     faces: &[[u32; 3]],
     radius_multiple: f64,
 ) -> Vec<f64> {
-    let given = |j: usize| weights.map_or(1.0, |w| w[j]);
-    let live: Vec<usize> = (0..target.len()).filter(|&j| given(j) > 0.0).collect();
-    let scan: Vec<[f64; 3]> = live.iter().map(|&j| target[j]).collect();
-    let radius = radius_multiple * trust_unit(fitted, faces, &scan);
-    let outward = rim_outward(fitted, faces);
-    let fitted_index = PointIndex::new(fitted);
-    let explained: Vec<bool> = scan
-        .par_iter()
-        .map(|p| {
-            let (v, d2) = fitted_index.nearest_one(p);
-            let v = v as usize;
-            d2 <= radius * radius && (vec3(p) - vec3(&fitted[v])).dot(&vec3(&outward[v])) <= 0.0
-        })
-        .collect();
-    let mut out = vec![0.0; target.len()];
-    for (&j, &e) in live.iter().zip(&explained) {
-        if e {
-            out[j] = given(j);
-        }
-    }
-    out
+    let e = explain(target, weights, fitted, faces, radius_multiple);
+    e.weights(target.len(), weights, |p| e.explained[p])
+}
+
+/// How many scan points weigh more than 0.
+pub(super) fn garment_points(weights: &[f64]) -> usize {
+    weights.iter().filter(|&&w| w > 0.0).count()
 }
 
 /// Every vertex's distance in edges (rings) from the boundary of the mesh: 0 on it;
@@ -317,8 +370,7 @@ mod tests {
             1.0,
             params.schedule.garment_cut,
         );
-        let points = cut.iter().filter(|&&w| w > 0.0).count();
-        assert_eq!(full.diagnostics.garment_refit_points, points);
+        assert_eq!(full.diagnostics.garment_refit_points, garment_points(&cut));
         assert!(
             cut[41 * 41 + 41 * 12..].iter().all(|&w| w == 0.0),
             "the far plane is the body's"
@@ -344,12 +396,7 @@ mod tests {
             1.0,
             params.schedule.garment_cut,
         );
-        let changed = again
-            .iter()
-            .zip(&cut)
-            .filter(|(a, b)| (**a > 0.0) != (**b > 0.0))
-            .count();
-        if changed as f64 <= crate::fit::garment_cut::SETTLED * points as f64 {
+        if crate::fit::garment_cut::settled(&cut, &again) {
             assert_eq!(full.vertices, third.vertices);
         } else {
             let fourth = fit_weighted(

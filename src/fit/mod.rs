@@ -240,9 +240,9 @@ fn fit_from(
         several,
         &schedules,
     )?;
-    // A scan that holds more than the garment is fitted more than once: the second fit onto the points
-    // the first explains, a third onto the garment cut's points (docs/method.md "Scans of
-    // dressed people"); each reports its share of the iterations to the observer.
+    // A scan that holds more than the garment is fitted more than once: the second fit onto
+    // the points the first explains, the next onto the garment cut's points (docs/method.md
+    // "Scans of dressed people"); each reports its share of the iterations to the observer.
     let refit = params.schedule.garment_refit > 0.0 && prepared.garment.is_some();
     let passes = if params.schedule.garment_cut > 0.0 {
         3
@@ -400,10 +400,11 @@ fn fit_from(
         &prepared.faces,
         params.schedule.garment_refit,
     );
-    let garment_points = weights.iter().filter(|&&w| w > 0.0).count();
     let live = kept.as_ref().map_or(target.len(), Vec::len);
-    if garment_points < template_vertices.len() / 4 || garment_points == live {
-        // Too little explained to be the garment, or nothing left out: the first fit stands.
+    // Too little to be the garment, or nothing left out: no fit onto these points.
+    let usable = |points: usize| points >= template_vertices.len() / 4 && points < live;
+    if !usable(garment_refit::garment_points(&weights)) {
+        // The first fit stands.
         return Ok(chosen);
     }
     let mut inner = params.clone();
@@ -415,87 +416,59 @@ fn fit_from(
     inner.prealign = Prealign::None;
     let mut start = prepared.start.clone();
     prepared.frame.inverse_in_place(&mut start);
-    pass.store(1, Ordering::Relaxed);
-    // From the same start, with the same rest shape (a tracked frame stays anchored).
-    let mut again = fit_from(
-        &start,
-        rest,
-        template_faces,
-        target,
-        target_faces,
-        Some(&weights),
-        landmarks,
-        several,
-        &inner,
-        observer,
-    )?;
-    again.params = params.clone();
-    again.diagnostics.garment_refit_points = garment_points;
-    if params.schedule.garment_cut <= 0.0 || again.diagnostics.stopped_by_callback {
-        return Ok(again);
-    }
-    // The garment cut: the garment's points by the seam where the scan steps onto the skin,
-    // seeded by the refit, and a third fit onto them from the same start.
-    let cut = garment_cut::garment_cut_weights(
-        target,
-        target_weights,
-        &again.vertices,
-        &prepared.faces,
-        params.schedule.garment_refit,
-        params.schedule.garment_cut,
-    );
-    let mut cut_points = cut.iter().filter(|&&w| w > 0.0).count();
-    if cut_points < template_vertices.len() / 4 || cut_points == live {
-        return Ok(again);
-    }
-    let mut cut = cut;
-    let mut fitted: Option<FitResult> = None;
-    // Cut again from the fit onto the cut while the garment's points still change: a cut
-    // seeded by a refit that was wrong over a region is wrong there too.
-    for round in 0..garment_cut::MAX_CUTS {
-        if let Some(last) = fitted.as_ref() {
-            let again = garment_cut::garment_cut_weights(
-                target,
-                target_weights,
-                &last.vertices,
-                &prepared.faces,
-                params.schedule.garment_refit,
-                params.schedule.garment_cut,
-            );
-            let points = again.iter().filter(|&&w| w > 0.0).count();
-            let changed = again
-                .iter()
-                .zip(&cut)
-                .filter(|(a, b)| (**a > 0.0) != (**b > 0.0))
-                .count();
-            let settled = changed as f64 <= garment_cut::SETTLED * cut_points as f64;
-            if settled || points < template_vertices.len() / 4 || points == live {
-                break;
-            }
-            (cut, cut_points) = (again, points);
-        }
-        pass.store(2 + round, Ordering::Relaxed);
-        let mut next = fit_from(
+    // Each later fit from the same start, with the same rest shape (a tracked frame stays
+    // anchored), onto the weights of its pass.
+    let mut fit_onto = |weights: &[f64], part: usize| -> Result<FitResult> {
+        pass.store(part, Ordering::Relaxed);
+        let mut fitted = fit_from(
             &start,
             rest,
             template_faces,
             target,
             target_faces,
-            Some(&cut),
+            Some(weights),
             landmarks,
             several,
             &inner,
-            observer,
+            &mut *observer,
         )?;
-        next.params = params.clone();
-        next.diagnostics.garment_refit_points = cut_points;
-        let stopped = next.diagnostics.stopped_by_callback;
-        fitted = Some(next);
-        if stopped {
+        fitted.params = params.clone();
+        fitted.diagnostics.garment_refit_points = garment_refit::garment_points(weights);
+        Ok(fitted)
+    };
+    let mut last = fit_onto(&weights, 1)?;
+    // The garment cut: the garment's points by the seam where the scan steps onto the skin,
+    // seeded by the last fit, and a fit onto them; cut again while the garment's points still
+    // change (a cut seeded by a fit that was wrong over a region is wrong there too).
+    let cuts = if params.schedule.garment_cut > 0.0 {
+        garment_cut::MAX_CUTS
+    } else {
+        0
+    };
+    let mut previous: Option<Vec<f64>> = None;
+    for round in 0..cuts {
+        if last.diagnostics.stopped_by_callback {
             break;
         }
+        let cut = garment_cut::garment_cut_weights(
+            target,
+            target_weights,
+            &last.vertices,
+            &prepared.faces,
+            params.schedule.garment_refit,
+            params.schedule.garment_cut,
+        );
+        if !usable(garment_refit::garment_points(&cut))
+            || previous
+                .as_deref()
+                .is_some_and(|before| garment_cut::settled(before, &cut))
+        {
+            break;
+        }
+        last = fit_onto(&cut, 2 + round)?;
+        previous = Some(cut);
     }
-    Ok(fitted.expect("the first cut is always fitted"))
+    Ok(last)
 }
 
 /// The template moved by the global pre-alignment of [`FitParams::prealign`] (`Rigid`,

@@ -70,7 +70,7 @@ pub(crate) use distance::bbox_diagonal;
 pub use distance::{hausdorff, nearest_distances};
 pub(crate) use faces::cross_of;
 pub use faces::{edge_length_spread, EdgeLengths};
-pub(crate) use summary::percentile_linear;
+pub(crate) use summary::{percentile_linear, upper_median};
 
 use distance::{rmse_of, NnIndex};
 use faces::face_counts;

@@ -16,6 +16,13 @@ pub(super) fn max_of(v: &[f64]) -> f64 {
     v.iter().copied().fold(0.0, f64::max)
 }
 
+/// The upper median of `v` (its element of rank ⌊n/2⌋, the median for odd n), reordering `v`
+/// in place. O(n) by selection; `v` must not be empty.
+pub(crate) fn upper_median(v: &mut [f64]) -> f64 {
+    let mid = v.len() / 2;
+    *v.select_nth_unstable_by(mid, f64::total_cmp).1
+}
+
 /// Arithmetic mean summed sequentially in index order (deterministic); NaN when empty.
 pub(super) fn mean_of(v: &[f64]) -> f64 {
     v.iter().sum::<f64>() / v.len() as f64
