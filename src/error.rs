@@ -84,6 +84,16 @@ pub enum FoldMatchError {
         /// Centroid distance in target diagonals.
         distance: f64,
     },
+    /// The template and the scan differ in size by more than a rigid pre-alignment can place
+    /// (a units mistake, most likely).
+    #[error(
+        "the template's bounding-box diagonal is {ratio:.3} times the scan's: check units, or \
+         pre-align with a scale (prealign = \"similarity\")"
+    )]
+    SizeMismatch {
+        /// Template diagonal ÷ scan diagonal.
+        ratio: f64,
+    },
     /// The fit was stopped by the user's callback or an interrupt.
     #[error("fit cancelled after {iterations} iterations")]
     Cancelled {

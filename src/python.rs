@@ -57,7 +57,8 @@ fn to_pyerr(err: FoldMatchError) -> PyErr {
         | FoldMatchError::NonFinite { .. }
         | FoldMatchError::FaceIndex { .. }
         | FoldMatchError::Landmark { .. }
-        | FoldMatchError::FarAway { .. } => InvalidInputError::new_err(message),
+        | FoldMatchError::FarAway { .. }
+        | FoldMatchError::SizeMismatch { .. } => InvalidInputError::new_err(message),
         FoldMatchError::Parameter { .. } => InvalidParameterError::new_err(message),
         FoldMatchError::Io { .. } => MeshFileError::new_err(message),
         FoldMatchError::Format { .. } => MeshFormatError::new_err(message),

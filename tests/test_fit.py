@@ -263,6 +263,20 @@ def test_far_away_template_is_refused_or_prealigned():
     for mode in ("centroid", "rigid"):
         r = fm.fit(**small(template=far), prealign=mode, iterations=20)
         assert np.abs(r.vertices.mean(0) - SMALL["scan"].mean(0)).max() < 0.05
+    # The default pre-alignment is the rigid search: the far template is found without asking.
+    r = fm.fit(**small(template=far), iterations=20)
+    assert r.params.prealign == "rigid"
+    assert np.abs(r.vertices.mean(0) - SMALL["scan"].mean(0)).max() < 0.05
+
+
+def test_a_template_in_other_units_is_refused_by_the_rigid_prealignment():
+    # In millimetres against a scan in metres: no rigid motion places it; the error says so and
+    # names the remedy, which places it.
+    mm = 1000.0 * SMALL["template_vertices"]
+    with pytest.raises(fm.InvalidInputError, match=r"diagonal is 9\d\d\.\d+ times the scan's.*similarity"):
+        fm.fit(**small(template=mm), iterations=5)
+    r = fm.fit(**small(template=mm), prealign="similarity", iterations=20)
+    assert np.abs(r.vertices.mean(0) - SMALL["scan"].mean(0)).max() < 0.05
 
 
 def _turned(points, axis, degrees, shift):
@@ -275,13 +289,16 @@ def _turned(points, axis, degrees, shift):
 
 def test_rigid_prealign_fits_a_turned_scan_in_the_scan_frame():
     # The demo sheet's scan turned 60° about an oblique axis and shifted by three diagonals:
-    # prealign="rigid" lands as close to the moved truth as the fit of the unmoved scan does to
+    # the default prealign="rigid" lands as close to the moved truth as the fit of the unmoved scan does to
     # the truth, and its vertices lie in the scan's frame as given.
-    case = fm.folded_sheet(nx=25, ny=17, scan_points=2000, noise=0.002, seed=3)
+    # (A flat rectangle is symmetric: on a gently folded scan several of its readings score
+    # alike and the turn is ambiguous, docs/method.md "Global pre-alignment"; folds of 0.1 let
+    # the scan's shape decide.)
+    case = fm.folded_sheet(nx=25, ny=17, scan_points=2000, noise=0.002, seed=3, fold_amplitude=0.1)
     v, f, x, g = case["template_vertices"], case["faces"], case["scan"], case["ground_truth"]
     shift = 3.0 * (x.max(0) - x.min(0))  # far enough for prealign="none" to refuse it
     base = fm.fit(v, f, x, iterations=60)
-    moved = fm.fit(v, f, _turned(x, [1, 2, -1.5], 60, shift), iterations=60, prealign="rigid")
+    moved = fm.fit(v, f, _turned(x, [1, 2, -1.5], 60, shift), iterations=60)
     err = np.sqrt(((base.vertices - g) ** 2).sum(1).mean())
     err_moved = np.sqrt(((moved.vertices - _turned(g, [1, 2, -1.5], 60, shift)) ** 2).sum(1).mean())
     assert err_moved < 1.25 * err
@@ -292,8 +309,8 @@ def test_rigid_prealign_fits_a_turned_scan_in_the_scan_frame():
 def test_similarity_prealign_fits_a_scan_in_millimetres():
     # The folded truth's vertices as the scan, turned and shifted, once in metres (placed by
     # prealign="rigid") and once in millimetres (prealign="similarity"): the similarity finds
-    # the units, so both fits land on the truth alike. (How close a turned scan's fit comes to
-    # the placed one's is issue 27's open figure, measured by `python -m bench.prealign`.)
+    # the units, so both fits land on the truth alike, within issue 27's 1.25× (measured on the
+    # harness by `python -m bench.prealign`).
     case = fm.folded_sheet(nx=25, ny=17, seed=3)
     v, f, g = case["template_vertices"], case["faces"], case["ground_truth"]
     truth = _turned(g, [1, 2, -1.5], 60, np.array([0.3, -0.2, 0.05]))
@@ -301,16 +318,10 @@ def test_similarity_prealign_fits_a_scan_in_millimetres():
     mm = fm.fit(v, f, 1000.0 * truth, prealign="similarity", iterations=60)
     err = np.sqrt(((metres.vertices - truth) ** 2).sum(1).mean())
     err_mm = np.sqrt(((mm.vertices / 1000.0 - truth) ** 2).sum(1).mean())
-    assert err_mm < 1.05 * err
-    # Without the similarity the millimetre scan is refused as far away or fits badly.
-    assert (
-        np.sqrt(
-            ((fm.fit(v, f, 1000.0 * truth, prealign="rigid", iterations=60).vertices / 1000.0 - truth) ** 2)
-            .sum(1)
-            .mean()
-        )
-        > 2 * err
-    )
+    assert err_mm < 1.25 * err
+    # Without the similarity the millimetre scan is refused: no rigid motion places it.
+    with pytest.raises(fm.InvalidInputError, match="times the scan's"):
+        fm.fit(v, f, 1000.0 * truth, prealign="rigid", iterations=60)
     a = fm.prealign(v, 1000.0 * g, motion="similarity")
     assert a["searched"] and abs(a["scale"] / 1000.0 - 1) < 0.05
     a = fm.prealign(v, v + 0.001)  # placed already: kept as given, no search
@@ -477,13 +488,15 @@ def test_selection_keeps_the_closer_schedule_or_on_a_near_tie_the_less_stretched
     margin 0 keeps the closer; each candidate equals the single-schedule fit run on its
     own."""
     v, f, x = case["template_vertices"], case["faces"], case["scan"]
-    chosen = fm.fit(v, f, x, iterations=30)
-    given = fm.fit(v, f, x, iterations=30, params=dict(selection="single"))
+    # From the placement as given (the margins below pick both schedules from there).
+    chosen = fm.fit(v, f, x, iterations=30, prealign="none")
+    given = fm.fit(v, f, x, iterations=30, prealign="none", params=dict(selection="single"))
     sharp = fm.fit(
         v,
         f,
         x,
         iterations=30,
+        prealign="none",
         params=dict(selection="single", two_way=1.0, coarse_fraction=0.3, anneal=1.0, anneal_fraction=0.0),
     )
 
@@ -503,6 +516,7 @@ def test_selection_keeps_the_closer_schedule_or_on_a_near_tie_the_less_stretched
                 f,
                 x,
                 iterations=30,
+                prealign="none",
                 params=dict(selection_margin=margin),
             )
         )
@@ -524,8 +538,8 @@ def test_rigid_sample_moves_the_template_rigidly(case):
     without equalling it; out-of-range values are refused by name."""
     v, f, x = case["template_vertices"], case["faces"], case["scan"]
     rigid_only = dict(iterations=8, rigid_fraction=1.0, coarse_fraction=0.0, selection="single")
-    sampled = fm.fit(v, f, x, params=dict(rigid_sample=4, **rigid_only)).vertices
-    full = fm.fit(v, f, x, params=dict(rigid_sample=1, **rigid_only)).vertices
+    sampled = fm.fit(v, f, x, prealign="none", params=dict(rigid_sample=4, **rigid_only)).vertices
+    full = fm.fit(v, f, x, prealign="none", params=dict(rigid_sample=1, **rigid_only)).vertices
     rng = np.random.default_rng(5)
     i, j = rng.integers(0, len(v), 300), rng.integers(0, len(v), 300)
     d_start = np.linalg.norm(v[i] - v[j], axis=1)

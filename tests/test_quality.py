@@ -40,9 +40,15 @@ def test_a_good_fit_is_ok_and_its_correspondences_are_the_nearest_scan_points():
     # fit_to_scan is the mean residual over the scan's bounding-box diagonal.
     diag = np.linalg.norm(scan.max(0) - scan.min(0))
     assert math.isclose(q["fit_to_scan"], r.residuals.mean() / diag, rel_tol=1e-12)
-    # fm.assess of the same fit gives the same figures.
+    # fm.assess of the same fit gives the same figures (up to round-off: the fit measured the
+    # template's edges where the pre-alignment placed it).
     again = fm.assess(case["template_vertices"], case["faces"], r.vertices, scan)
-    assert again["quality"] == q
+    assert again["quality"].keys() == q.keys()
+    for key, value in q.items():
+        if isinstance(value, float):
+            assert math.isclose(again["quality"][key], value, rel_tol=1e-12, abs_tol=1e-15), key
+        else:
+            assert again["quality"][key] == value, key
     np.testing.assert_array_equal(again["support"], r.support)
 
 

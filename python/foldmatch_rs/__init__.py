@@ -336,11 +336,13 @@ def fit(
         ψ, the wrinkle stretch coefficient (0.05).
     prealign : {"none", "centroid", "rigid", "similarity"}, optional
         How the template is placed on the scan first (docs/method.md, "Global pre-alignment").
-        ``"none"`` (the default) fits as given and raises :class:`InvalidInputError` for a
-        template more than one scan diagonal away; ``"centroid"`` moves the template's
-        centroid onto the scan's; ``"rigid"`` turns and moves it onto a scan in any
-        orientation and position (a template already placed is left as given);
-        ``"similarity"`` also scales it (a scan in millimetres against a template in metres).
+        ``"rigid"`` (the default; the ``"paper"`` and ``"tracking"`` presets: ``"none"``)
+        turns and moves it onto a scan in any orientation and position (a template already
+        placed is left as given) and raises :class:`InvalidInputError` for a template 20
+        times larger or smaller than the scan; ``"similarity"`` also scales it (a scan in
+        millimetres against a template in metres); ``"none"`` fits as given and raises
+        :class:`InvalidInputError` for a template more than one scan diagonal away;
+        ``"centroid"`` moves the template's centroid onto the scan's.
         A nearly symmetric garment (a T-shirt's front and back) may be placed turned 180°:
         landmarks settle it.
     params : FitParams or dict, optional

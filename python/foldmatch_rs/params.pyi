@@ -41,7 +41,10 @@ class FitParams(Mapping[str, Any]):
         """
     @property
     def prealign(self) -> Literal['none', 'centroid', 'rigid', 'similarity']:
-        """Handling of a template placed far from the scan."""
+        """How the template is placed on the scan before the fit: by a global search over rigid
+        motions by default, so a scan written z-up, turned or displaced is found
+        (docs/method.md "Global pre-alignment").
+        """
     @property
     def landmark_weight(self) -> float:
         """η, the weight of the landmarks (`crate::landmarks::Landmarks`) against the scan,

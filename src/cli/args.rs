@@ -473,7 +473,8 @@ pub struct ParamArgs {
     /// Drop the curvature term of Eq. 2 (κ = 0).
     #[arg(long)]
     pub no_curvature: bool,
-    /// How the template is placed on the scan before the fit [default: none].
+    /// How the template is placed on the scan before the fit [default: rigid] (the paper and
+    /// tracking presets, and so `sequence`: none).
     #[arg(long, value_enum, value_name = "MODE")]
     pub prealign: Option<PrealignArg>,
     /// Any parameter by its `FitParams` name, VALUE as JSON (e.g. --set psi=0.1 --set

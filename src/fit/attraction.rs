@@ -243,8 +243,8 @@ impl Attraction {
 
 /// A scan whose bounding-box diagonal exceeds the template's by more than this factor holds
 /// more than the garment (a dressed body, a scene): its normalized frame and K are then those
-/// of the points the template explains.
-pub const GARMENT_FRAME_RATIO: f64 = 1.5;
+/// of the points the template explains (the pre-alignment's [`SCENE`](crate::prealign::SCENE)).
+pub const GARMENT_FRAME_RATIO: f64 = crate::prealign::SCENE;
 
 /// The trust radius on a scan that holds more than the garment, as a fraction of
 /// [`two_way_trust`](crate::fit::Schedule::two_way_trust)'s: skin and hair adjoin the garment

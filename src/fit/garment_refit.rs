@@ -269,6 +269,8 @@ mod tests {
         let (template, faces, scan) = dressed_sheet();
         let mut params = FitParams {
             iterations: 40,
+            // The sheet as placed (the search would turn it onto the bend).
+            prealign: crate::fit::Prealign::None,
             ..FitParams::default()
         };
         // The refit alone (the garment cut's third fit: garment_cut.rs).
@@ -320,6 +322,7 @@ mod tests {
         let (template, faces, scan) = dressed_sheet();
         let mut params = FitParams {
             iterations: 30,
+            prealign: crate::fit::Prealign::None,
             ..FitParams::default()
         };
         params.schedule.garment_cut = 0.0;
@@ -356,6 +359,7 @@ mod tests {
         let (template, faces, scan) = dressed_sheet();
         let params = FitParams {
             iterations: 40,
+            prealign: crate::fit::Prealign::None,
             ..FitParams::default()
         };
         let mut refit_only = params.clone();

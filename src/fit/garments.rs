@@ -570,14 +570,11 @@ mod tests {
     fn a_template_of_garments_far_from_the_scan_is_refused_as_one_garment_is() {
         let (v, f) = two_sheets(9);
         let far: Vec<[f64; 3]> = v.iter().map(|p| [p[0] + 50.0, p[1], p[2]]).collect();
-        let err = fit(
-            &far,
-            &f,
-            &dressed_scan(),
-            None,
-            &FitParams::default(),
-            &mut |_| true,
-        );
+        let params = FitParams {
+            prealign: super::super::Prealign::None,
+            ..FitParams::default()
+        };
+        let err = fit(&far, &f, &dressed_scan(), None, &params, &mut |_| true);
         assert!(
             matches!(err, Err(crate::error::FoldMatchError::FarAway { .. })),
             "{err:?}"

@@ -40,7 +40,7 @@ pub use params::{
     DEFAULT_KEEP_MARGIN, DEFAULT_KNN_SLACK, DEFAULT_K_MAX, DEFAULT_LANDMARK_WEIGHT, DEFAULT_RHO,
     DEFAULT_STRAIN_LIMIT, DEFAULT_TWO_WAY_RIM, DEFAULT_TWO_WAY_TRUST, FAR_AWAY, FAST_TWO_WAY,
     MAX_SCAN_SAMPLE, PAPER_K_MAX, PAPER_RHO, RIGID_SCAN_POINTS_PER_VERTEX, SCHEDULE_NAMES,
-    TRACKING_STRAIN_LIMIT,
+    SIZE_MISMATCH, TRACKING_STRAIN_LIMIT,
 };
 pub use result::{ComponentFigures, Diagnostics, FitResult, IterationRecord, Progress, StageTimes};
 pub use schedule::{keeps_start, select_schedule};
@@ -49,7 +49,7 @@ use crate::error::{FoldMatchError, Result};
 use crate::landmarks::Landmarks;
 use crate::math::vec3;
 use rayon::prelude::*;
-use schedule::{drive, median_scan_distance, selection_distance, ScheduleRun};
+use schedule::{drive, median_scan_distance, selection_distance, weighted_median, ScheduleRun};
 use setup::Prepared;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -284,13 +284,13 @@ fn fit_from(
     let mut selection = (runs.len() > 1).then(|| {
         let vertices: Vec<Vec<[f64; 3]>> =
             runs.iter().map(|r| r.user_vertices(&prepared)).collect();
-        let distances: Vec<f64> = vertices
+        let (distances, point_distances): (Vec<f64>, Vec<Vec<f64>>) = vertices
             .par_iter()
             .map(|v| selection_distance(target, target_weights, prepared.garment.as_deref(), v))
-            .collect();
+            .unzip();
         let spreads: Vec<f64> = vertices.iter().map(|v| rest_edges.spread(v)).collect();
         let best = select_schedule(&distances, &spreads, params.schedule.selection_margin);
-        (best, vertices, distances, spreads)
+        (best, vertices, distances, spreads, point_distances)
     });
     let best = selection.as_ref().map_or(0, |s| s.0);
     let mut winner = runs.swap_remove(best);
@@ -332,8 +332,17 @@ fn fit_from(
         .filter(|g| !g.is_empty())
         .or(prepared.garment.as_deref());
     let kept_start = params.schedule.keep_margin > 0.0 && {
+        // The chosen fit's distances are schedule selection's when it compared the finished
+        // fits on these points.
+        let same_points = start_garment.as_ref().is_none_or(|g| g.is_empty());
+        let compared = selection
+            .as_ref()
+            .filter(|_| compare_at == total && same_points);
         let (fitted, start) = rayon::join(
-            || median_scan_distance(target, target_weights, garment, &vertices),
+            || match compared {
+                Some(sel) => weighted_median(&sel.4[best], target_weights, garment),
+                None => median_scan_distance(target, target_weights, garment, &vertices),
+            },
             || median_scan_distance(target, target_weights, garment, &start_vertices),
         );
         keeps_start(start, fitted, params.schedule.keep_margin)
@@ -371,7 +380,7 @@ fn fit_from(
         &chosen.support,
         chosen.quality.scan_diagonal,
     );
-    if let Some((_, _, distances, spreads)) = selection {
+    if let Some((_, _, distances, spreads, _)) = selection {
         chosen.params = params.clone();
         let d = &mut chosen.diagnostics;
         d.schedule = SCHEDULE_NAMES[best].into();
@@ -489,6 +498,13 @@ fn prealigned(
     crate::mesh::validate_points("target", target)?;
     let remaining: Option<Vec<[f64; 3]>> = kept.map(|k| k.iter().map(|&j| target[j]).collect());
     let scan = remaining.as_deref().unwrap_or(target);
+    if motion == crate::prealign::Motion::Rigid {
+        let ratio =
+            crate::metrics::bbox_diagonal(template_vertices) / crate::metrics::bbox_diagonal(scan);
+        if !(1.0 / SIZE_MISMATCH..=SIZE_MISMATCH).contains(&ratio) {
+            return Err(FoldMatchError::SizeMismatch { ratio });
+        }
+    }
     let alignment = crate::prealign::align(template_vertices, scan, motion);
     Ok((!alignment.transform.is_identity())
         .then(|| alignment.transform.apply_all(template_vertices)))

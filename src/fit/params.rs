@@ -36,12 +36,15 @@ pub enum RotationSource {
 pub enum Prealign {
     /// Fit as given; a template whose centroid is more than [`FAR_AWAY`] target diagonals from the
     /// scan's centroid is rejected with
-    /// [`FoldMatchError::FarAway`](crate::error::FoldMatchError::FarAway).
+    /// [`FoldMatchError::FarAway`](crate::error::FoldMatchError::FarAway) (the `"paper"` and
+    /// `"tracking"` presets).
     None,
     /// Translate the template so its centroid lies on the scan's centroid first.
     Centroid,
     /// The rigid motion that best places the template on a scan in any orientation and
-    /// position ([`crate::prealign::align`]); a template already placed is left as given.
+    /// position ([`crate::prealign::align`]); a template already placed is left as given
+    /// (default). A template more than [`SIZE_MISMATCH`] times larger or smaller than the scan is
+    /// refused with [`FoldMatchError::SizeMismatch`](crate::error::FoldMatchError::SizeMismatch).
     Rigid,
     /// As [`Prealign::Rigid`], with a uniform scale too (a scan in other units, or of another
     /// size).
@@ -175,6 +178,12 @@ pub const DEFAULT_LANDMARK_WEIGHT: f64 = 1.0;
 /// Distance (in target bounding-box diagonals) beyond which an unaligned template is refused.
 pub const FAR_AWAY: f64 = 1.0;
 
+/// A template whose bounding-box diagonal is more than this many times the scan's, or less
+/// than its inverse, is refused by a rigid pre-alignment
+/// ([`FoldMatchError::SizeMismatch`](crate::error::FoldMatchError::SizeMismatch)): centimetres
+/// against metres at the least (a garment on a full-body scan is a third to a half of it).
+pub const SIZE_MISMATCH: f64 = 20.0;
+
 /// Every parameter of a fit, in groups (each flattened, so the JSON form is one flat object).
 /// `Default` gives the paper's constants (§4) with the converging readings of docs/method.md.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
@@ -187,7 +196,9 @@ pub struct FitParams {
     /// Stop early when the mean displacement of an iteration (normalized units) is below this
     /// (0 disables).
     pub tolerance: f64,
-    /// Handling of a template placed far from the scan.
+    /// How the template is placed on the scan before the fit: by a global search over rigid
+    /// motions by default, so a scan written z-up, turned or displaced is found
+    /// (docs/method.md "Global pre-alignment").
     pub prealign: Prealign,
     /// η, the weight of the landmarks ([`crate::landmarks::Landmarks`]) against the scan,
     /// dimensionless (default [`DEFAULT_LANDMARK_WEIGHT`]; 0: the landmarks only decide the
@@ -461,7 +472,7 @@ impl Default for FitParams {
             method: Method::FoldMatch,
             iterations: 100,
             tolerance: 0.0,
-            prealign: Prealign::None,
+            prealign: Prealign::Rigid,
             landmark_weight: DEFAULT_LANDMARK_WEIGHT,
             snapshot_every: 0,
             model: ModelConstants::default(),

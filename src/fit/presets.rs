@@ -1,8 +1,8 @@
 //! The named presets and the candidate schedules of schedule selection.
 
 use super::params::{
-    FitParams, Method, Selection, ACCURATE_ITERATIONS, FAST_TWO_WAY, PAPER_K_MAX, PAPER_RHO,
-    TRACKING_STRAIN_LIMIT,
+    FitParams, Method, Prealign, Selection, ACCURATE_ITERATIONS, FAST_TWO_WAY, PAPER_K_MAX,
+    PAPER_RHO, TRACKING_STRAIN_LIMIT,
 };
 use crate::error::{FoldMatchError, Result};
 use crate::nbody::TwoWayPull;
@@ -27,6 +27,7 @@ impl FitParams {
         p.schedule.garment_refit = 0.0;
         p.schedule.strain_limit = 0.0;
         p.readings.regularization = Regularization::AffineInvariant;
+        p.prealign = Prealign::None;
         p
     }
 
@@ -51,6 +52,8 @@ impl FitParams {
         p.schedule.keep_margin = 0.0;
         p.schedule.strain_limit = TRACKING_STRAIN_LIMIT;
         p.schedule.compression_limit = TRACKING_STRAIN_LIMIT;
+        // Every frame starts where the last one ended: placed already.
+        p.prealign = Prealign::None;
         p
     }
 

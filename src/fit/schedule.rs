@@ -15,22 +15,25 @@ use rayon::prelude::*;
 
 /// Schedule selection's scan distance of the fit `fitted`: the mean distance from the scan
 /// points to their nearest fitted vertex, weighted by the scan weights, over the points the
-/// template explains (`garment`, user indices) where the scan holds more than the garment.
+/// template explains (`garment`, user indices) where the scan holds more than the garment;
+/// with those distances ([`nearest_vertex_distances`]), which the do-no-harm median of the
+/// chosen fit reads again ([`weighted_median`]).
 pub(super) fn selection_distance(
     target: &[[f64; 3]],
     weights: Option<&[f64]>,
     garment: Option<&[usize]>,
     fitted: &[[f64; 3]],
-) -> f64 {
+) -> (f64, Vec<f64>) {
     let d = nearest_vertex_distances(target, garment, fitted);
     let w: Option<Vec<f64>> = match garment {
         Some(g) => weights.map(|w| g.iter().map(|&j| w[j]).collect()),
         None => weights.map(<[f64]>::to_vec),
     };
-    match w {
+    let mean = match w {
         Some(w) => d.iter().zip(&w).map(|(d, w)| d * w).sum::<f64>() / w.iter().sum::<f64>(),
         None => d.iter().sum::<f64>() / d.len() as f64,
-    }
+    };
+    (mean, d)
 }
 
 /// The distance from each scan point (those of `garment`, else all) to its nearest vertex of
@@ -63,19 +66,22 @@ pub(super) fn median_scan_distance(
     garment: Option<&[usize]>,
     fitted: &[[f64; 3]],
 ) -> f64 {
-    let all: Vec<usize>;
-    let chosen = match garment {
-        Some(g) => g,
-        None => {
-            all = (0..target.len()).collect();
-            &all
-        }
-    };
-    let d = nearest_vertex_distances(target, garment, fitted);
-    let w: Vec<f64> = chosen
-        .iter()
-        .map(|&j| weights.map_or(1.0, |w| w[j]))
-        .collect();
+    weighted_median(
+        &nearest_vertex_distances(target, garment, fitted),
+        weights,
+        garment,
+    )
+}
+
+/// The weighted median of `d`, the distances of the scan points of `garment` (else all) in
+/// that order, under the scan weights (0 when no point weighs).
+pub(super) fn weighted_median(
+    d: &[f64],
+    weights: Option<&[f64]>,
+    garment: Option<&[usize]>,
+) -> f64 {
+    let weight = |i: usize| weights.map_or(1.0, |w| w[garment.map_or(i, |g| g[i])]);
+    let w: Vec<f64> = (0..d.len()).map(weight).collect();
     let mut order: Vec<usize> = (0..d.len()).filter(|&i| w[i] > 0.0).collect();
     order.par_sort_unstable_by(|&a, &b| d[a].total_cmp(&d[b]).then(a.cmp(&b)));
     let half = 0.5 * order.iter().map(|&i| w[i]).sum::<f64>();

@@ -83,6 +83,8 @@ fn rigid_only(iterations: usize) -> FitParams {
     {
         let mut p = FitParams {
             iterations,
+            // From the placement as given.
+            prealign: Prealign::None,
             ..FitParams::default()
         };
         p.schedule.rigid_fraction = 1.0;
@@ -351,6 +353,7 @@ fn coarse_scan_sample_halves_only_scans_of_eight_points_a_vertex() {
     let coarse_only = {
         let mut p = default;
         p.iterations = 6;
+        p.prealign = Prealign::None;
         p.schedule.rigid_fraction = 0.0;
         p.schedule.coarse_fraction = 1.0;
         p.schedule.selection = Selection::Single;
@@ -380,6 +383,7 @@ fn coarse_sample_with_whole_mesh_rings_is_the_rigid_sample() {
     let base = {
         let mut p = FitParams {
             iterations: 6,
+            prealign: Prealign::None,
             ..FitParams::default()
         };
         p.schedule.coarse_rings = 32;

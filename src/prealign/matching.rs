@@ -7,7 +7,6 @@
 
 use super::transform::Similarity;
 use crate::knn::PointIndex;
-use rayon::prelude::*;
 
 /// The share of each direction's matches that counts (the closest ones).
 pub const KEPT_FRACTION: f64 = 0.75;
@@ -15,14 +14,35 @@ pub const KEPT_FRACTION: f64 = 0.75;
 /// At most this many points of each side are matched per evaluation.
 pub const SAMPLE_SIZE: usize = 768;
 
+/// At most this many points of each side in the coarse refinement of every candidate
+/// ([`Level::Coarse`]; docs/method.md "Global pre-alignment").
+pub const COARSE_SAMPLE_SIZE: usize = 128;
+
+/// At most this many points of each side are indexed for the coarse evaluations (their
+/// nearest points come from these).
+pub const COARSE_CLOUD_SIZE: usize = 2048;
+
+/// Which samples an evaluation matches.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Level {
+    /// [`COARSE_SAMPLE_SIZE`] points of each side: every candidate's first refinement.
+    Coarse,
+    /// [`SAMPLE_SIZE`] points of each side: the score that decides.
+    Full,
+}
+
 /// The template and the scan, indexed for nearest-point queries, with the samples whose
 /// matches are scored.
 pub struct Clouds {
-    template: PointIndex,
-    scan: PointIndex,
-    template_sample: Vec<[f64; 3]>,
-    scan_sample: Vec<[f64; 3]>,
+    /// Per [`Level`] (coarse, full): the template's and the scan's points indexed, every point
+    /// or (coarse) [`COARSE_CLOUD_SIZE`] of each.
+    indices: [(PointIndex, PointIndex); 2],
+    /// Per [`Level`] (coarse, full): the template's and the scan's samples.
+    samples: [Samples; 2],
 }
+
+/// The template's and the scan's points that one [`Level`] matches.
+type Samples = (Vec<[f64; 3]>, Vec<[f64; 3]>);
 
 /// A template point matched with a scan point, and their distance in the scan's units.
 pub type Match = ([f64; 3], [f64; 3], f64);
@@ -45,35 +65,51 @@ pub fn spread_sample(points: &[[f64; 3]], count: usize) -> Vec<[f64; 3]> {
 }
 
 impl Clouds {
-    /// Indexes both point sets (each non-empty) and draws the samples.
+    /// Indexes both point sets (each non-empty) and draws the samples: the template's in its
+    /// vertex order, the scan's in Morton order (so the scan's order does not choose them; the
+    /// fit's result depends on it only by round-off).
     pub fn new(template: &[[f64; 3]], scan: &[[f64; 3]]) -> Self {
+        let ordered: Vec<[f64; 3]> = crate::knn::morton_order(scan)
+            .into_iter()
+            .map(|j| scan[j as usize])
+            .collect();
+        let scan = &ordered[..];
+        let ((t, s), coarse) = rayon::join(
+            || rayon::join(|| PointIndex::new(template), || PointIndex::new(scan)),
+            || {
+                (
+                    PointIndex::new(&spread_sample(template, COARSE_CLOUD_SIZE)),
+                    PointIndex::new(&spread_sample(scan, COARSE_CLOUD_SIZE)),
+                )
+            },
+        );
+        let draw = |count| (spread_sample(template, count), spread_sample(scan, count));
         Self {
-            template: PointIndex::new(template),
-            scan: PointIndex::new(scan),
-            template_sample: spread_sample(template, SAMPLE_SIZE),
-            scan_sample: spread_sample(scan, SAMPLE_SIZE),
+            indices: [coarse, (t, s)],
+            samples: [draw(COARSE_SAMPLE_SIZE), draw(SAMPLE_SIZE)],
         }
     }
 
-    /// The matches under `t` (template coordinates → scan coordinates), each direction sorted
-    /// by distance and trimmed to its closest [`KEPT_FRACTION`]: (template → scan, scan →
-    /// template), every pair as (template point, scan point, distance in scan units).
-    pub fn matches(&self, t: &Similarity) -> (Vec<Match>, Vec<Match>) {
+    /// The matches under `t` (template coordinates → scan coordinates) of the samples of
+    /// `level`, each direction sorted by distance and trimmed to its closest
+    /// [`KEPT_FRACTION`]: (template → scan, scan → template), every pair as (template point,
+    /// scan point, distance in scan units). Serial: the candidates run in parallel.
+    pub fn matches(&self, t: &Similarity, level: Level) -> (Vec<Match>, Vec<Match>) {
         let inverse = t.inverse();
-        let mut forward: Vec<Match> = self
-            .template_sample
-            .par_iter()
+        let (template_sample, scan_sample) = &self.samples[level as usize];
+        let (template, scan) = &self.indices[level as usize];
+        let mut forward: Vec<Match> = template_sample
+            .iter()
             .map(|y| {
-                let (j, d2) = self.scan.nearest_one(&t.apply(y));
-                (*y, *self.scan.point(j), d2.sqrt())
+                let (j, d2) = scan.nearest_one(&t.apply(y));
+                (*y, *scan.point(j), d2.sqrt())
             })
             .collect();
-        let mut backward: Vec<Match> = self
-            .scan_sample
-            .par_iter()
+        let mut backward: Vec<Match> = scan_sample
+            .iter()
             .map(|x| {
-                let (j, d2) = self.template.nearest_one(&inverse.apply(x));
-                (*self.template.point(j), *x, t.scale * d2.sqrt())
+                let (j, d2) = template.nearest_one(&inverse.apply(x));
+                (*template.point(j), *x, t.scale * d2.sqrt())
             })
             .collect();
         for side in [&mut forward, &mut backward] {
@@ -83,11 +119,18 @@ impl Clouds {
         (forward, backward)
     }
 
-    /// The two-sided trimmed distance under `t`: the mean of the two directions' trimmed mean
-    /// distances, in scan units.
+    /// The two-sided trimmed distance under `t` on the full samples: the mean of the two
+    /// directions' trimmed mean distances, in scan units.
     pub fn score(&self, t: &Similarity) -> f64 {
-        let (forward, backward) = self.matches(t);
+        let (forward, backward) = self.matches(t, Level::Full);
         score_of(&forward, &backward)
+    }
+
+    /// Both the two-sided trimmed distance under `t` on the full samples and the template →
+    /// scan direction's alone (its trimmed mean), in scan units.
+    pub fn scores(&self, t: &Similarity) -> (f64, f64) {
+        let (forward, backward) = self.matches(t, Level::Full);
+        (score_of(&forward, &backward), score_of(&forward, &forward))
     }
 }
 
@@ -133,7 +176,7 @@ mod tests {
             ..Similarity::identity()
         };
         approx::assert_relative_eq!(clouds.score(&lifted), 0.5, epsilon = 1e-12);
-        let (f, b) = clouds.matches(&lifted);
+        let (f, b) = clouds.matches(&lifted, Level::Full);
         assert_eq!(f.len(), kept(SAMPLE_SIZE));
         assert_eq!(b.len(), kept(SAMPLE_SIZE));
     }

@@ -34,10 +34,12 @@ mod matching;
 mod transform;
 
 pub use axes::{cube_rotations, principal_axes, Axes};
-pub use matching::{Clouds, KEPT_FRACTION, SAMPLE_SIZE};
+pub use matching::{Clouds, Level, COARSE_SAMPLE_SIZE, KEPT_FRACTION, SAMPLE_SIZE};
 pub use transform::{fit_pairs, Similarity};
 
 use crate::math::Mat3;
+use crate::metrics::bbox_diagonal;
+use rayon::prelude::*;
 
 /// What the pre-alignment may change.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -53,6 +55,12 @@ pub enum Motion {
 /// depth, a turned or displaced one of the order of the radius).
 pub const PLACED: f64 = 0.1;
 
+/// A scan whose bounding-box diagonal exceeds the template's this many times is a scene
+/// larger than the garment (a dressed body; the same ratio as the dressed-scan rule of
+/// docs/method.md "Scans of dressed people"): there a template placed is recognized by its
+/// own distance to the scan alone.
+pub const SCENE: f64 = 1.5;
+
 /// Refined placements within this fraction of the best score are near-ties.
 pub const NEAR_TIE: f64 = 0.1;
 
@@ -62,6 +70,28 @@ pub const SAME_ANGLE: f64 = 10.0;
 /// An identity-basin placement turned less than this (degrees), and moved less than
 /// [`PLACED`] of the scan's RMS radius, leaves the placement as given unchanged.
 pub const SMALL_ANGLE: f64 = 10.0;
+
+/// A template placed roughly right — the refinement of its placement as given ties with the
+/// best — is moved only when the search's placement scores at most this fraction of the
+/// placement as given: a flat sheet over its folded scan, or a garment over its wrinkled
+/// frame, is otherwise left to the fit's rigid phase, which places it better than a rigid
+/// match of the undeformed shape.
+pub const SEARCH_GAIN: f64 = 0.5;
+
+/// Coarse refinements scoring within this fraction above the best coarse score are refined
+/// again on the full samples (the coarse score, on fewer points, is noisier).
+pub const COARSE_MARGIN: f64 = 0.5;
+
+/// At most this many distinct placements are refined on the full samples (a square sheet has
+/// eight symmetric readings).
+pub const FINALISTS: usize = 8;
+
+/// Two coarse refinements turned less than this apart (degrees), and moved and scaled less
+/// than [`SAME_PLACEMENT`] of the scan's RMS radius apart, are one placement.
+pub const SAME_PLACEMENT_DEGREES: f64 = 2.0;
+
+/// See [`SAME_PLACEMENT_DEGREES`].
+pub const SAME_PLACEMENT: f64 = 0.02;
 
 /// The result of [`align`].
 #[derive(Clone, Copy, Debug)]
@@ -94,8 +124,14 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
         return unchanged(f64::NAN);
     }
     let clouds = Clouds::new(template, scan);
-    let identity_score = clouds.score(&identity);
-    if identity_score <= PLACED * sa.rms_radius {
+    let (identity_score, identity_forward) = clouds.scores(&identity);
+    // In a scene larger than the garment (a dressed body), most scan points are not the
+    // garment's and the scan → template direction says nothing of the placement: a template
+    // that lies on the scan is placed.
+    let scene = bbox_diagonal(scan) > SCENE * bbox_diagonal(template);
+    if identity_score <= PLACED * sa.rms_radius
+        || (scene && identity_forward <= PLACED * ta.rms_radius)
+    {
         return unchanged(identity_score);
     }
     let scaled = motion == Motion::Similarity;
@@ -113,11 +149,40 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
         })
         .collect();
     starts.push(identity);
-    let refined: Vec<(Similarity, f64)> = starts
-        .into_iter()
-        .map(|start| icp::refine(&clouds, start, scaled))
+    // Every candidate refined on the coarse samples, side by side; the distinct placements that
+    // score near the best there, and the basin of the placement as given (the last start),
+    // refined again on the full samples.
+    let coarse: Vec<(Similarity, f64)> = starts
+        .into_par_iter()
+        .map(|start| icp::refine(&clouds, start, scaled, Level::Coarse))
+        .collect();
+    let mut chosen = finalists(&coarse, sa.rms_radius);
+    let given = coarse[coarse.len() - 1].0;
+    let given_index = match chosen
+        .iter()
+        .position(|k| same_placement(k, &given, sa.rms_radius))
+    {
+        Some(i) => i,
+        None => {
+            chosen.push(given);
+            chosen.len() - 1
+        }
+    };
+    let refined: Vec<(Similarity, f64)> = chosen
+        .into_par_iter()
+        .map(|start| icp::refine(&clouds, start, scaled, Level::Full))
         .collect();
     let (transform, score) = least_turned_near_tie(&refined);
+    // A template placed roughly right — the basin of its placement as given ties with the
+    // best — stays as given unless the search improves its score by [`SEARCH_GAIN`].
+    let best = refined.iter().map(|r| r.1).fold(f64::INFINITY, f64::min);
+    let given_basin = refined[given_index].1;
+    if given_basin <= best * (1.0 + NEAR_TIE) && score > SEARCH_GAIN * identity_score {
+        return Alignment {
+            searched: true,
+            ..unchanged(identity_score)
+        };
+    }
     let moved = (transform.translation + (transform.rotation - Mat3::identity()) * sa.centroid)
         .norm()
         .max((transform.scale - 1.0).abs() * sa.rms_radius);
@@ -133,6 +198,40 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
         score,
         searched: true,
     }
+}
+
+/// Of the coarse refinements `coarse` (non-empty), those within [`COARSE_MARGIN`] of the best
+/// coarse score, best first, each unless a better one is the same placement
+/// ([`same_placement`]), at most [`FINALISTS`].
+fn finalists(coarse: &[(Similarity, f64)], radius: f64) -> Vec<Similarity> {
+    let best = coarse.iter().map(|c| c.1).fold(f64::INFINITY, f64::min);
+    let mut order: Vec<&(Similarity, f64)> = coarse
+        .iter()
+        .filter(|c| c.1 <= best * (1.0 + COARSE_MARGIN))
+        .collect();
+    order.sort_by(|a, b| a.1.total_cmp(&b.1));
+    let mut kept: Vec<Similarity> = Vec::with_capacity(FINALISTS);
+    for (t, _) in order {
+        if !kept.iter().any(|k| same_placement(k, t, radius)) {
+            kept.push(*t);
+            if kept.len() == FINALISTS {
+                break;
+            }
+        }
+    }
+    kept
+}
+
+/// Whether `a` and `b` are one placement: turned less than [`SAME_PLACEMENT_DEGREES`] apart,
+/// translations and scales within [`SAME_PLACEMENT`] of the scan's RMS radius `radius`.
+fn same_placement(a: &Similarity, b: &Similarity, radius: f64) -> bool {
+    let turn = Similarity {
+        rotation: a.rotation.transpose() * b.rotation,
+        ..Similarity::identity()
+    };
+    turn.angle_degrees() < SAME_PLACEMENT_DEGREES
+        && (a.translation - b.translation).norm() < SAME_PLACEMENT * radius
+        && (a.scale - b.scale).abs() < SAME_PLACEMENT * a.scale
 }
 
 /// Of `refined` (non-empty), the placements within [`NEAR_TIE`] of the best score; of those,

@@ -123,3 +123,76 @@ fn degenerate_inputs_give_the_identity() {
         .transform
         .is_identity());
 }
+
+#[test]
+fn a_template_on_part_of_a_larger_scene_keeps_its_placement() {
+    // The surface inside a scene three times its size (a dressed body's other points): a
+    // box of points around it. Two-sided, the scene's points are far from the template; the
+    // template's own distance to the scan says it is placed.
+    let template = asymmetric_surface(2000, 0.0, 7);
+    let mut scan = asymmetric_surface(3000, 0.002, 8);
+    let mut rng = ChaCha8Rng::seed_from_u64(9);
+    for _ in 0..6000 {
+        let p: [f64; 3] = [rng.random(), rng.random(), rng.random()];
+        scan.push([3.0 * p[0] - 1.1, 3.0 * p[1] - 1.2, 3.0 * p[2] - 1.3]);
+    }
+    let got = align(&template, &scan, Motion::Rigid);
+    assert!(got.transform.is_identity() && !got.searched, "{got:?}");
+    // Not by the two-sided score, which the scene's points dominate.
+    let radius = principal_axes(&scan).rms_radius;
+    assert!(got.identity_score > PLACED * radius, "{got:?}");
+}
+
+#[test]
+fn a_roughly_placed_template_of_a_deformed_scan_is_left_to_the_fit() {
+    // The scan is the surface with folds (cloth draped differently from its template) and
+    // slightly moved: the placement as given is rough (above PLACED), and a rigid match of the
+    // unfolded shape is no better placement than the one given.
+    let template = asymmetric_surface(2000, 0.0, 10);
+    let bent: Vec<[f64; 3]> = asymmetric_surface(3000, 0.002, 11)
+        .into_iter()
+        .map(|[x, y, z]| {
+            [
+                x + 0.03,
+                y,
+                z + 0.08 * (std::f64::consts::TAU * x / 0.2).sin(),
+            ]
+        })
+        .collect();
+    let got = align(&template, &bent, Motion::Rigid);
+    assert!(got.searched, "{got:?}");
+    assert!(got.transform.is_identity(), "{got:?}");
+    // The same scan turned by 90° about the vertical is found again: its placement as given
+    // is not in the best basin.
+    let turned = Similarity {
+        rotation: rotation([0.0, 0.0, 1.0], 90.0),
+        scale: 1.0,
+        translation: Vec3::zeros(),
+    };
+    let got = align(&template, &turned.apply_all(&bent), Motion::Rigid);
+    assert!(
+        angle_between(&got.transform.rotation, &turned.rotation) < 15.0,
+        "{got:?}"
+    );
+}
+
+#[test]
+fn finalists_are_the_distinct_near_best_coarse_placements() {
+    let at = |degrees: f64, x: f64| Similarity {
+        rotation: rotation([0.0, 1.0, 0.0], degrees),
+        scale: 1.0,
+        translation: Vec3::new(x, 0.0, 0.0),
+    };
+    let coarse = [
+        (at(30.0, 0.0), 1.2),
+        (at(0.0, 0.0), 1.0),
+        (at(0.5, 0.001), 1.01), // the same placement as the best
+        (at(90.0, 0.0), 1.4),
+        (at(0.0, 0.5), 1.45),  // moved: another placement
+        (at(180.0, 0.0), 1.6), // beyond the coarse margin
+    ];
+    let got = finalists(&coarse, 1.0);
+    let angles: Vec<f64> = got.iter().map(|t| t.angle_degrees().round()).collect();
+    assert_eq!(angles, vec![0.0, 30.0, 90.0, 0.0]);
+    assert_eq!(got[3].translation.x, 0.5);
+}
