@@ -284,13 +284,13 @@ fn fit_from(
     let mut selection = (runs.len() > 1).then(|| {
         let vertices: Vec<Vec<[f64; 3]>> =
             runs.iter().map(|r| r.user_vertices(&prepared)).collect();
-        let (distances, point_distances): (Vec<f64>, Vec<Vec<f64>>) = vertices
+        let (distances, nearest): (Vec<f64>, Vec<schedule::ScanNearest>) = vertices
             .par_iter()
             .map(|v| selection_distance(target, target_weights, prepared.garment.as_deref(), v))
             .unzip();
         let spreads: Vec<f64> = vertices.iter().map(|v| rest_edges.spread(v)).collect();
         let best = select_schedule(&distances, &spreads, params.schedule.selection_margin);
-        (best, vertices, distances, spreads, point_distances)
+        (best, vertices, distances, spreads, nearest)
     });
     let best = selection.as_ref().map_or(0, |s| s.0);
     let mut winner = runs.swap_remove(best);
@@ -340,7 +340,7 @@ fn fit_from(
             .filter(|_| compare_at == total && same_points);
         let (fitted, start) = rayon::join(
             || match compared {
-                Some(sel) => weighted_median(&sel.4[best], target_weights, garment),
+                Some(sel) => weighted_median(&sel.4[best].distance, target_weights, garment),
                 None => median_scan_distance(target, target_weights, garment, &vertices),
             },
             || median_scan_distance(target, target_weights, garment, &start_vertices),
@@ -356,6 +356,14 @@ fn fit_from(
     // The verdict against the points the fit was drawn to: those of positive weight, or on a
     // scan that holds more than the garment, those the template explains.
     let assessed = prepared.garment.as_deref().or(kept.as_deref());
+    // Schedule selection found each of those points' nearest vertex of this fit already when
+    // it compared the finished fits on the same points.
+    let scan_nearest = selection
+        .as_ref()
+        .filter(|_| {
+            compare_at == total && !kept_start && (prepared.garment.is_some() || kept.is_none())
+        })
+        .map(|sel| &sel.4[best].vertex[..]);
     let two_rings =
         (params.method == Method::FoldMatch && params.model.rings == 2).then_some(&prepared.rings);
     let assessment = crate::quality::assess_points_with(
@@ -370,6 +378,7 @@ fn fit_from(
         Some(crate::quality::KnownMesh {
             two_rings,
             edges: &rest_edges,
+            scan_nearest,
         }),
     )?;
     // Only the chosen run is finished (its wrinkle fields are a whole Eq. 4–8 pass).

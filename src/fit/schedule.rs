@@ -13,18 +13,26 @@ use crate::math::vec3;
 use crate::rings::n_rings;
 use rayon::prelude::*;
 
+/// Each scan point's (those of `garment`, else all, in that order) nearest vertex of a fit and
+/// the distance to it.
+pub(super) struct ScanNearest {
+    pub vertex: Vec<u32>,
+    pub distance: Vec<f64>,
+}
+
 /// Schedule selection's scan distance of the fit `fitted`: the mean distance from the scan
 /// points to their nearest fitted vertex, weighted by the scan weights, over the points the
 /// template explains (`garment`, user indices) where the scan holds more than the garment;
-/// with those distances ([`nearest_vertex_distances`]), which the do-no-harm median of the
-/// chosen fit reads again ([`weighted_median`]).
+/// with those nearest vertices ([`nearest_vertices`]), which the do-no-harm median
+/// ([`weighted_median`]) and the verdict of the chosen fit read again.
 pub(super) fn selection_distance(
     target: &[[f64; 3]],
     weights: Option<&[f64]>,
     garment: Option<&[usize]>,
     fitted: &[[f64; 3]],
-) -> (f64, Vec<f64>) {
-    let d = nearest_vertex_distances(target, garment, fitted);
+) -> (f64, ScanNearest) {
+    let nearest = nearest_vertices(target, garment, fitted);
+    let d = &nearest.distance;
     let w: Option<Vec<f64>> = match garment {
         Some(g) => weights.map(|w| g.iter().map(|&j| w[j]).collect()),
         None => weights.map(<[f64]>::to_vec),
@@ -33,26 +41,34 @@ pub(super) fn selection_distance(
         Some(w) => d.iter().zip(&w).map(|(d, w)| d * w).sum::<f64>() / w.iter().sum::<f64>(),
         None => d.iter().sum::<f64>() / d.len() as f64,
     };
-    (mean, d)
+    (mean, nearest)
 }
 
-/// The distance from each scan point (those of `garment`, else all) to its nearest vertex of
-/// `fitted`, in that order: the fit's own k-d tree ([`PointIndex`](crate::knn::PointIndex)),
-/// parallel queries.
-fn nearest_vertex_distances(
+/// The nearest vertex of `fitted` to each scan point (those of `garment`, else all), in that
+/// order, and the distance to it: the fit's own k-d tree
+/// ([`PointIndex`](crate::knn::PointIndex)), parallel queries.
+fn nearest_vertices(
     target: &[[f64; 3]],
     garment: Option<&[usize]>,
     fitted: &[[f64; 3]],
-) -> Vec<f64> {
+) -> ScanNearest {
+    let count = garment.map_or(target.len(), <[usize]>::len);
     if fitted.is_empty() {
-        return vec![f64::INFINITY; garment.map_or(target.len(), <[usize]>::len)];
+        return ScanNearest {
+            vertex: vec![0; count],
+            distance: vec![f64::INFINITY; count],
+        };
     }
     let index = crate::knn::PointIndex::new(fitted);
-    let distance = |p: &[f64; 3]| index.nearest_one(p).1.sqrt();
-    match garment {
-        Some(g) => g.par_iter().map(|&j| distance(&target[j])).collect(),
-        None => target.par_iter().map(distance).collect(),
-    }
+    let query = |p: &[f64; 3]| {
+        let (v, d2) = index.nearest_one(p);
+        (v, d2.sqrt())
+    };
+    let (vertex, distance) = match garment {
+        Some(g) => g.par_iter().map(|&j| query(&target[j])).unzip(),
+        None => target.par_iter().map(query).unzip(),
+    };
+    ScanNearest { vertex, distance }
 }
 
 /// The do-no-harm rule's scan distance of the vertices `fitted`: the (weighted) median of the
@@ -67,7 +83,7 @@ pub(super) fn median_scan_distance(
     fitted: &[[f64; 3]],
 ) -> f64 {
     weighted_median(
-        &nearest_vertex_distances(target, garment, fitted),
+        &nearest_vertices(target, garment, fitted).distance,
         weights,
         garment,
     )

@@ -212,6 +212,8 @@ pub fn assess(input: &AssessInput<'_>, thresholds: &VerdictThresholds) -> Result
 pub(crate) struct KnownMesh<'a> {
     pub two_rings: Option<&'a Neighborhoods>,
     pub edges: &'a EdgeLengths,
+    /// Each scan point's nearest fitted vertex, when the fit found them already.
+    pub scan_nearest: Option<&'a [u32]>,
 }
 
 /// [`assess`], with the mesh figures a fit already holds.
@@ -238,7 +240,23 @@ pub(crate) fn assess_with(
     }
     validate_faces("template_faces", faces, y.len())?;
 
-    let (scan_index, fit_index) = rayon::join(|| PointIndex::new(scan), || PointIndex::new(fit));
+    let known_nearest = known
+        .and_then(|k| k.scan_nearest)
+        .filter(|n| n.len() == scan.len());
+    // Each scan point's nearest fitted vertex (unless known), beside the scan's own index.
+    let (scan_index, found) = rayon::join(
+        || PointIndex::new(scan),
+        || match known_nearest {
+            Some(_) => Vec::new(),
+            None => {
+                let fit_index = PointIndex::new(fit);
+                scan.par_iter()
+                    .map(|x| fit_index.nearest_one(x).0)
+                    .collect::<Vec<u32>>()
+            }
+        },
+    );
+    let scan_nearest: &[u32] = known_nearest.unwrap_or(&found);
     // Each fitted vertex's nearest scan point: the correspondences and residuals.
     let (correspondences, residuals): (Vec<u32>, Vec<f64>) = fit
         .par_iter()
@@ -247,15 +265,12 @@ pub(crate) fn assess_with(
             (j, d2.sqrt())
         })
         .unzip();
-    // Each scan point's nearest fitted vertex, then its distance to the faces around it.
+    // Each scan point's distance to the faces around its nearest fitted vertex.
     let incident = vertex_faces(faces, y.len());
-    let scan_nearest: Vec<u32> = scan
-        .par_iter()
-        .map(|x| fit_index.nearest_one(x).0)
-        .collect();
+
     let scan_distances: Vec<f64> = scan
         .par_iter()
-        .zip(&scan_nearest)
+        .zip(scan_nearest)
         .map(|(x, &u)| {
             let vertex = crate::math::dist2(x, &fit[u as usize]).sqrt();
             incident
