@@ -302,6 +302,11 @@ def test_rigid_prealign_fits_a_turned_scan_in_the_scan_frame():
     err = np.sqrt(((base.vertices - g) ** 2).sum(1).mean())
     err_moved = np.sqrt(((moved.vertices - _turned(g, [1, 2, -1.5], 60, shift)) ** 2).sum(1).mean())
     assert err_moved < 1.25 * err
+    # What the search did is in the diagnostics: searched and moved, with the orientations that
+    # fit alike (a flat rectangle has several); nothing when it did not run.
+    p = moved.diagnostics["prealign"]
+    assert p["searched"] and p["moved"] and p["readings"] >= 1 and p["score"] < p["identity_score"]
+    assert fm.fit(v, f, x, iterations=2, prealign="none").diagnostics["prealign"] is None
     with pytest.raises(fm.InvalidInputError, match="diagonals from the scan"):
         fm.fit(v, f, _turned(x, [1, 2, -1.5], 60, shift), prealign="none", iterations=5)
 

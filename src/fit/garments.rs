@@ -274,6 +274,7 @@ fn placed_whole(
             .collect());
     }
     Ok(super::prealigned(template_vertices, target, kept, params)?
+        .0
         .unwrap_or_else(|| template_vertices.to_vec()))
 }
 

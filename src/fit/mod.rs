@@ -42,7 +42,10 @@ pub use params::{
     MAX_SCAN_SAMPLE, PAPER_K_MAX, PAPER_RHO, RIGID_SCAN_POINTS_PER_VERTEX, SCHEDULE_NAMES,
     SIZE_MISMATCH, TRACKING_STRAIN_LIMIT,
 };
-pub use result::{ComponentFigures, Diagnostics, FitResult, IterationRecord, Progress, StageTimes};
+pub use result::{
+    ComponentFigures, Diagnostics, FitResult, IterationRecord, PrealignFigures, Progress,
+    StageTimes,
+};
 pub use schedule::{keeps_start, select_schedule};
 
 use crate::error::{FoldMatchError, Result};
@@ -221,9 +224,14 @@ fn fit_from(
     let mut schedules = params.candidate_schedules();
     let clock = std::time::Instant::now();
     // Landmarks, when given, decide the pre-alignment (in Prepared::new) in its place.
-    let placed = match landmarks {
-        Some(_) => None,
+    let (placed, prealign) = match landmarks {
+        Some(_) => (None, None),
         None => prealigned(template_vertices, target, kept.as_deref(), params)?,
+    };
+    // The pre-alignment's figures go into the result's diagnostics, whichever fit returns.
+    let with_prealign = |mut result: FitResult| {
+        result.diagnostics.prealign = prealign;
+        result
     };
     let template_vertices = placed.as_deref().unwrap_or(template_vertices);
     // What the template's metric is measured on: the rest shape when one is given.
@@ -409,7 +417,7 @@ fn fit_from(
     let finish = clock.elapsed().as_secs_f64() - setup - iterations;
     chosen.diagnostics.wall_seconds = [setup, iterations, finish];
     if !refit || kept_start || chosen.diagnostics.stopped_by_callback {
-        return Ok(chosen);
+        return Ok(with_prealign(chosen));
     }
     let weights = garment_refit::garment_weights(
         target,
@@ -423,7 +431,7 @@ fn fit_from(
     let usable = |points: usize| points >= template_vertices.len() / 4 && points < live;
     if !usable(garment_refit::garment_points(&weights)) {
         // The first fit stands.
-        return Ok(chosen);
+        return Ok(with_prealign(chosen));
     }
     let mut inner = params.clone();
     inner.schedule.garment_refit = 0.0;
@@ -486,22 +494,27 @@ fn fit_from(
         last = fit_onto(&cut, 2 + round)?;
         previous = Some(cut);
     }
-    Ok(last)
+    Ok(with_prealign(last))
 }
+
+/// The template as the pre-alignment moved it (`None`: as given) and what the search found
+/// (`None`: it did not run).
+type Placement = (Option<Vec<[f64; 3]>>, Option<PrealignFigures>);
 
 /// The template moved by the global pre-alignment of [`FitParams::prealign`] (`Rigid`,
 /// `Similarity`: [`crate::prealign::align`] onto the scan points that remain), so that the fit,
-/// and its result, are in the scan's frame as given; `None` when the template stays as given.
+/// and its result, are in the scan's frame as given (`None` when the template stays as given),
+/// and what the search found (`None` when it did not run).
 fn prealigned(
     template_vertices: &[[f64; 3]],
     target: &[[f64; 3]],
     kept: Option<&[usize]>,
     params: &FitParams,
-) -> Result<Option<Vec<[f64; 3]>>> {
+) -> Result<Placement> {
     let motion = match params.prealign {
         Prealign::Rigid => crate::prealign::Motion::Rigid,
         Prealign::Similarity => crate::prealign::Motion::Similarity,
-        Prealign::None | Prealign::Centroid => return Ok(None),
+        Prealign::None | Prealign::Centroid => return Ok((None, None)),
     };
     crate::mesh::validate_points("template_vertices", template_vertices)?;
     crate::mesh::validate_points("target", target)?;
@@ -515,8 +528,18 @@ fn prealigned(
         }
     }
     let alignment = crate::prealign::align(template_vertices, scan, motion);
-    Ok((!alignment.transform.is_identity())
-        .then(|| alignment.transform.apply_all(template_vertices)))
+    let moved = !alignment.transform.is_identity();
+    let figures = PrealignFigures {
+        searched: alignment.searched,
+        moved,
+        identity_score: alignment.identity_score,
+        score: alignment.score,
+        readings: alignment.readings,
+    };
+    Ok((
+        moved.then(|| alignment.transform.apply_all(template_vertices)),
+        Some(figures),
+    ))
 }
 
 /// Checks scan weights: one per scan point, finite, non-negative, not all zero.

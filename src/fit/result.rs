@@ -212,6 +212,27 @@ pub struct Diagnostics {
     /// ([`crate::metrics::edge_length_spread`]), in [`SCHEDULE_NAMES`](super::SCHEDULE_NAMES)
     /// order; empty otherwise.
     pub candidate_edge_spreads: Vec<f64>,
+    /// The global pre-alignment ([`FitParams::prealign`](super::FitParams::prealign) `"rigid"`
+    /// or `"similarity"`, docs/method.md "Global pre-alignment"); `None` when it did not run
+    /// (another mode, landmarks, a template of several garments).
+    pub prealign: Option<PrealignFigures>,
+}
+
+/// What the global pre-alignment found ([`crate::prealign::align`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct PrealignFigures {
+    /// Whether the placements were searched (false: the template as given lay on the scan).
+    pub searched: bool,
+    /// Whether the template was moved from where it was given.
+    pub moved: bool,
+    /// The trimmed two-sided distance of the placement as given (scan units).
+    pub identity_score: f64,
+    /// The same of the placement the fit started from.
+    pub score: f64,
+    /// The distinct orientations that fit the scan within 10 % of the best: above 1, the scan
+    /// cannot tell the template's symmetric readings apart and the least turned was taken (a
+    /// garment may be placed back to front: landmarks settle it); 0 when nothing was searched.
+    pub readings: usize,
 }
 
 /// The outcome of a fit, in the user's frame.

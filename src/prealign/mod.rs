@@ -104,6 +104,11 @@ pub struct Alignment {
     pub score: f64,
     /// Whether the candidates were searched (false: the identity was good enough).
     pub searched: bool,
+    /// The distinct orientations (rotations [`SAME_ANGLE`] apart or more) among the refined
+    /// placements within [`NEAR_TIE`] of the best score: more than one when the scan cannot
+    /// tell the template's symmetric readings apart (a square sheet, a tube skirt, a T-shirt
+    /// turned 90°), which the least turned then settles; 0 when nothing was searched.
+    pub readings: usize,
 }
 
 /// The pre-alignment of `template` onto `scan` (see the module documentation). Either set with
@@ -115,6 +120,7 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
         identity_score: score,
         score,
         searched: false,
+        readings: 0,
     };
     if template.len() < 3 || scan.len() < 3 {
         return unchanged(f64::NAN);
@@ -173,6 +179,7 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
         .map(|start| icp::refine(&clouds, start, scaled, Level::Full))
         .collect();
     let (transform, score) = least_turned_near_tie(&refined);
+    let readings = distinct_readings(&refined);
     // A template placed roughly right — the basin of its placement as given ties with the
     // best — stays as given unless the search improves its score by [`SEARCH_GAIN`].
     let best = refined.iter().map(|r| r.1).fold(f64::INFINITY, f64::min);
@@ -180,6 +187,7 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
     if given_basin <= best * (1.0 + NEAR_TIE) && score > SEARCH_GAIN * identity_score {
         return Alignment {
             searched: true,
+            readings,
             ..unchanged(identity_score)
         };
     }
@@ -189,6 +197,7 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
     if transform.angle_degrees() < SMALL_ANGLE && moved < PLACED * sa.rms_radius {
         return Alignment {
             searched: true,
+            readings,
             ..unchanged(identity_score)
         };
     }
@@ -197,6 +206,7 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
         identity_score,
         score,
         searched: true,
+        readings,
     }
 }
 
@@ -232,6 +242,27 @@ fn same_placement(a: &Similarity, b: &Similarity, radius: f64) -> bool {
     turn.angle_degrees() < SAME_PLACEMENT_DEGREES
         && (a.translation - b.translation).norm() < SAME_PLACEMENT * radius
         && (a.scale - b.scale).abs() < SAME_PLACEMENT * a.scale
+}
+
+/// How many orientations the near-ties of `refined` (non-empty) hold: each placement within
+/// [`NEAR_TIE`] of the best score counts unless one counted before is turned less than
+/// [`SAME_ANGLE`] from it.
+fn distinct_readings(refined: &[(Similarity, f64)]) -> usize {
+    let best = refined.iter().map(|r| r.1).fold(f64::INFINITY, f64::min);
+    let mut kept: Vec<&Similarity> = Vec::new();
+    for (t, score) in refined {
+        let turned_from = |k: &&Similarity| {
+            Similarity {
+                rotation: k.rotation.transpose() * t.rotation,
+                ..Similarity::identity()
+            }
+            .angle_degrees()
+        };
+        if *score <= best * (1.0 + NEAR_TIE) && kept.iter().all(|k| turned_from(k) >= SAME_ANGLE) {
+            kept.push(t);
+        }
+    }
+    kept.len()
 }
 
 /// Of `refined` (non-empty), the placements within [`NEAR_TIE`] of the best score; of those,

@@ -65,7 +65,35 @@ fn a_rotated_shifted_copy_is_recovered_exactly() {
         assert_relative_eq!(got.transform.translation, truth.translation, epsilon = 1e-7);
         assert_eq!(got.transform.scale, 1.0);
         assert!(got.score < 1e-7 && got.identity_score > 0.1, "{got:?}");
+        // One orientation fits: the shape has no symmetry.
+        assert_eq!(got.readings, 1, "{got:?}");
     }
+}
+
+#[test]
+fn a_symmetric_template_reports_its_readings() {
+    // A flat square grid turned 90° about an oblique axis and moved: its four turns about its
+    // normal and their flips all fit the scan alike; the search says so.
+    let square: Vec<[f64; 3]> = (0..900)
+        .map(|i| [(i % 30) as f64 / 29.0, (i / 30) as f64 / 29.0, 0.0])
+        .collect();
+    let turned = Similarity {
+        rotation: rotation([1.0, 2.0, -1.5], 90.0),
+        scale: 1.0,
+        translation: Vec3::new(3.0, -1.0, 2.0),
+    };
+    // Scanned with noise (an exact copy's one exact match scores 0, the others a hair above).
+    let mut rng = ChaCha8Rng::seed_from_u64(12);
+    let scan: Vec<[f64; 3]> = square
+        .iter()
+        .map(|p| p.map(|x| x + 0.004 * (rng.random::<f64>() - 0.5)))
+        .collect();
+    let got = align(&square, &turned.apply_all(&scan), Motion::Rigid);
+    // On the grid within half its spacing.
+    assert!(got.searched && got.score < 0.5 / 29.0, "{got:?}");
+    assert!(got.readings >= 4, "{got:?}");
+    // Placed already: nothing searched, no reading counted.
+    assert_eq!(align(&square, &square, Motion::Rigid).readings, 0);
 }
 
 #[test]
