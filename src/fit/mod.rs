@@ -298,9 +298,15 @@ fn fit_from(
             .unzip();
         let spreads: Vec<f64> = vertices.iter().map(|v| rest_edges.spread(v)).collect();
         let best = select_schedule(&distances, &spreads, params.schedule.selection_margin);
-        (best, vertices, distances, spreads, nearest)
+        Comparison {
+            best,
+            vertices,
+            distances,
+            spreads,
+            nearest,
+        }
     });
-    let best = selection.as_ref().map_or(0, |s| s.0);
+    let best = selection.as_ref().map_or(0, |s| s.best);
     let mut winner = runs.swap_remove(best);
     // The chosen run alone from the comparison on (nothing to do when it was the end).
     if compare_at < total && !winner.finished {
@@ -314,9 +320,15 @@ fn fit_from(
     }
     let iterations = clock.elapsed().as_secs_f64() - setup;
     let vertices = match selection.as_mut() {
-        Some((_, compared, ..)) if compare_at == total => compared.swap_remove(best),
+        Some(c) if compare_at == total => c.vertices.swap_remove(best),
         _ => winner.user_vertices(&prepared),
     };
+    // Each scan point's nearest vertex of the chosen fit, when schedule selection compared
+    // the finished fits (on the points of `prepared.garment`, else all).
+    let compared_nearest = selection
+        .as_ref()
+        .filter(|_| compare_at == total)
+        .map(|c| &c.nearest[best]);
     // Do no harm: a template already on its scan stays there (docs/method.md "Do no harm").
     // The template where the fit started (pre-aligned, by the landmarks too), in the user's frame.
     let mut start_vertices = prepared.start.clone();
@@ -340,15 +352,11 @@ fn fit_from(
         .filter(|g| !g.is_empty())
         .or(prepared.garment.as_deref());
     let kept_start = params.schedule.keep_margin > 0.0 && {
-        // The chosen fit's distances are schedule selection's when it compared the finished
-        // fits on these points.
+        // On the same points, the chosen fit's distances are schedule selection's.
         let same_points = start_garment.as_ref().is_none_or(|g| g.is_empty());
-        let compared = selection
-            .as_ref()
-            .filter(|_| compare_at == total && same_points);
         let (fitted, start) = rayon::join(
-            || match compared {
-                Some(sel) => weighted_median(&sel.4[best].distance, target_weights, garment),
+            || match compared_nearest.filter(|_| same_points) {
+                Some(n) => weighted_median(&n.distance, target_weights, garment),
                 None => median_scan_distance(target, target_weights, garment, &vertices),
             },
             || median_scan_distance(target, target_weights, garment, &start_vertices),
@@ -364,14 +372,10 @@ fn fit_from(
     // The verdict against the points the fit was drawn to: those of positive weight, or on a
     // scan that holds more than the garment, those the template explains.
     let assessed = prepared.garment.as_deref().or(kept.as_deref());
-    // Schedule selection found each of those points' nearest vertex of this fit already when
-    // it compared the finished fits on the same points.
-    let scan_nearest = selection
-        .as_ref()
-        .filter(|_| {
-            compare_at == total && !kept_start && (prepared.garment.is_some() || kept.is_none())
-        })
-        .map(|sel| &sel.4[best].vertex[..]);
+    // Schedule selection's nearest vertices, when the verdict's fit and points are its own.
+    let scan_nearest = compared_nearest
+        .filter(|_| !kept_start && (prepared.garment.is_some() || kept.is_none()))
+        .map(|n| &n.vertex[..]);
     let two_rings =
         (params.method == Method::FoldMatch && params.model.rings == 2).then_some(&prepared.rings);
     let assessment = crate::quality::assess_points_with(
@@ -397,7 +401,10 @@ fn fit_from(
         &chosen.support,
         chosen.quality.scan_diagonal,
     );
-    if let Some((_, _, distances, spreads, _)) = selection {
+    if let Some(Comparison {
+        distances, spreads, ..
+    }) = selection
+    {
         chosen.params = params.clone();
         let d = &mut chosen.diagnostics;
         d.schedule = SCHEDULE_NAMES[best].into();
@@ -495,6 +502,20 @@ fn fit_from(
         previous = Some(cut);
     }
     Ok(with_prealign(last))
+}
+
+/// Schedule selection's comparison of the candidates' fits (in the user's frame).
+struct Comparison {
+    /// The chosen candidate.
+    best: usize,
+    /// Each candidate's fitted vertices.
+    vertices: Vec<Vec<[f64; 3]>>,
+    /// Each candidate's scan distance ([`selection_distance`]).
+    distances: Vec<f64>,
+    /// Each candidate's edge-length spread.
+    spreads: Vec<f64>,
+    /// Each candidate's nearest vertex of every compared scan point.
+    nearest: Vec<schedule::ScanNearest>,
 }
 
 /// The template as the pre-alignment moved it (`None`: as given) and what the search found

@@ -119,25 +119,23 @@ impl Clouds {
         (forward, backward)
     }
 
-    /// The two-sided trimmed distance under `t` on the full samples: the mean of the two
-    /// directions' trimmed mean distances, in scan units.
-    pub fn score(&self, t: &Similarity) -> f64 {
-        let (forward, backward) = self.matches(t, Level::Full);
-        score_of(&forward, &backward)
-    }
-
-    /// Both the two-sided trimmed distance under `t` on the full samples and the template →
-    /// scan direction's alone (its trimmed mean), in scan units.
+    /// The two-sided trimmed distance under `t` on the full samples (the mean of the two
+    /// directions' trimmed mean distances), and the template → scan direction's alone, in scan
+    /// units.
     pub fn scores(&self, t: &Similarity) -> (f64, f64) {
         let (forward, backward) = self.matches(t, Level::Full);
-        (score_of(&forward, &backward), score_of(&forward, &forward))
+        (score_of(&forward, &backward), mean_distance(&forward))
     }
 }
 
 /// The mean of the two directions' mean distances.
 pub fn score_of(forward: &[Match], backward: &[Match]) -> f64 {
-    let mean = |m: &[Match]| m.iter().map(|p| p.2).sum::<f64>() / m.len().max(1) as f64;
-    0.5 * (mean(forward) + mean(backward))
+    0.5 * (mean_distance(forward) + mean_distance(backward))
+}
+
+/// The mean distance of the matches `m` (0 when empty).
+fn mean_distance(m: &[Match]) -> f64 {
+    m.iter().map(|p| p.2).sum::<f64>() / m.len().max(1) as f64
 }
 
 fn kept(n: usize) -> usize {
@@ -169,13 +167,13 @@ mod tests {
             .map(|i| [(i % 30) as f64 * 0.1, (i / 30) as f64 * 0.1, 0.0])
             .collect();
         let clouds = Clouds::new(&points, &points);
-        assert_eq!(clouds.score(&Similarity::identity()), 0.0);
+        assert_eq!(clouds.scores(&Similarity::identity()).0, 0.0);
         // Lifted off the plane by 0.5: every match is 0.5 away in both directions.
         let lifted = Similarity {
             translation: crate::math::Vec3::new(0.0, 0.0, 0.5),
             ..Similarity::identity()
         };
-        approx::assert_relative_eq!(clouds.score(&lifted), 0.5, epsilon = 1e-12);
+        approx::assert_relative_eq!(clouds.scores(&lifted).0, 0.5, epsilon = 1e-12);
         let (f, b) = clouds.matches(&lifted, Level::Full);
         assert_eq!(f.len(), kept(SAMPLE_SIZE));
         assert_eq!(b.len(), kept(SAMPLE_SIZE));

@@ -235,11 +235,7 @@ fn finalists(coarse: &[(Similarity, f64)], radius: f64) -> Vec<Similarity> {
 /// Whether `a` and `b` are one placement: turned less than [`SAME_PLACEMENT_DEGREES`] apart,
 /// translations and scales within [`SAME_PLACEMENT`] of the scan's RMS radius `radius`.
 fn same_placement(a: &Similarity, b: &Similarity, radius: f64) -> bool {
-    let turn = Similarity {
-        rotation: a.rotation.transpose() * b.rotation,
-        ..Similarity::identity()
-    };
-    turn.angle_degrees() < SAME_PLACEMENT_DEGREES
+    b.turned_from(a) < SAME_PLACEMENT_DEGREES
         && (a.translation - b.translation).norm() < SAME_PLACEMENT * radius
         && (a.scale - b.scale).abs() < SAME_PLACEMENT * a.scale
 }
@@ -251,14 +247,8 @@ fn distinct_readings(refined: &[(Similarity, f64)]) -> usize {
     let best = refined.iter().map(|r| r.1).fold(f64::INFINITY, f64::min);
     let mut kept: Vec<&Similarity> = Vec::new();
     for (t, score) in refined {
-        let turned_from = |k: &&Similarity| {
-            Similarity {
-                rotation: k.rotation.transpose() * t.rotation,
-                ..Similarity::identity()
-            }
-            .angle_degrees()
-        };
-        if *score <= best * (1.0 + NEAR_TIE) && kept.iter().all(|k| turned_from(k) >= SAME_ANGLE) {
+        if *score <= best * (1.0 + NEAR_TIE) && kept.iter().all(|k| t.turned_from(k) >= SAME_ANGLE)
+        {
             kept.push(t);
         }
     }

@@ -35,11 +35,11 @@ fn rotation(axis: [f64; 3], degrees: f64) -> Mat3 {
 }
 
 fn angle_between(a: &Mat3, b: &Mat3) -> f64 {
-    Similarity {
-        rotation: a.transpose() * b,
+    let at = |rotation: &Mat3| Similarity {
+        rotation: *rotation,
         ..Similarity::identity()
-    }
-    .angle_degrees()
+    };
+    at(b).turned_from(&at(a))
 }
 
 #[test]

@@ -58,6 +58,15 @@ impl Similarity {
             .acos()
             .to_degrees()
     }
+
+    /// The angle in degrees of the rotation that turns `other`'s orientation into this one's.
+    pub fn turned_from(&self, other: &Self) -> f64 {
+        Self {
+            rotation: other.rotation.transpose() * self.rotation,
+            ..Self::identity()
+        }
+        .angle_degrees()
+    }
 }
 
 /// The least-squares similarity (or, with `scaled` false, rigid motion) mapping each
