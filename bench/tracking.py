@@ -19,10 +19,11 @@ no correspondence, is printed for reference).
 ``--mode chained`` runs what ``foldmatch sequence`` did before tracking: each frame fitted by
 ``fm.fit`` with the previous fit as its template (no rest shape, no flags).
 
-``--sequence sim-flag`` runs the simulated sequence of bench/sim_sequence.py (a flag in gusty
-wind, Newton's cloth solver, 9 frames 0.1 s apart; its first frame's mesh the template).
+``--sequence sim-flag`` runs a simulated sequence of bench/sim_sequence.py (a flag in gusty
+wind, Newton's cloth solver, 24 frames at 30 Hz; its first frame's mesh the template);
+``sim-flag2`` the flag in another wind, ``sim-drape`` a sheet landing and folding on a sphere.
 
-Tune on ``iter0``; ``iter17`` and ``sim-flag`` are held out.
+Tune on ``iter0``; ``iter17`` and the simulated sequences are held out.
 
     python -m bench.tracking                      # iter0, every frame
     python -m bench.tracking --sequence iter17    # the held-out sequence
@@ -44,6 +45,8 @@ from .cases import REAL_NOISE, REAL_POINTS, SHARED_DATA, bbox_diagonal, load_mes
 WIND = SHARED_DATA / "diffcloth" / "tshirt1000_wind_sim"
 #: The simulated sequence with per-frame truth (bench/sim_sequence.py: a flag in gusty wind).
 SIM_SEQUENCE = "sim-flag"
+#: Every sequence of the benchmark.
+SEQUENCES = ["iter0", "iter17", "sim-flag", "sim-flag2", "sim-drape"]
 
 #: Issue 28's tracking targets.
 FIRST_FRAME_MAX = 0.4
@@ -55,10 +58,10 @@ def frames_of(
     sequence: str, every: int = 1, limit: int | None = None
 ) -> list[tuple[int, np.ndarray, np.ndarray]]:
     """(frame number, vertices, faces) of the sequence's frames in order, every ``every``-th."""
-    if sequence == SIM_SEQUENCE:
+    if sequence.startswith("sim-"):
         from . import sim_sequence
 
-        return sim_sequence.frames()[::every][:limit]
+        return sim_sequence.frames(sequence)[::every][:limit]
     files = sorted(WIND.joinpath(sequence).glob("*.obj"), key=lambda p: int(p.stem))
     files = files[::every][:limit]
     return [(int(p.stem), *load_mesh(p)) for p in files]
@@ -226,13 +229,15 @@ def chained(
 
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--sequence", default="iter0", choices=["iter0", "iter17", SIM_SEQUENCE])
+    ap.add_argument("--sequence", default="iter0", choices=SEQUENCES)
     ap.add_argument("--every", type=int, default=1, help="every k-th frame of the sequence (default 1)")
     ap.add_argument("--limit", type=int, default=None, help="at most this many frames")
     ap.add_argument("--mode", default="track", choices=["track", "chained"])
     ap.add_argument("--preset", default="tracking")
     ap.add_argument("--iterations", type=int, default=None)
-    ap.add_argument("--prediction", type=float, default=0.5)
+    ap.add_argument(
+        "--prediction", type=float, default=0.0, help="λ of the start's prediction (default 0, as fm.track)"
+    )
     ap.add_argument("--reanchor", action="store_true", help="re-anchor flagged frames")
     ap.add_argument("--set", action="append", default=[], metavar="NAME=JSON", help="a fit setting")
     ap.add_argument("--threads", type=int, default=None)

@@ -74,6 +74,7 @@ sequence: 4 frames in frames (f1.ply … f10.ply) -> out
 [3/4] ok      f3.obj -> out/f3.ply (3 it, [..] s, scan-to-fit [..])
 ...
 [4/4] ok      f10.ply -> out/f10.ply (3 it, [..] s, scan-to-fit [..])
+...
 sequence: 4 ok, 0 failed, 0 skipped in [..] s; report: out/report.json
 ...
 ",
@@ -92,8 +93,9 @@ sequence: 4 ok, 0 failed, 0 skipped in [..] s; report: out/report.json
         assert_eq!(t["warm_started"], i > 0);
         assert!(t["edge_distortion"].as_f64().unwrap() >= 1.0);
     }
-    // The tracking preset anchors every frame to the template's rest shape.
-    assert_eq!(report["params"]["rest_rigidity"], 0.65);
+    // The tracking preset anchors every frame to the template's metric.
+    assert_eq!(report["params"]["rest_rigidity"], 0.15);
+    assert_eq!(report["params"]["isometric_iterations"], 60);
     assert_eq!(
         field(&report, "warm_start"),
         [

@@ -430,7 +430,7 @@ def track(
     preset: Optional[str] = None,
     iterations: Optional[int] = None,
     params: Union[FitParams, dict[str, Any], None] = None,
-    prediction: float = 0.5,
+    prediction: float = 0.0,
     distortion_jump: float = 0.15,
     distance_jump: float = 2.0,
     reanchor: bool = False,
@@ -459,7 +459,7 @@ def track(
     preset : str, optional
         The preset of every frame's fit (default ``"tracking"``, see :func:`fit`).
     iterations : int, optional
-        ξ per frame (the preset's, 100).
+        ξ per frame (the preset's, 60).
     params : FitParams or dict, optional
         Other fit settings, as for :func:`fit`.
     prediction : float

@@ -205,7 +205,8 @@ class FitParams(Mapping[str, Any]):
         non-rigid ICP's decreasing stiffness). Eq. 8 moves the *current* ring, so edge lengths
         drift where the scan does not pin them (tangential sliding, holes); the rest-shape term
         remembers the template's metric, as ARAP's local step does. 0: the paper's update
-        alone. FoldMatch only (docs/method.md, "Beyond the paper: the default configuration").
+        alone. FoldMatch only (docs/method.md, "Beyond the paper: the default configuration");
+        0.15 in the `"tracking"` preset, whose isometric refinement holds the metric.
         """
     @property
     def anneal(self) -> float:
@@ -288,6 +289,21 @@ class FitParams(Mapping[str, Any]):
         """The same for compression: edges shorter than their rest length ÷ `(1 + compression_limit)`
         are moved back. 0: off (the default: a scan cannot tell sub-edge wrinkles from
         compression, and limiting it flips faces); 0.05 in the `"tracking"` preset.
+        """
+    @property
+    def isometric_iterations(self) -> int:
+        """Isometric refinement: after the schedule, this many local–global steps move the fit to
+        the minimum of edge springs at the rest shape's lengths (bending left free) plus the
+        fit → scan (point-to-plane) and scan → fit distances (docs/method.md "Isometric
+        refinement"). It undoes sliding along the scan, which the schedule's pulls cannot see:
+        a tracked sequence (whose rest shape is the first frame's own mesh) no longer drifts.
+        0: off (the default); 60 in the `"tracking"` preset.
+        """
+    @property
+    def isometric_weight(self) -> float:
+        """The weight of an edge spring of `isometric_iterations`
+        against a vertex's fit → scan distance (weight 1): higher keeps the rest shape's
+        lengths more strictly.
         """
 
     # ---- Acceleration

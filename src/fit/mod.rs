@@ -17,6 +17,7 @@ mod attraction;
 mod garment_cut;
 mod garment_refit;
 mod garments;
+mod isometric;
 mod landmark_pull;
 mod model;
 mod params;
@@ -32,15 +33,17 @@ mod validate;
 
 pub use attraction::{DRESSED_TRUST_FACTOR, GARMENT_FRAME_RATIO};
 pub use garments::GARMENT_MIN_SHARE;
+pub use isometric::IsometricRefine;
 pub use model::{deformation_model, TemplateTopology, Workspace};
 pub use params::{
     Acceleration, FitParams, Method, ModelConstants, Prealign, Readings, RotationSource, Schedule,
     Selection, ACCURATE_ITERATIONS, AUTO_COARSE_RINGS, AUTO_COARSE_RINGS_MAX,
     COARSE_RINGS_REFERENCE_VERTICES, COARSE_SCAN_MAX_AUTO_STRIDE, COARSE_SCAN_POINTS_PER_VERTEX,
-    DEFAULT_KEEP_MARGIN, DEFAULT_KNN_SLACK, DEFAULT_K_MAX, DEFAULT_LANDMARK_WEIGHT, DEFAULT_RHO,
-    DEFAULT_STRAIN_LIMIT, DEFAULT_TWO_WAY_RIM, DEFAULT_TWO_WAY_TRUST, FAR_AWAY, FAST_TWO_WAY,
-    MAX_SCAN_SAMPLE, PAPER_K_MAX, PAPER_RHO, RIGID_SCAN_POINTS_PER_VERTEX, SCHEDULE_NAMES,
-    SIZE_MISMATCH, TRACKING_STRAIN_LIMIT,
+    DEFAULT_ISOMETRIC_WEIGHT, DEFAULT_KEEP_MARGIN, DEFAULT_KNN_SLACK, DEFAULT_K_MAX,
+    DEFAULT_LANDMARK_WEIGHT, DEFAULT_RHO, DEFAULT_STRAIN_LIMIT, DEFAULT_TWO_WAY_RIM,
+    DEFAULT_TWO_WAY_TRUST, FAR_AWAY, FAST_TWO_WAY, MAX_SCAN_SAMPLE, PAPER_K_MAX, PAPER_RHO,
+    RIGID_SCAN_POINTS_PER_VERTEX, SCHEDULE_NAMES, SIZE_MISMATCH, TRACKING_ISOMETRIC_ITERATIONS,
+    TRACKING_ITERATIONS, TRACKING_REST_RIGIDITY, TRACKING_STRAIN_LIMIT,
 };
 pub use result::{
     ComponentFigures, Diagnostics, FitResult, IterationRecord, PrealignFigures, Progress,
@@ -363,18 +366,33 @@ fn fit_from(
         );
         keeps_start(start, fitted, params.schedule.keep_margin)
     };
-    let vertices = if kept_start {
-        winner.pos.clone_from(&prepared.start);
-        start_vertices
-    } else {
-        vertices
-    };
     // The verdict against the points the fit was drawn to: those of positive weight, or on a
     // scan that holds more than the garment, those the template explains.
     let assessed = prepared.garment.as_deref().or(kept.as_deref());
+    let refine = !kept_start && params.schedule.isometric_iterations > 0;
+    let vertices = if kept_start {
+        winner.pos.clone_from(&prepared.start);
+        start_vertices
+    } else if refine {
+        let mut refined = vertices;
+        isometric_refinement(
+            &mut refined,
+            rest_shape,
+            &prepared.faces,
+            target,
+            target_weights,
+            assessed,
+            params,
+        );
+        // The result's motion (its accumulated wrinkle field) ends at the refined fit.
+        winner.pos = prepared.frame.forward(&refined);
+        refined
+    } else {
+        vertices
+    };
     // Schedule selection's nearest vertices, when the verdict's fit and points are its own.
     let scan_nearest = compared_nearest
-        .filter(|_| !kept_start && (prepared.garment.is_some() || kept.is_none()))
+        .filter(|_| !kept_start && !refine && (prepared.garment.is_some() || kept.is_none()))
         .map(|n| &n.vertex[..]);
     let two_rings =
         (params.method == Method::FoldMatch && params.model.rings == 2).then_some(&prepared.rings);
@@ -526,6 +544,35 @@ type Placement = (Option<Vec<[f64; 3]>>, Option<PrealignFigures>);
 /// `Similarity`: [`crate::prealign::align`] onto the scan points that remain), so that the fit,
 /// and its result, are in the scan's frame as given (`None` when the template stays as given),
 /// and what the search found (`None` when it did not run).
+/// The [`IsometricRefine`] of `vertices` (in place) against the scan points the fit was drawn
+/// to (`assessed`, else all), weighted by `weights`; nothing when fewer than a plane's worth.
+fn isometric_refinement(
+    vertices: &mut [[f64; 3]],
+    rest: &[[f64; 3]],
+    faces: &[[u32; 3]],
+    target: &[[f64; 3]],
+    weights: Option<&[f64]>,
+    assessed: Option<&[usize]>,
+    params: &FitParams,
+) {
+    let (points, point_weights): (Vec<[f64; 3]>, Option<Vec<f64>>) = match assessed {
+        Some(kept) => (
+            kept.iter().map(|&j| target[j]).collect(),
+            weights.map(|w| kept.iter().map(|&j| w[j]).collect()),
+        ),
+        None => (target.to_vec(), weights.map(<[f64]>::to_vec)),
+    };
+    let point_weights = point_weights.filter(|w| w.iter().any(|&x| x > 0.0));
+    if points.len() < 12 {
+        return;
+    }
+    IsometricRefine::new(rest, faces, &points, point_weights.as_deref()).run(
+        vertices,
+        params.schedule.isometric_iterations,
+        params.schedule.isometric_weight,
+    );
+}
+
 fn prealigned(
     template_vertices: &[[f64; 3]],
     target: &[[f64; 3]],

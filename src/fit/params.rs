@@ -75,6 +75,22 @@ pub enum Selection {
 /// limiting").
 pub const DEFAULT_STRAIN_LIMIT: f64 = 0.15;
 
+/// The default [`isometric_weight`](crate::fit::Schedule::isometric_weight) (docs/method.md
+/// "Isometric refinement").
+pub const DEFAULT_ISOMETRIC_WEIGHT: f64 = 3.0;
+
+/// [`isometric_iterations`](crate::fit::Schedule::isometric_iterations) of the `"tracking"`
+/// preset.
+pub const TRACKING_ISOMETRIC_ITERATIONS: usize = 60;
+
+/// [`iterations`](crate::fit::FitParams::iterations) of the `"tracking"` preset (the
+/// default's is 100): a warm-started frame starts near its scan.
+pub const TRACKING_ITERATIONS: usize = 60;
+
+/// [`rest_rigidity`](crate::fit::Schedule::rest_rigidity) of the `"tracking"` preset (the
+/// default's is 0.65).
+pub const TRACKING_REST_RIGIDITY: f64 = 0.15;
+
 /// The `"tracking"` preset's [`strain_limit`](crate::fit::Schedule::strain_limit) and
 /// [`compression_limit`](crate::fit::Schedule::compression_limit).
 pub const TRACKING_STRAIN_LIMIT: f64 = 0.05;
@@ -333,7 +349,8 @@ pub struct Schedule {
     /// non-rigid ICP's decreasing stiffness). Eq. 8 moves the *current* ring, so edge lengths
     /// drift where the scan does not pin them (tangential sliding, holes); the rest-shape term
     /// remembers the template's metric, as ARAP's local step does. 0: the paper's update
-    /// alone. FoldMatch only (docs/method.md, "Beyond the paper: the default configuration").
+    /// alone. FoldMatch only (docs/method.md, "Beyond the paper: the default configuration");
+    /// 0.15 in the `"tracking"` preset, whose isometric refinement holds the metric.
     pub rest_rigidity: f64,
     /// Softening annealing: ε starts at `anneal × ε` and decreases linearly to ε over the
     /// first `anneal_fraction` of the ξ iterations (1: constant ε, the paper's reading).
@@ -397,6 +414,17 @@ pub struct Schedule {
     /// are moved back. 0: off (the default: a scan cannot tell sub-edge wrinkles from
     /// compression, and limiting it flips faces); 0.05 in the `"tracking"` preset.
     pub compression_limit: f64,
+    /// Isometric refinement: after the schedule, this many local–global steps move the fit to
+    /// the minimum of edge springs at the rest shape's lengths (bending left free) plus the
+    /// fit → scan (point-to-plane) and scan → fit distances (docs/method.md "Isometric
+    /// refinement"). It undoes sliding along the scan, which the schedule's pulls cannot see:
+    /// a tracked sequence (whose rest shape is the first frame's own mesh) no longer drifts.
+    /// 0: off (the default); 60 in the `"tracking"` preset.
+    pub isometric_iterations: usize,
+    /// The weight of an edge spring of [`isometric_iterations`](Self::isometric_iterations)
+    /// against a vertex's fit → scan distance (weight 1): higher keeps the rest shape's
+    /// lengths more strictly.
+    pub isometric_weight: f64,
 }
 
 /// Acceleration: samples and approximate neighborhoods that make a fit faster and change its
@@ -533,6 +561,8 @@ impl Default for Schedule {
             strain_limit: DEFAULT_STRAIN_LIMIT,
             strain_passes: 4,
             compression_limit: 0.0,
+            isometric_iterations: 0,
+            isometric_weight: DEFAULT_ISOMETRIC_WEIGHT,
         }
     }
 }

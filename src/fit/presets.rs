@@ -2,7 +2,8 @@
 
 use super::params::{
     FitParams, Method, Prealign, Selection, ACCURATE_ITERATIONS, FAST_TWO_WAY, PAPER_K_MAX,
-    PAPER_RHO, TRACKING_STRAIN_LIMIT,
+    PAPER_RHO, TRACKING_ISOMETRIC_ITERATIONS, TRACKING_ITERATIONS, TRACKING_REST_RIGIDITY,
+    TRACKING_STRAIN_LIMIT,
 };
 use crate::error::{FoldMatchError, Result};
 use crate::nbody::TwoWayPull;
@@ -52,6 +53,12 @@ impl FitParams {
         p.schedule.keep_margin = 0.0;
         p.schedule.strain_limit = TRACKING_STRAIN_LIMIT;
         p.schedule.compression_limit = TRACKING_STRAIN_LIMIT;
+        p.schedule.isometric_iterations = TRACKING_ISOMETRIC_ITERATIONS;
+        // The isometric refinement holds the template's metric; the rest-shape rigidity, which
+        // also holds its bends, only steadies the motion (docs/method.md "Tracking").
+        p.schedule.rest_rigidity = TRACKING_REST_RIGIDITY;
+        // A frame starts near its scan, and the refinement finishes it.
+        p.iterations = TRACKING_ITERATIONS;
         // Every frame starts where the last one ended: placed already.
         p.prealign = Prealign::None;
         p

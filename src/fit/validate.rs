@@ -150,6 +150,11 @@ impl FitParams {
                 self.schedule.compression_limit,
                 NON_NEGATIVE,
             ),
+            (
+                "isometric_weight",
+                self.schedule.isometric_weight,
+                NON_NEGATIVE,
+            ),
             ("two_way", self.schedule.two_way, NON_NEGATIVE),
             ("two_way_trust", self.schedule.two_way_trust, NON_NEGATIVE),
             ("two_way_rim", self.schedule.two_way_rim, NON_NEGATIVE),

@@ -89,6 +89,12 @@ impl PointIndex {
         self.boxes.nearest_k_within(query, radius2, indices, dist2) == indices.len()
     }
 
+    /// Like [`PointIndex::nearest_one`], given one point `(index, squared distance)` known to
+    /// be that close ([`BoxTree::nearest_one_from`]): the same answer, ties included.
+    pub fn nearest_from(&self, query: &[f64; 3], known: (u32, f64)) -> (u32, f64) {
+        self.boxes.nearest_one_from(query, known)
+    }
+
     /// The nearest indexed point of `query`: (index, squared distance).
     pub fn nearest_one(&self, query: &[f64; 3]) -> (u32, f64) {
         self.boxes.nearest_one(query)

@@ -39,7 +39,7 @@ use crate::mesh::{validate_faces, validate_points};
 use crate::metrics::{bbox_diagonal, cross_of, percentile_linear, EdgeLengths, DEFAULT_TAU_S};
 use crate::rings::{adjacency, n_rings_of, Neighborhoods};
 
-pub use geometry::point_triangle_distance;
+pub use geometry::{closest_barycentric, point_triangle_distance};
 
 /// The support radius in units of `max(scan spacing, fitted median edge)`.
 pub const SUPPORT_RADIUS_FACTOR: f64 = 2.0;

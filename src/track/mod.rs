@@ -31,8 +31,9 @@ use serde::{Deserialize, Serialize};
 pub struct TrackParams {
     /// The fit of every frame (the `"tracking"` preset by default).
     pub fit: FitParams,
-    /// λ of the constant-velocity prediction of a frame's start, in `[0, 1]`: 0 starts from
-    /// the previous fit, 1 moves it on by its whole last motion.
+    /// λ of the constant-velocity prediction of a frame's start, in `[0, 1]`: 0 (the default)
+    /// starts from the previous fit, 1 moves it on by its whole last motion (captures whose
+    /// frames are far apart move other than at constant velocity: docs/method.md "Tracking").
     pub prediction: f64,
     /// A frame is flagged when its edge distortion exceeds the first frame's by more than
     /// this (the verdict's 95th-percentile distortion against the template, 1 = isometric).
@@ -52,7 +53,7 @@ pub struct TrackParams {
 }
 
 /// The tracking rules' defaults (docs/method.md "Tracking").
-pub const DEFAULT_PREDICTION: f64 = 0.5;
+pub const DEFAULT_PREDICTION: f64 = 0.0;
 /// See [`TrackParams::distortion_jump`].
 pub const DEFAULT_DISTORTION_JUMP: f64 = 0.15;
 /// See [`TrackParams::distance_jump`].

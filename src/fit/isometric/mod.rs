@@ -1,0 +1,566 @@
+//! Isometric refinement (docs/method.md "Isometric refinement"): after the schedule, the fit is
+//! moved to the minimum of
+//!
+//! ```text
+//! E(Y) = w Σ_edges ‖(Y_i − Y_k) − d_ik‖²        edge springs, d_ik = ℓ⁰_ik (Y_i − Y_k) / ‖Y_i − Y_k‖
+//!      + Σ_i t_i (n_i · (Y_i − x_i))²             fit → scan: the tangent plane of Y_i's nearest
+//!                                                 scan point x_i (normal n_i)
+//!      + c Σ_j ω_j (e_j · (Σ_l b_jl Y_{f_j,l} − x_j))²
+//!                                                 scan → fit: x_j's closest point on the faces
+//!                                                 around its nearest vertex (face f_j,
+//!                                                 barycentric b_j), measured along e_j
+//! ```
+//!
+//! by local–global iterations: the local step fixes the edge directions `d` (every step), the
+//! matches and their directions (every [`MATCH_EVERY`] steps) (e_j: the face's normal where the closest point lies inside the face,
+//! towards x_j where it lies on the face's border — the scan beyond the fit's rim); the global
+//! step is a sparse linear solve in 3 × 3 blocks, here a few block-Jacobi-preconditioned
+//! conjugate-gradient steps warm-started from the current fit. The springs keep every edge at
+//! its rest length ℓ⁰ and leave bending free: cloth barely stretches but folds anywhere. Both
+//! distance terms measure across the surface only, so the fit moves along the scan freely —
+//! where the springs and the scan beyond its rim ask — which undoes a slide along the scan (what
+//! makes a tracked sequence drift, docs/method.md "Tracking"). `c` makes the scan → fit term
+//! weigh as much as the vertices; `t_i` is 0 for a vertex whose nearest scan point is beyond
+//! [`TRIM`] × the median distance and [`REACH`] edge lengths (it has no scan under it), and
+//! likewise `ω_j` for a scan point far from the fit.
+
+use crate::knn::{BoxTree, PointIndex};
+use crate::math::{dist2, sym_eigen3, vec3, Mat3, Vec3};
+use crate::quality::closest_barycentric;
+use crate::rings::{adjacency, Neighborhoods};
+use rayon::prelude::*;
+
+/// Matches beyond this multiple of their median distance (and beyond [`REACH`]) are dropped
+/// (fit → scan and scan → fit alike).
+pub const TRIM: f64 = 3.0;
+/// Matches within this many mean rest edge lengths are kept whatever the median: a fit on its
+/// scan's surface but slid along it has a median distance of the noise, and the scan beyond
+/// its receding rim — what tells the slide — lies farther than a multiple of that.
+pub const REACH: f64 = 2.0;
+/// Scan points whose plane estimates a scan point's normal.
+const NORMAL_NEIGHBOURS: usize = 12;
+/// The matches (the local step's correspondences) are refreshed every this many steps; the
+/// edge directions every step.
+pub const MATCH_EVERY: usize = 3;
+/// Conjugate-gradient steps per global step.
+const CG_STEPS: usize = 10;
+/// Chunk of the deterministic parallel sums (the same result for any thread count).
+const CHUNK: usize = 512;
+
+/// The refinement's fixed data: the mesh's edges with their rest lengths, its vertex–face
+/// lists, and the scan with its normals.
+pub struct IsometricRefine<'a> {
+    faces: &'a [[u32; 3]],
+    /// Every vertex's one-ring: the off-diagonal pattern of the global step's matrix.
+    ring: Neighborhoods,
+    rest_length: Vec<f64>,
+    vertex_faces: Neighborhoods,
+    /// For each slot of `ring.members` (the edge from vertex i to k): the faces holding the
+    /// edge, at most two, with the corners of i and k (`u32::MAX`: none).
+    edge_faces: Vec<[EdgeFace; 2]>,
+    scan: &'a [[f64; 3]],
+    weights: Option<&'a [f64]>,
+    scan_index: PointIndex,
+    normals: Vec<[f64; 3]>,
+    /// Matches within this distance are never dropped: [`REACH`] mean rest edge lengths.
+    reach: f64,
+}
+
+/// Per-iteration buffers (allocated once).
+struct Buffers {
+    /// Fit → scan: each vertex's nearest scan point, weight `t_i`, and that point's tangent
+    /// plane `n · y = n · x` (its normal `n_i` and `p_i = n (n · x)`).
+    nearest: Vec<(u32, f64)>,
+    t: Vec<f64>,
+    normal: Vec<[f64; 3]>,
+    p: Vec<[f64; 3]>,
+    distance: Vec<f64>,
+    scratch: Vec<f64>,
+    /// Scan → fit: the tree of the fit's vertices, every scan point's nearest vertex (index,
+    /// squared distance) and the face of that vertex its closest point lies on.
+    tree: BoxTree,
+    matched: Vec<(u32, f64)>,
+    face_of: Vec<u32>,
+    /// Every scan point's closest point on the face of its nearest sample: barycentric
+    /// coordinates, distance, and the direction `e` its distance is measured along.
+    closest: Vec<Closest>,
+    /// Per face, over the scan points matched to it: `Σ ω b_l b_k e eᵀ` for each pair of
+    /// corners l ≤ k ([`pair`]) and `Σ ω b_l e (e · x)` for each corner.
+    face_q: Vec<[Mat3; 6]>,
+    face_r: Vec<[Vec3; 3]>,
+    /// The global step's matrix (`diag`, and `off` on the ring's slots), right-hand side and
+    /// conjugate-gradient vectors.
+    diag: Vec<Mat3>,
+    /// The diagonal blocks' inverses (the preconditioner).
+    diag_inv: Vec<Mat3>,
+    off: Vec<Mat3>,
+    rhs: Vec<[f64; 3]>,
+    r: Vec<[f64; 3]>,
+    z: Vec<[f64; 3]>,
+    dir: Vec<[f64; 3]>,
+    a_dir: Vec<[f64; 3]>,
+    partials: Vec<f64>,
+}
+
+/// Below this many items a parallel loop is not split further.
+const MIN_LEN: usize = 256;
+
+impl<'a> IsometricRefine<'a> {
+    /// The edges of `faces` at their lengths in `rest`, and the scan's normals (the plane of
+    /// each point's 12 nearest points). `weights`, when given, weigh the
+    /// scan points (every point passed is one the fit is drawn to). `scan` must not be empty.
+    pub fn new(
+        rest: &[[f64; 3]],
+        faces: &'a [[u32; 3]],
+        scan: &'a [[f64; 3]],
+        weights: Option<&'a [f64]>,
+    ) -> Self {
+        let m = rest.len();
+        let ring = adjacency(faces, m);
+        let rest_length: Vec<f64> = (0..m)
+            .flat_map(|v| {
+                ring.of(v)
+                    .iter()
+                    .map(move |&u| (vec3(&rest[v]) - vec3(&rest[u as usize])).norm())
+            })
+            .collect();
+        let edges = rest_length.len().max(1) as f64;
+        let reach = REACH * rest_length.iter().sum::<f64>() / edges;
+        let vertex_faces = Neighborhoods::from_pairs(m, || {
+            faces
+                .iter()
+                .enumerate()
+                .flat_map(|(f, t)| t.map(|v| (v, f as u32)))
+        });
+        let edge_faces = (0..m)
+            .flat_map(|i| {
+                let (ring, vertex_faces) = (&ring, &vertex_faces);
+                ring.of(i).iter().map(move |&k| {
+                    let mut found = [EdgeFace::NONE; 2];
+                    let shared = vertex_faces.of(i).iter().filter_map(|&f| {
+                        let face = &faces[f as usize];
+                        let lk = face.iter().position(|&u| u == k)?;
+                        Some(EdgeFace {
+                            face: f,
+                            corners: [corner(face, i) as u8, lk as u8],
+                        })
+                    });
+                    for (slot, e) in found.iter_mut().zip(shared) {
+                        *slot = e;
+                    }
+                    found
+                })
+            })
+            .collect();
+        let scan_index = PointIndex::new(scan);
+        let k = NORMAL_NEIGHBOURS.min(scan.len());
+        let normals = scan
+            .par_iter()
+            .map_init(
+                || (vec![0u32; k], vec![0.0; k]),
+                |(idx, d2), x| {
+                    scan_index.nearest_into(x, idx, d2);
+                    plane_normal(idx.iter().map(|&j| scan[j as usize]))
+                },
+            )
+            .collect();
+        Self {
+            faces,
+            ring,
+            rest_length,
+            vertex_faces,
+            edge_faces,
+            scan,
+            weights,
+            scan_index,
+            normals,
+            reach,
+        }
+    }
+
+    /// `iterations` local–global steps from `vertices` (moved in place), edge springs of
+    /// weight `isometry` against a fit → scan weight of 1 per vertex.
+    pub fn run(&self, vertices: &mut [[f64; 3]], iterations: usize, isometry: f64) {
+        let (m, n) = (vertices.len(), self.scan.len());
+        let mut b = Buffers {
+            nearest: vec![(u32::MAX, f64::INFINITY); m],
+            t: vec![0.0; m],
+            normal: vec![[0.0; 3]; m],
+            p: vec![[0.0; 3]; m],
+            distance: vec![0.0; m.max(n)],
+            scratch: Vec::with_capacity(m.max(n)),
+            tree: BoxTree::default(),
+            matched: vec![(u32::MAX, f64::INFINITY); n],
+            face_of: vec![0; n],
+            closest: vec![Closest::default(); n],
+            face_q: vec![[Mat3::zeros(); 6]; self.faces.len()],
+            face_r: vec![[Vec3::zeros(); 3]; self.faces.len()],
+            diag: vec![Mat3::zeros(); m],
+            diag_inv: vec![Mat3::zeros(); m],
+            off: vec![Mat3::zeros(); self.ring.members.len()],
+            rhs: vec![[0.0; 3]; m],
+            r: vec![[0.0; 3]; m],
+            z: vec![[0.0; 3]; m],
+            dir: vec![[0.0; 3]; m],
+            a_dir: vec![[0.0; 3]; m],
+            partials: vec![0.0; m.div_ceil(CHUNK)],
+        };
+        let mut c = 0.0;
+        for step in 0..iterations {
+            if step % MATCH_EVERY == 0 {
+                self.fit_to_scan(vertices, &mut b);
+                c = self.scan_to_fit(vertices, &mut b);
+            }
+            self.assemble(vertices, &mut b, isometry, c);
+            solve(vertices, &self.ring, &mut b);
+        }
+    }
+
+    /// `t_i`, `p_i`: each vertex projected onto its nearest scan point's tangent plane.
+    fn fit_to_scan(&self, y: &[[f64; 3]], b: &mut Buffers) {
+        let m = y.len();
+        b.p.par_iter_mut()
+            .zip(b.normal.par_iter_mut())
+            .zip(b.nearest.par_iter_mut())
+            .zip(b.distance[..m].par_iter_mut())
+            .zip(y.par_iter())
+            .with_min_len(MIN_LEN)
+            .for_each(|((((p, normal), near), d), v)| {
+                // From the last iteration's nearest point (the scan does not move).
+                let known = match near.0 {
+                    u32::MAX => (u32::MAX, f64::INFINITY),
+                    j => (j, dist2(v, &self.scan[j as usize])),
+                };
+                *near = self.scan_index.nearest_from(v, known);
+                let j = near.0 as usize;
+                let (x, n) = (vec3(&self.scan[j]), vec3(&self.normals[j]));
+                *normal = n.into();
+                *p = (x.dot(&n) * n).into();
+                *d = near.1.sqrt();
+            });
+        let cut = (TRIM * median(&b.distance[..m], &mut b.scratch)).max(self.reach);
+        b.t.par_iter_mut()
+            .zip(b.distance[..m].par_iter())
+            .with_min_len(MIN_LEN)
+            .for_each(|(t, &d)| *t = if d <= cut { 1.0 } else { 0.0 });
+    }
+
+    /// Matches every scan point to its closest point on the faces around its nearest vertex
+    /// and sums the matches per face; returns the scan → fit weight `c` (the term's total
+    /// weight equals the vertex count).
+    fn scan_to_fit(&self, y: &[[f64; 3]], b: &mut Buffers) -> f64 {
+        b.tree.update(y);
+        let tree = &b.tree;
+        let (faces, vertex_faces) = (self.faces, &self.vertex_faces);
+        b.matched
+            .par_iter_mut()
+            .zip(b.face_of.par_iter_mut())
+            .zip(b.closest.par_iter_mut())
+            .zip(self.scan.par_iter())
+            .with_min_len(MIN_LEN)
+            .for_each(|(((mt, face_of), cl), x)| {
+                // From the last iteration's nearest vertex, moved with the fit.
+                let known = match mt.0 {
+                    u32::MAX => (u32::MAX, f64::INFINITY),
+                    v => (v, dist2(x, &y[v as usize])),
+                };
+                *mt = tree.nearest_one_from(x, known);
+                let xv = vec3(x);
+                let mut best = (f64::INFINITY, 0u32, [1.0, 0.0, 0.0]);
+                for &f in vertex_faces.of(mt.0 as usize) {
+                    let corners = faces[f as usize].map(|v| vec3(&y[v as usize]));
+                    let w = closest_barycentric(&xv, &corners);
+                    let on = w[0] * corners[0] + w[1] * corners[1] + w[2] * corners[2];
+                    let d2 = (xv - on).norm_squared();
+                    if d2 < best.0 {
+                        best = (d2, f, w);
+                    }
+                }
+                let (_, f, w) = best;
+                *face_of = f;
+                let corners = faces[f as usize].map(|v| vec3(&y[v as usize]));
+                let on = w[0] * corners[0] + w[1] * corners[1] + w[2] * corners[2];
+                let residual = xv - on;
+                let distance = residual.norm();
+                // Inside the face: along its normal (point to plane); on its border (the
+                // scan beyond the fit's rim): towards the point.
+                let normal = (corners[1] - corners[0]).cross(&(corners[2] - corners[0]));
+                let inside = w.iter().all(|&b| b > 0.0);
+                let direction = if (inside || distance == 0.0) && normal.norm() > 0.0 {
+                    normal.normalize()
+                } else if distance > 0.0 {
+                    residual / distance
+                } else {
+                    Vec3::zeros()
+                };
+                *cl = Closest {
+                    bary: w,
+                    distance,
+                    direction,
+                };
+            });
+        let n = self.scan.len();
+        for (d, cl) in b.distance[..n].iter_mut().zip(&b.closest) {
+            *d = cl.distance;
+        }
+        let cut = (TRIM * median(&b.distance[..n], &mut b.scratch)).max(self.reach);
+        b.face_q.iter_mut().for_each(|q| *q = [Mat3::zeros(); 6]);
+        b.face_r.iter_mut().for_each(|r| *r = [Vec3::zeros(); 3]);
+        let mut total = 0.0;
+        for (j, (&f, cl)) in b.face_of.iter().zip(&b.closest).enumerate() {
+            if cl.distance > cut {
+                continue;
+            }
+            let w = self.weights.map_or(1.0, |w| w[j]);
+            let f = f as usize;
+            let (e, bc) = (cl.direction, cl.bary);
+            let eet = w * e * e.transpose();
+            let along = w * e.dot(&vec3(&self.scan[j])) * e;
+            for l in 0..3 {
+                b.face_r[f][l] += bc[l] * along;
+                for k in l..3 {
+                    b.face_q[f][pair(l, k)] += (bc[l] * bc[k]) * eet;
+                }
+            }
+            total += w;
+        }
+        if total > 0.0 {
+            y.len() as f64 / total
+        } else {
+            0.0
+        }
+    }
+
+    /// The global step's system `A y = rhs` at the edge directions of `y`, in 3 × 3 blocks on
+    /// the ring's pattern (two vertices of one face are neighbours):
+    /// A = w L ⊗ I + diag(t n nᵀ) + c Σ_j ω_j (b_j b_jᵀ) ⊗ e_j e_jᵀ,
+    /// rhs = w Dᵀd + t n (n · x) + c Σ_j ω_j b_j e_j (e_j · x_j).
+    fn assemble(&self, y: &[[f64; 3]], b: &mut Buffers, isometry: f64, c: f64) {
+        let (ring, rest_length) = (&self.ring, &self.rest_length);
+        let (t, p) = (&b.t, &b.p);
+        let (face_q, face_r) = (&b.face_q, &b.face_r);
+        let normal = &b.normal;
+        // The scan → fit block of corners (l, k) of face f.
+        let coupling = |f: usize, l: usize, k: usize| face_q[f][pair(l, k)];
+        b.off
+            .par_iter_mut()
+            .zip(self.edge_faces.par_iter())
+            .with_min_len(MIN_LEN)
+            .for_each(|(a, shared)| {
+                *a = -isometry * Mat3::identity();
+                for e in shared.iter().filter(|e| e.face != u32::MAX) {
+                    let [li, lk] = e.corners;
+                    *a += c * coupling(e.face as usize, li as usize, lk as usize);
+                }
+            });
+        b.rhs
+            .par_iter_mut()
+            .zip(b.diag.par_iter_mut().zip(b.diag_inv.par_iter_mut()))
+            .enumerate()
+            .with_min_len(MIN_LEN)
+            .for_each(|(i, (rhs, (diag, diag_inv)))| {
+                let lo = ring.offsets[i];
+                let vi = vec3(&y[i]);
+                let mut sum = Vec3::zeros();
+                let neighbours = ring.of(i);
+                for (e, &k) in neighbours.iter().enumerate() {
+                    let edge = vi - vec3(&y[k as usize]);
+                    let len = edge.norm();
+                    if len > 0.0 {
+                        sum += edge * (rest_length[lo + e] / len);
+                    }
+                }
+                let mut out = isometry * sum + t[i] * vec3(&p[i]);
+                let n = vec3(&normal[i]);
+                let mut d = isometry * neighbours.len() as f64 * Mat3::identity()
+                    + t[i] * n * n.transpose();
+                for &f in self.vertex_faces.of(i) {
+                    let f = f as usize;
+                    let l = corner(&self.faces[f], i);
+                    d += c * coupling(f, l, l);
+                    out += c * face_r[f][l];
+                }
+                *rhs = out.into();
+                *diag = d;
+                *diag_inv = block_inverse(&d);
+            });
+    }
+}
+
+/// A scan point's closest point on the fit (see [`Buffers::closest`]).
+#[derive(Clone, Copy, Debug, Default)]
+struct Closest {
+    bary: [f64; 3],
+    distance: f64,
+    direction: Vec3,
+}
+
+/// The index of the pair of corners `(l, k)`, in either order, among the six of a face.
+#[inline]
+fn pair(l: usize, k: usize) -> usize {
+    let (a, b) = if l <= k { (l, k) } else { (k, l) };
+    // (0,0) (0,1) (0,2) (1,1) (1,2) (2,2)
+    a * 3 - a * (a + 1) / 2 + b
+}
+
+/// A face holding an edge (i, k), with the corners of i and k in it.
+#[derive(Clone, Copy, Debug)]
+struct EdgeFace {
+    face: u32,
+    corners: [u8; 2],
+}
+
+impl EdgeFace {
+    const NONE: Self = Self {
+        face: u32::MAX,
+        corners: [0; 2],
+    };
+}
+
+/// [`CG_STEPS`] block-Jacobi-preconditioned conjugate-gradient steps on `b`'s system, from
+/// `y` (the point-to-plane term couples a vertex's coordinates: one system of 3M unknowns).
+fn solve(y: &mut [[f64; 3]], ring: &Neighborhoods, b: &mut Buffers) {
+    let system = System {
+        ring,
+        diag: &b.diag,
+        diag_inv: &b.diag_inv,
+        off: &b.off,
+    };
+    // r = rhs − A y, z = M⁻¹ r, dir = z.
+    system.product(y, &mut b.a_dir);
+    b.r.par_iter_mut()
+        .zip(b.rhs.par_iter())
+        .zip(b.a_dir.par_iter())
+        .with_min_len(MIN_LEN)
+        .for_each(|((r, rhs), ay)| *r = std::array::from_fn(|a| rhs[a] - ay[a]));
+    system.precondition(&b.r, &mut b.z);
+    b.dir.clone_from_slice(&b.z);
+    let mut rz = dot(&b.r, &b.z, &mut b.partials);
+    for _ in 0..CG_STEPS {
+        system.product(&b.dir, &mut b.a_dir);
+        let pap = dot(&b.dir, &b.a_dir, &mut b.partials);
+        if pap <= 0.0 || rz <= 0.0 {
+            break;
+        }
+        let alpha = rz / pap;
+        y.par_iter_mut()
+            .zip(b.r.par_iter_mut())
+            .zip(b.dir.par_iter().zip(b.a_dir.par_iter()))
+            .with_min_len(MIN_LEN)
+            .for_each(|((v, r), (d, ad))| {
+                for a in 0..3 {
+                    v[a] += alpha * d[a];
+                    r[a] -= alpha * ad[a];
+                }
+            });
+        system.precondition(&b.r, &mut b.z);
+        let rz_next = dot(&b.r, &b.z, &mut b.partials);
+        let beta = rz_next / rz;
+        rz = rz_next;
+        b.dir
+            .par_iter_mut()
+            .zip(b.z.par_iter())
+            .with_min_len(MIN_LEN)
+            .for_each(|(d, z)| (0..3).for_each(|a| d[a] = z[a] + beta * d[a]));
+    }
+}
+
+/// The global step's matrix in 3 × 3 blocks: `diag` and `off` (on the ring's slots).
+struct System<'s> {
+    ring: &'s Neighborhoods,
+    diag: &'s [Mat3],
+    diag_inv: &'s [Mat3],
+    off: &'s [Mat3],
+}
+
+impl System<'_> {
+    /// `out = A x`.
+    fn product(&self, x: &[[f64; 3]], out: &mut [[f64; 3]]) {
+        out.par_iter_mut()
+            .enumerate()
+            .with_min_len(MIN_LEN)
+            .for_each(|(i, o)| {
+                let (lo, hi) = (self.ring.offsets[i], self.ring.offsets[i + 1]);
+                let mut v = self.diag[i] * vec3(&x[i]);
+                for (&k, a) in self.ring.members[lo..hi].iter().zip(&self.off[lo..hi]) {
+                    v += a * vec3(&x[k as usize]);
+                }
+                *o = v.into();
+            });
+    }
+
+    /// `z = M⁻¹ r`, M the 3 × 3 diagonal blocks.
+    fn precondition(&self, r: &[[f64; 3]], z: &mut [[f64; 3]]) {
+        z.par_iter_mut()
+            .zip(r.par_iter())
+            .zip(self.diag_inv.par_iter())
+            .with_min_len(MIN_LEN)
+            .for_each(|((z, r), d)| *z = (d * vec3(r)).into());
+    }
+}
+
+/// The inverse of a diagonal block: symmetric positive definite where the vertex has
+/// neighbours; a singular block is inverted through its trace (0 when it is 0).
+fn block_inverse(d: &Mat3) -> Mat3 {
+    match d.cholesky() {
+        Some(ch) => ch.inverse(),
+        None if d.trace() > 0.0 => Mat3::identity() * (3.0 / d.trace()),
+        None => Mat3::zeros(),
+    }
+}
+
+/// The position of corner `i` of `face`.
+#[inline]
+fn corner(face: &[u32; 3], i: usize) -> usize {
+    face.iter().position(|&u| u as usize == i).unwrap_or(0)
+}
+
+/// `Σ_i a_i · b_i`, summed in fixed chunks (the same for any thread count).
+fn dot(a: &[[f64; 3]], b: &[[f64; 3]], partials: &mut [f64]) -> f64 {
+    partials
+        .par_iter_mut()
+        .zip(a.par_chunks(CHUNK).zip(b.par_chunks(CHUNK)))
+        .for_each(|(p, (a, b))| {
+            *p = a
+                .iter()
+                .zip(b)
+                .map(|(x, y)| x[0] * y[0] + x[1] * y[1] + x[2] * y[2])
+                .sum();
+        });
+    partials.iter().sum()
+}
+
+/// The median of `values` (the upper one of an even count), sorted in `scratch`.
+fn median(values: &[f64], scratch: &mut Vec<f64>) -> f64 {
+    scratch.clear();
+    scratch.extend_from_slice(values);
+    if scratch.is_empty() {
+        return 0.0;
+    }
+    let mid = scratch.len() / 2;
+    *scratch.select_nth_unstable_by(mid, f64::total_cmp).1
+}
+
+/// The unit normal of the least-squares plane through `points` (the covariance's eigenvector
+/// of the smallest eigenvalue).
+fn plane_normal(points: impl Iterator<Item = [f64; 3]> + Clone) -> [f64; 3] {
+    let (mut mean, mut n) = (Vec3::zeros(), 0.0_f64);
+    for p in points.clone() {
+        mean += vec3(&p);
+        n += 1.0;
+    }
+    mean /= n.max(1.0);
+    let mut cov = Mat3::zeros();
+    for p in points {
+        let d = vec3(&p) - mean;
+        cov += d * d.transpose();
+    }
+    let eig = sym_eigen3(&cov);
+    let smallest = (0..3)
+        .min_by(|&a, &b| eig.values[a].total_cmp(&eig.values[b]))
+        .unwrap_or(0);
+    eig.vectors.column(smallest).into_owned().into()
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,129 @@
+//! The isometric refinement on sheets whose answer is known: a cylinder patch slid along
+//! itself, a flat sheet stretched in its plane, a fit already at its scan.
+
+use super::*;
+use crate::fit::{DEFAULT_ISOMETRIC_WEIGHT as WEIGHT, TRACKING_ISOMETRIC_ITERATIONS as ITERATIONS};
+use crate::metrics::bbox_diagonal;
+use crate::synthetic::{grid_sheet, sample_surface, SplitMix64};
+
+/// A grid bent onto a cylinder of radius 1 about the y axis (a 120° arc): sliding it about the
+/// axis keeps it on its own surface, which only its rim and its metric can tell.
+fn cylinder_patch() -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
+    let (flat, faces) = grid_sheet(25, 13, 2.0 * std::f64::consts::PI / 3.0, 1.0);
+    let bent = flat
+        .iter()
+        .map(|p| [p[0].sin(), p[1], p[0].cos()])
+        .collect();
+    (bent, faces)
+}
+
+/// `points` turned by `degrees` about the y axis.
+fn turned(points: &[[f64; 3]], degrees: f64) -> Vec<[f64; 3]> {
+    let (s, c) = degrees.to_radians().sin_cos();
+    points
+        .iter()
+        .map(|p| [c * p[0] + s * p[2], p[1], -s * p[0] + c * p[2]])
+        .collect()
+}
+
+fn rms(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
+    let sum: f64 = a.iter().zip(b).map(|(x, y)| dist2(x, y)).sum();
+    (sum / a.len() as f64).sqrt()
+}
+
+/// The largest `|ℓ / ℓ⁰ − 1|` over the mesh's edges.
+fn worst_strain(v: &[[f64; 3]], rest: &[[f64; 3]], faces: &[[u32; 3]]) -> f64 {
+    faces
+        .iter()
+        .flat_map(|f| [(f[0], f[1]), (f[1], f[2]), (f[2], f[0])])
+        .map(|(a, b)| {
+            let (a, b) = (a as usize, b as usize);
+            let l = (vec3(&v[a]) - vec3(&v[b])).norm();
+            let l0 = (vec3(&rest[a]) - vec3(&rest[b])).norm();
+            (l / l0 - 1.0).abs()
+        })
+        .fold(0.0, f64::max)
+}
+
+fn scan_of(v: &[[f64; 3]], faces: &[[u32; 3]], count: usize) -> Vec<[f64; 3]> {
+    sample_surface(v, faces, count, &mut SplitMix64::new(7))
+}
+
+#[test]
+fn a_patch_slid_along_its_own_surface_is_brought_back() {
+    let (truth, faces) = cylinder_patch();
+    let scan = scan_of(&truth, &faces, 4000);
+    let mut fit = turned(&truth, 8.0);
+    let before = rms(&fit, &truth);
+    IsometricRefine::new(&truth, &faces, &scan, None).run(&mut fit, ITERATIONS, WEIGHT);
+    let after = rms(&fit, &truth);
+    assert!(
+        after < 0.2 * before,
+        "slid {before:.4}, refined {after:.4} from the truth"
+    );
+}
+
+#[test]
+fn a_stretched_sheet_gets_its_rest_lengths_back() {
+    let (rest, faces) = grid_sheet(21, 21, 1.0, 1.0);
+    let scan = scan_of(&rest, &faces, 3000);
+    // Stretched by 15 % along x about its middle: still on the scan's plane.
+    let mut fit: Vec<[f64; 3]> = rest.iter().map(|p| [1.15 * p[0], p[1], p[2]]).collect();
+    let strained = worst_strain(&fit, &rest, &faces);
+    IsometricRefine::new(&rest, &faces, &scan, None).run(&mut fit, ITERATIONS, WEIGHT);
+    let strain = worst_strain(&fit, &rest, &faces);
+    assert!(
+        strained > 0.14 && strain < 0.03,
+        "strain {strained:.3} -> {strain:.3}"
+    );
+    assert!(
+        rms(&fit, &rest) < 0.01,
+        "{:.4} from the rest shape",
+        rms(&fit, &rest)
+    );
+}
+
+#[test]
+fn a_fit_at_its_scan_stays_there() {
+    let (truth, faces) = cylinder_patch();
+    let scan = scan_of(&truth, &faces, 6000);
+    let mut fit = truth.clone();
+    IsometricRefine::new(&truth, &faces, &scan, None).run(&mut fit, ITERATIONS, WEIGHT);
+    let moved = rms(&fit, &truth) / bbox_diagonal(&truth);
+    assert!(moved < 2e-3, "moved {moved:.5} of the diagonal");
+}
+
+#[test]
+fn scaling_every_weight_changes_nothing() {
+    let (truth, faces) = cylinder_patch();
+    let scan = scan_of(&truth, &faces, 2000);
+    let weights: Vec<f64> = (0..scan.len()).map(|j| 1.0 + (j % 3) as f64).collect();
+    let doubled: Vec<f64> = weights.iter().map(|w| 2.0 * w).collect();
+    let start = turned(&truth, 5.0);
+    let (mut a, mut b) = (start.clone(), start);
+    IsometricRefine::new(&truth, &faces, &scan, Some(&weights)).run(&mut a, 20, WEIGHT);
+    IsometricRefine::new(&truth, &faces, &scan, Some(&doubled)).run(&mut b, 20, WEIGHT);
+    assert!(rms(&a, &b) < 1e-9, "{:e}", rms(&a, &b));
+    // The weights matter: uniform ones give another fit.
+    let mut c = turned(&truth, 5.0);
+    IsometricRefine::new(&truth, &faces, &scan, None).run(&mut c, 20, WEIGHT);
+    assert!(rms(&a, &c) > 1e-6);
+}
+
+#[test]
+fn the_same_result_for_any_thread_count() {
+    let (truth, faces) = cylinder_patch();
+    let scan = scan_of(&truth, &faces, 3000);
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let mut fit = turned(&truth, 6.0);
+            IsometricRefine::new(&truth, &faces, &scan, None).run(&mut fit, 15, WEIGHT);
+            fit
+        })
+    };
+    assert_eq!(run(1), run(3));
+}
