@@ -611,7 +611,9 @@ def prealign(template_vertices: Any, target: Any, motion: str = "rigid") -> dict
     (docs/method.md, "Global pre-alignment"). Returns ``rotation`` (3, 3), ``scale`` and
     ``translation`` (3,) of ``p ↦ scale · rotation · p + translation`` (template → scan), the
     robust two-sided distances ``identity_score`` (the placement as given) and ``score`` (after),
-    and ``searched`` (False: the placement as given was already good and was kept)."""
+    ``searched`` (False: the placement as given was already good and was kept) and ``readings``
+    (the orientations that fit the scan alike; above 1, a symmetric template's reading was
+    chosen by least turn, and landmarks settle it; 0 when nothing was searched)."""
     if motion not in ("rigid", "similarity"):
         raise InvalidParameterError(f'parameter motion = {motion!r}: must be "rigid" or "similarity"')
     return _core.prealign_transform(

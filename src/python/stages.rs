@@ -214,6 +214,7 @@ pub(super) fn prealign_transform<'py>(
     d.set_item("score", a.score)?;
     d.set_item("identity_score", a.identity_score)?;
     d.set_item("searched", a.searched)?;
+    d.set_item("readings", a.readings)?;
     Ok(d)
 }
 
