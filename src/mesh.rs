@@ -160,6 +160,12 @@ pub struct VertexFaces {
 }
 
 impl VertexFaces {
+    /// The faces of vertex `v`.
+    #[inline]
+    pub fn of(&self, v: usize) -> &[u32] {
+        &self.faces[self.offsets[v]..self.offsets[v + 1]]
+    }
+
     /// Builds the incidence lists of `n_vertices` vertices.
     pub fn new(faces: &[[u32; 3]], n_vertices: usize) -> Self {
         let mut counts = vec![0usize; n_vertices + 1];

@@ -2,6 +2,7 @@
 //! the vertices within graph distance n (the "n-ring") of every template vertex, including the
 //! vertex itself, in CSR form, computed once per fit. β_j = 1/|Γᵏ_Y| weighs each member equally.
 
+use crate::math::vec3;
 use rayon::prelude::*;
 
 /// Neighborhoods in compressed sparse row form: members of vertex k are
@@ -62,6 +63,18 @@ impl Neighborhoods {
         }
         Self { offsets, members }
     }
+}
+
+/// The length in `points` of every edge of `ring`, in the order of `ring.members` (the edge
+/// from vertex v to each member of its row).
+pub fn ring_lengths(ring: &Neighborhoods, points: &[[f64; 3]]) -> Vec<f64> {
+    (0..ring.len())
+        .flat_map(|v| {
+            ring.of(v)
+                .iter()
+                .map(move |&u| (vec3(&points[v]) - vec3(&points[u as usize])).norm())
+        })
+        .collect()
 }
 
 /// Vertex adjacency (one-ring) of a triangle mesh in CSR form, sorted, without duplicates.

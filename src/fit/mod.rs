@@ -378,7 +378,7 @@ fn fit_from(
         isometric_refinement(
             &mut refined,
             rest_shape,
-            &prepared.faces,
+            &prepared,
             target,
             target_weights,
             assessed,
@@ -549,7 +549,7 @@ type Placement = (Option<Vec<[f64; 3]>>, Option<PrealignFigures>);
 fn isometric_refinement(
     vertices: &mut [[f64; 3]],
     rest: &[[f64; 3]],
-    faces: &[[u32; 3]],
+    prepared: &Prepared,
     target: &[[f64; 3]],
     weights: Option<&[f64]>,
     assessed: Option<&[usize]>,
@@ -566,7 +566,8 @@ fn isometric_refinement(
     if points.len() < 12 {
         return;
     }
-    IsometricRefine::new(rest, faces, &points, point_weights.as_deref()).run(
+    let (faces, incidence) = (&prepared.faces, &prepared.incidence);
+    IsometricRefine::new(rest, faces, incidence, &points, point_weights.as_deref()).run(
         vertices,
         params.schedule.isometric_iterations,
         params.schedule.isometric_weight,

@@ -8,7 +8,7 @@
 //! rest-shape rigidity — faded to 0 by the last iteration — no longer does.
 
 use crate::math::vec3;
-use crate::rings::{adjacency, Neighborhoods};
+use crate::rings::{adjacency, ring_lengths, Neighborhoods};
 use rayon::prelude::*;
 
 /// Every vertex's one-ring ([`adjacency`]) with the rest length of each of its edges, and the
@@ -31,13 +31,7 @@ impl StrainLimit {
     pub(super) fn new(rest: &[[f64; 3]], faces: &[[u32; 3]], pinned: &[u32]) -> Self {
         let m = rest.len();
         let ring = adjacency(faces, m);
-        let rest_length = (0..m)
-            .flat_map(|v| {
-                ring.of(v)
-                    .iter()
-                    .map(move |&u| (vec3(&rest[v]) - vec3(&rest[u as usize])).norm())
-            })
-            .collect();
+        let rest_length = ring_lengths(&ring, rest);
         let mut is_pinned = vec![false; m];
         for &v in pinned {
             is_pinned[v as usize] = true;

@@ -24,10 +24,13 @@
 //! [`TRIM`] × the median distance and [`REACH`] edge lengths (it has no scan under it), and
 //! likewise `ω_j` for a scan point far from the fit.
 
+use crate::curvature::neighbourhood_frame;
 use crate::knn::{BoxTree, PointIndex};
-use crate::math::{dist2, sym_eigen3, vec3, Mat3, Vec3};
+use crate::math::{dist2, vec3, Mat3, Vec3};
+use crate::mesh::VertexFaces;
+use crate::metrics::upper_median;
 use crate::quality::closest_barycentric;
-use crate::rings::{adjacency, Neighborhoods};
+use crate::rings::{adjacency, ring_lengths, Neighborhoods};
 use rayon::prelude::*;
 
 /// Matches beyond this multiple of their median distance (and beyond [`REACH`]) are dropped
@@ -54,7 +57,7 @@ pub struct IsometricRefine<'a> {
     /// Every vertex's one-ring: the off-diagonal pattern of the global step's matrix.
     ring: Neighborhoods,
     rest_length: Vec<f64>,
-    vertex_faces: Neighborhoods,
+    vertex_faces: &'a VertexFaces,
     /// For each slot of `ring.members` (the edge from vertex i to k): the faces holding the
     /// edge, at most two, with the corners of i and k (`u32::MAX`: none).
     edge_faces: Vec<[EdgeFace; 2]>,
@@ -81,7 +84,7 @@ struct Buffers {
     tree: BoxTree,
     matched: Vec<(u32, f64)>,
     face_of: Vec<u32>,
-    /// Every scan point's closest point on the face of its nearest sample: barycentric
+    /// Every scan point's closest point on the faces of its nearest vertex: barycentric
     /// coordinates, distance, and the direction `e` its distance is measured along.
     closest: Vec<Closest>,
     /// Per face, over the scan points matched to it: `Σ ω b_l b_k e eᵀ` for each pair of
@@ -107,34 +110,24 @@ const MIN_LEN: usize = 256;
 
 impl<'a> IsometricRefine<'a> {
     /// The edges of `faces` at their lengths in `rest`, and the scan's normals (the plane of
-    /// each point's 12 nearest points). `weights`, when given, weigh the
-    /// scan points (every point passed is one the fit is drawn to). `scan` must not be empty.
+    /// each point's 12 nearest points). `vertex_faces`: the faces' incidence lists.
+    /// `weights`, when given, weigh the scan points (every point passed is one the fit is
+    /// drawn to). `scan` must not be empty.
     pub fn new(
         rest: &[[f64; 3]],
         faces: &'a [[u32; 3]],
+        vertex_faces: &'a VertexFaces,
         scan: &'a [[f64; 3]],
         weights: Option<&'a [f64]>,
     ) -> Self {
         let m = rest.len();
         let ring = adjacency(faces, m);
-        let rest_length: Vec<f64> = (0..m)
-            .flat_map(|v| {
-                ring.of(v)
-                    .iter()
-                    .map(move |&u| (vec3(&rest[v]) - vec3(&rest[u as usize])).norm())
-            })
-            .collect();
+        let rest_length = ring_lengths(&ring, rest);
         let edges = rest_length.len().max(1) as f64;
         let reach = REACH * rest_length.iter().sum::<f64>() / edges;
-        let vertex_faces = Neighborhoods::from_pairs(m, || {
-            faces
-                .iter()
-                .enumerate()
-                .flat_map(|(f, t)| t.map(|v| (v, f as u32)))
-        });
         let edge_faces = (0..m)
             .flat_map(|i| {
-                let (ring, vertex_faces) = (&ring, &vertex_faces);
+                let ring = &ring;
                 ring.of(i).iter().map(move |&k| {
                     let mut found = [EdgeFace::NONE; 2];
                     let shared = vertex_faces.of(i).iter().filter_map(|&f| {
@@ -160,7 +153,13 @@ impl<'a> IsometricRefine<'a> {
                 || (vec![0u32; k], vec![0.0; k]),
                 |(idx, d2), x| {
                     scan_index.nearest_into(x, idx, d2);
-                    plane_normal(idx.iter().map(|&j| scan[j as usize]))
+                    // The normal of their best-fitting plane.
+                    let normal = neighbourhood_frame(scan, idx)
+                        .1
+                        .vectors
+                        .column(2)
+                        .into_owned();
+                    <[f64; 3]>::from(normal)
                 },
             )
             .collect();
@@ -530,36 +529,14 @@ fn dot(a: &[[f64; 3]], b: &[[f64; 3]], partials: &mut [f64]) -> f64 {
     partials.iter().sum()
 }
 
-/// The median of `values` (the upper one of an even count), sorted in `scratch`.
+/// The upper median of `values` (0 when empty), selected in `scratch`.
 fn median(values: &[f64], scratch: &mut Vec<f64>) -> f64 {
     scratch.clear();
     scratch.extend_from_slice(values);
     if scratch.is_empty() {
         return 0.0;
     }
-    let mid = scratch.len() / 2;
-    *scratch.select_nth_unstable_by(mid, f64::total_cmp).1
-}
-
-/// The unit normal of the least-squares plane through `points` (the covariance's eigenvector
-/// of the smallest eigenvalue).
-fn plane_normal(points: impl Iterator<Item = [f64; 3]> + Clone) -> [f64; 3] {
-    let (mut mean, mut n) = (Vec3::zeros(), 0.0_f64);
-    for p in points.clone() {
-        mean += vec3(&p);
-        n += 1.0;
-    }
-    mean /= n.max(1.0);
-    let mut cov = Mat3::zeros();
-    for p in points {
-        let d = vec3(&p) - mean;
-        cov += d * d.transpose();
-    }
-    let eig = sym_eigen3(&cov);
-    let smallest = (0..3)
-        .min_by(|&a, &b| eig.values[a].total_cmp(&eig.values[b]))
-        .unwrap_or(0);
-    eig.vectors.column(smallest).into_owned().into()
+    upper_median(scratch)
 }
 
 #[cfg(test)]

@@ -45,6 +45,19 @@ fn worst_strain(v: &[[f64; 3]], rest: &[[f64; 3]], faces: &[[u32; 3]]) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// [`IsometricRefine`] of `fit` onto `scan`, `steps` steps at the default weight.
+fn refine(
+    rest: &[[f64; 3]],
+    faces: &[[u32; 3]],
+    scan: &[[f64; 3]],
+    weights: Option<&[f64]>,
+    fit: &mut [[f64; 3]],
+    steps: usize,
+) {
+    let incidence = VertexFaces::new(faces, rest.len());
+    IsometricRefine::new(rest, faces, &incidence, scan, weights).run(fit, steps, WEIGHT);
+}
+
 fn scan_of(v: &[[f64; 3]], faces: &[[u32; 3]], count: usize) -> Vec<[f64; 3]> {
     sample_surface(v, faces, count, &mut SplitMix64::new(7))
 }
@@ -55,7 +68,7 @@ fn a_patch_slid_along_its_own_surface_is_brought_back() {
     let scan = scan_of(&truth, &faces, 4000);
     let mut fit = turned(&truth, 8.0);
     let before = rms(&fit, &truth);
-    IsometricRefine::new(&truth, &faces, &scan, None).run(&mut fit, ITERATIONS, WEIGHT);
+    refine(&truth, &faces, &scan, None, &mut fit, ITERATIONS);
     let after = rms(&fit, &truth);
     assert!(
         after < 0.2 * before,
@@ -70,7 +83,7 @@ fn a_stretched_sheet_gets_its_rest_lengths_back() {
     // Stretched by 15 % along x about its middle: still on the scan's plane.
     let mut fit: Vec<[f64; 3]> = rest.iter().map(|p| [1.15 * p[0], p[1], p[2]]).collect();
     let strained = worst_strain(&fit, &rest, &faces);
-    IsometricRefine::new(&rest, &faces, &scan, None).run(&mut fit, ITERATIONS, WEIGHT);
+    refine(&rest, &faces, &scan, None, &mut fit, ITERATIONS);
     let strain = worst_strain(&fit, &rest, &faces);
     assert!(
         strained > 0.14 && strain < 0.03,
@@ -88,7 +101,7 @@ fn a_fit_at_its_scan_stays_there() {
     let (truth, faces) = cylinder_patch();
     let scan = scan_of(&truth, &faces, 6000);
     let mut fit = truth.clone();
-    IsometricRefine::new(&truth, &faces, &scan, None).run(&mut fit, ITERATIONS, WEIGHT);
+    refine(&truth, &faces, &scan, None, &mut fit, ITERATIONS);
     let moved = rms(&fit, &truth) / bbox_diagonal(&truth);
     assert!(moved < 2e-3, "moved {moved:.5} of the diagonal");
 }
@@ -101,12 +114,12 @@ fn scaling_every_weight_changes_nothing() {
     let doubled: Vec<f64> = weights.iter().map(|w| 2.0 * w).collect();
     let start = turned(&truth, 5.0);
     let (mut a, mut b) = (start.clone(), start);
-    IsometricRefine::new(&truth, &faces, &scan, Some(&weights)).run(&mut a, 20, WEIGHT);
-    IsometricRefine::new(&truth, &faces, &scan, Some(&doubled)).run(&mut b, 20, WEIGHT);
+    refine(&truth, &faces, &scan, Some(&weights), &mut a, 20);
+    refine(&truth, &faces, &scan, Some(&doubled), &mut b, 20);
     assert!(rms(&a, &b) < 1e-9, "{:e}", rms(&a, &b));
     // The weights matter: uniform ones give another fit.
     let mut c = turned(&truth, 5.0);
-    IsometricRefine::new(&truth, &faces, &scan, None).run(&mut c, 20, WEIGHT);
+    refine(&truth, &faces, &scan, None, &mut c, 20);
     assert!(rms(&a, &c) > 1e-6);
 }
 
@@ -121,7 +134,7 @@ fn the_same_result_for_any_thread_count() {
             .unwrap();
         pool.install(|| {
             let mut fit = turned(&truth, 6.0);
-            IsometricRefine::new(&truth, &faces, &scan, None).run(&mut fit, 15, WEIGHT);
+            refine(&truth, &faces, &scan, None, &mut fit, 15);
             fit
         })
     };
