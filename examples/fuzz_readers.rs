@@ -47,8 +47,14 @@ static REFUSED: AtomicUsize = AtomicUsize::new(0);
 
 impl CountingAlloc {
     fn admit(size: usize) -> bool {
+        // An oversized request is refused before it touches the live count, which other
+        // threads read: counting it even for an instant would refuse their small requests.
+        if size > ALLOCATION_LIMIT {
+            REFUSED.fetch_max(size, Ordering::Relaxed);
+            return false;
+        }
         let live = LIVE.fetch_add(size, Ordering::Relaxed) + size;
-        if size > ALLOCATION_LIMIT || live > ALLOCATION_LIMIT {
+        if live > ALLOCATION_LIMIT {
             LIVE.fetch_sub(size, Ordering::Relaxed);
             REFUSED.fetch_max(size, Ordering::Relaxed);
             return false;

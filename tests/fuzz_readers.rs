@@ -10,7 +10,19 @@ mod driver;
 
 use driver::{execute, live_bytes, load_corpus, reset_peak, run, Config, Reader, Verdict};
 use std::path::Path;
+use std::sync::{Mutex, MutexGuard};
 use std::time::Duration;
+
+/// The counting allocator's live bytes, peak and refusals are process-wide, so tests running
+/// side by side would see each other's allocations (a large request admitted in one test
+/// leaves too little of the limit for an infallible allocation in another, which aborts the
+/// process; a refusal in one would be blamed on another's input). Each test holds this lock
+/// for its whole run.
+static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
+
+fn serial() -> MutexGuard<'static, ()> {
+    ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner())
+}
 
 fn root() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -19,6 +31,7 @@ fn root() -> &'static Path {
 /// The allocator refuses what a reader must never ask for, and the driver calls it a crash.
 #[test]
 fn the_driver_catches_large_allocations_and_panics() {
+    let _serial = serial();
     let mut v: Vec<u8> = Vec::new();
     assert!(v.try_reserve_exact(driver::ALLOCATION_LIMIT + 1).is_err());
     assert!(driver::take_refused() > driver::ALLOCATION_LIMIT);
@@ -34,6 +47,7 @@ fn the_driver_catches_large_allocations_and_panics() {
 }
 
 fn short_run(reader: Reader, seed: u64) {
+    let _serial = serial();
     let corpus = load_corpus(&root().join("tests/fuzz/corpus").join(reader.name()));
     assert!(corpus.len() >= 5, "{}: seed corpus missing", reader.name());
     let summary = run(&Config {
@@ -71,6 +85,7 @@ fn short_fuzz_obj() {
 /// The reader is chosen by the name: `obj-*`, `ply-ascii-*` or `ply-binary-*`.
 #[test]
 fn regressions_are_clean_and_bounded() {
+    let _serial = serial();
     let dir = root().join("tests/fuzz/regressions");
     let mut n = 0;
     for entry in std::fs::read_dir(&dir).unwrap() {
