@@ -209,8 +209,9 @@ impl<'a> IsometricRefine<'a> {
             if step % MATCH_EVERY == 0 {
                 self.fit_to_scan(vertices, &mut b);
                 c = self.scan_to_fit(vertices, &mut b);
+                self.assemble_matrix(&mut b, isometry, c);
             }
-            self.assemble(vertices, &mut b, isometry, c);
+            self.assemble_rhs(vertices, &mut b, isometry, c);
             solve(vertices, &self.ring, &mut b);
         }
     }
@@ -330,14 +331,13 @@ impl<'a> IsometricRefine<'a> {
         }
     }
 
-    /// The global step's system `A y = rhs` at the edge directions of `y`, in 3 × 3 blocks on
-    /// the ring's pattern (two vertices of one face are neighbours):
-    /// A = w L ⊗ I + diag(t n nᵀ) + c Σ_j ω_j (b_j b_jᵀ) ⊗ e_j e_jᵀ,
-    /// rhs = w Dᵀd + t n (n · x) + c Σ_j ω_j b_j e_j (e_j · x_j).
-    fn assemble(&self, y: &[[f64; 3]], b: &mut Buffers, isometry: f64, c: f64) {
-        let (ring, rest_length) = (&self.ring, &self.rest_length);
-        let (t, p) = (&b.t, &b.p);
-        let (face_q, face_r) = (&b.face_q, &b.face_r);
+    /// The global step's matrix, in 3 × 3 blocks on the ring's pattern (two vertices of one
+    /// face are neighbours); it changes only with the matches:
+    /// A = w L ⊗ I + diag(t n nᵀ) + c Σ_j ω_j (b_j b_jᵀ) ⊗ e_j e_jᵀ.
+    fn assemble_matrix(&self, b: &mut Buffers, isometry: f64, c: f64) {
+        let ring = &self.ring;
+        let t = &b.t;
+        let face_q = &b.face_q;
         let normal = &b.normal;
         // The scan → fit block of corners (l, k) of face f.
         let coupling = |f: usize, l: usize, k: usize| face_q[f][pair(l, k)];
@@ -352,17 +352,39 @@ impl<'a> IsometricRefine<'a> {
                     *a += c * coupling(e.face as usize, li as usize, lk as usize);
                 }
             });
-        b.rhs
+        b.diag
             .par_iter_mut()
-            .zip(b.diag.par_iter_mut().zip(b.diag_inv.par_iter_mut()))
+            .zip(b.diag_inv.par_iter_mut())
             .enumerate()
             .with_min_len(MIN_LEN)
-            .for_each(|(i, (rhs, (diag, diag_inv)))| {
+            .for_each(|(i, (diag, diag_inv))| {
+                let n = vec3(&normal[i]);
+                let mut d = isometry * ring.of(i).len() as f64 * Mat3::identity()
+                    + t[i] * n * n.transpose();
+                for &f in self.vertex_faces.of(i) {
+                    let f = f as usize;
+                    let l = corner(&self.faces[f], i);
+                    d += c * coupling(f, l, l);
+                }
+                *diag = d;
+                *diag_inv = block_inverse(&d);
+            });
+    }
+
+    /// The global step's right-hand side at the edge directions of `y` (the local step):
+    /// rhs = w Dᵀd + t n (n · x) + c Σ_j ω_j b_j e_j (e_j · x_j).
+    fn assemble_rhs(&self, y: &[[f64; 3]], b: &mut Buffers, isometry: f64, c: f64) {
+        let (ring, rest_length) = (&self.ring, &self.rest_length);
+        let (t, p, face_r) = (&b.t, &b.p, &b.face_r);
+        b.rhs
+            .par_iter_mut()
+            .enumerate()
+            .with_min_len(MIN_LEN)
+            .for_each(|(i, rhs)| {
                 let lo = ring.offsets[i];
                 let vi = vec3(&y[i]);
                 let mut sum = Vec3::zeros();
-                let neighbours = ring.of(i);
-                for (e, &k) in neighbours.iter().enumerate() {
+                for (e, &k) in ring.of(i).iter().enumerate() {
                     let edge = vi - vec3(&y[k as usize]);
                     let len = edge.norm();
                     if len > 0.0 {
@@ -370,18 +392,11 @@ impl<'a> IsometricRefine<'a> {
                     }
                 }
                 let mut out = isometry * sum + t[i] * vec3(&p[i]);
-                let n = vec3(&normal[i]);
-                let mut d = isometry * neighbours.len() as f64 * Mat3::identity()
-                    + t[i] * n * n.transpose();
                 for &f in self.vertex_faces.of(i) {
                     let f = f as usize;
-                    let l = corner(&self.faces[f], i);
-                    d += c * coupling(f, l, l);
-                    out += c * face_r[f][l];
+                    out += c * face_r[f][corner(&self.faces[f], i)];
                 }
                 *rhs = out.into();
-                *diag = d;
-                *diag_inv = block_inverse(&d);
             });
     }
 }
@@ -418,6 +433,11 @@ impl EdgeFace {
 
 /// [`CG_STEPS`] block-Jacobi-preconditioned conjugate-gradient steps on `b`'s system, from
 /// `y` (the point-to-plane term couples a vertex's coordinates: one system of 3M unknowns).
+///
+/// Two fused passes per step, each over fixed chunks with its dot product summed per chunk
+/// (the same result for any thread count): the update `y += α p, r −= α A p, z = M⁻¹ r` with
+/// `r · z`, then the new direction `p = z + β p` with `A p = A z + β A p` (the product's
+/// recurrence, so one product per step reads `z` alone) and `p · A p`.
 fn solve(y: &mut [[f64; 3]], ring: &Neighborhoods, b: &mut Buffers) {
     let system = System {
         ring,
@@ -425,42 +445,30 @@ fn solve(y: &mut [[f64; 3]], ring: &Neighborhoods, b: &mut Buffers) {
         diag_inv: &b.diag_inv,
         off: &b.off,
     };
-    // r = rhs − A y, z = M⁻¹ r, dir = z.
-    system.product(y, &mut b.a_dir);
-    b.r.par_iter_mut()
-        .zip(b.rhs.par_iter())
-        .zip(b.a_dir.par_iter())
-        .with_min_len(MIN_LEN)
-        .for_each(|((r, rhs), ay)| *r = std::array::from_fn(|a| rhs[a] - ay[a]));
-    system.precondition(&b.r, &mut b.z);
-    b.dir.clone_from_slice(&b.z);
-    let mut rz = dot(&b.r, &b.z, &mut b.partials);
-    for _ in 0..CG_STEPS {
-        system.product(&b.dir, &mut b.a_dir);
-        let pap = dot(&b.dir, &b.a_dir, &mut b.partials);
+    // r = rhs − A y, z = M⁻¹ r.
+    let mut rz = system.residual(y, &b.rhs, &mut b.r, &mut b.z, &mut b.partials);
+    // p = z, A p.
+    let mut pap = system.direction(&b.z, 0.0, &mut b.dir, &mut b.a_dir, &mut b.partials);
+    for step in 0..CG_STEPS {
         if pap <= 0.0 || rz <= 0.0 {
             break;
         }
         let alpha = rz / pap;
-        y.par_iter_mut()
-            .zip(b.r.par_iter_mut())
-            .zip(b.dir.par_iter().zip(b.a_dir.par_iter()))
-            .with_min_len(MIN_LEN)
-            .for_each(|((v, r), (d, ad))| {
-                for a in 0..3 {
-                    v[a] += alpha * d[a];
-                    r[a] -= alpha * ad[a];
-                }
-            });
-        system.precondition(&b.r, &mut b.z);
-        let rz_next = dot(&b.r, &b.z, &mut b.partials);
+        let rz_next = system.update(
+            alpha,
+            y,
+            &mut b.r,
+            &mut b.z,
+            &b.dir,
+            &b.a_dir,
+            &mut b.partials,
+        );
+        if step + 1 == CG_STEPS {
+            break;
+        }
         let beta = rz_next / rz;
         rz = rz_next;
-        b.dir
-            .par_iter_mut()
-            .zip(b.z.par_iter())
-            .with_min_len(MIN_LEN)
-            .for_each(|(d, z)| (0..3).for_each(|a| d[a] = z[a] + beta * d[a]));
+        pap = system.direction(&b.z, beta, &mut b.dir, &mut b.a_dir, &mut b.partials);
     }
 }
 
@@ -473,28 +481,113 @@ struct System<'s> {
 }
 
 impl System<'_> {
-    /// `out = A x`.
-    fn product(&self, x: &[[f64; 3]], out: &mut [[f64; 3]]) {
-        out.par_iter_mut()
-            .enumerate()
-            .with_min_len(MIN_LEN)
-            .for_each(|(i, o)| {
-                let (lo, hi) = (self.ring.offsets[i], self.ring.offsets[i + 1]);
-                let mut v = self.diag[i] * vec3(&x[i]);
-                for (&k, a) in self.ring.members[lo..hi].iter().zip(&self.off[lo..hi]) {
-                    v += a * vec3(&x[k as usize]);
-                }
-                *o = v.into();
-            });
+    /// `(A x)_i`.
+    #[inline]
+    fn row(&self, i: usize, x: &[[f64; 3]]) -> Vec3 {
+        let (lo, hi) = (self.ring.offsets[i], self.ring.offsets[i + 1]);
+        let mut v = self.diag[i] * vec3(&x[i]);
+        for (&k, a) in self.ring.members[lo..hi].iter().zip(&self.off[lo..hi]) {
+            v += a * vec3(&x[k as usize]);
+        }
+        v
     }
 
-    /// `z = M⁻¹ r`, M the 3 × 3 diagonal blocks.
-    fn precondition(&self, r: &[[f64; 3]], z: &mut [[f64; 3]]) {
-        z.par_iter_mut()
-            .zip(r.par_iter())
-            .zip(self.diag_inv.par_iter())
-            .with_min_len(MIN_LEN)
-            .for_each(|((z, r), d)| *z = (d * vec3(r)).into());
+    /// `r = rhs − A y`, `z = M⁻¹ r` (M the 3 × 3 diagonal blocks); returns `r · z`.
+    fn residual(
+        &self,
+        y: &[[f64; 3]],
+        rhs: &[[f64; 3]],
+        r: &mut [[f64; 3]],
+        z: &mut [[f64; 3]],
+        partials: &mut [f64],
+    ) -> f64 {
+        r.par_chunks_mut(CHUNK)
+            .zip(z.par_chunks_mut(CHUNK))
+            .zip(partials.par_iter_mut())
+            .enumerate()
+            .for_each(|(chunk, ((r, z), partial))| {
+                let base = chunk * CHUNK;
+                let mut sum = 0.0;
+                for (o, (r, z)) in r.iter_mut().zip(z.iter_mut()).enumerate() {
+                    let i = base + o;
+                    let ri = vec3(&rhs[i]) - self.row(i, y);
+                    let zi = self.diag_inv[i] * ri;
+                    sum += ri.dot(&zi);
+                    *r = ri.into();
+                    *z = zi.into();
+                }
+                *partial = sum;
+            });
+        partials.iter().sum()
+    }
+
+    /// `p = z + β p` and `A p = A z + β A p` (β = 0: `p = z`, `A p = A z`); returns `p · A p`.
+    fn direction(
+        &self,
+        z: &[[f64; 3]],
+        beta: f64,
+        dir: &mut [[f64; 3]],
+        a_dir: &mut [[f64; 3]],
+        partials: &mut [f64],
+    ) -> f64 {
+        dir.par_chunks_mut(CHUNK)
+            .zip(a_dir.par_chunks_mut(CHUNK))
+            .zip(partials.par_iter_mut())
+            .enumerate()
+            .for_each(|(chunk, ((dir, a_dir), partial))| {
+                let base = chunk * CHUNK;
+                let mut sum = 0.0;
+                for (o, (d, ad)) in dir.iter_mut().zip(a_dir.iter_mut()).enumerate() {
+                    let i = base + o;
+                    let az = self.row(i, z);
+                    let (di, adi) = if beta == 0.0 {
+                        (vec3(&z[i]), az)
+                    } else {
+                        (vec3(&z[i]) + beta * vec3(d), az + beta * vec3(ad))
+                    };
+                    sum += di.dot(&adi);
+                    *d = di.into();
+                    *ad = adi.into();
+                }
+                *partial = sum;
+            });
+        partials.iter().sum()
+    }
+
+    /// `y += α p`, `r −= α A p`, `z = M⁻¹ r`; returns `r · z`.
+    #[allow(clippy::too_many_arguments)]
+    fn update(
+        &self,
+        alpha: f64,
+        y: &mut [[f64; 3]],
+        r: &mut [[f64; 3]],
+        z: &mut [[f64; 3]],
+        dir: &[[f64; 3]],
+        a_dir: &[[f64; 3]],
+        partials: &mut [f64],
+    ) -> f64 {
+        y.par_chunks_mut(CHUNK)
+            .zip(r.par_chunks_mut(CHUNK))
+            .zip(z.par_chunks_mut(CHUNK))
+            .zip(partials.par_iter_mut())
+            .enumerate()
+            .for_each(|(chunk, (((y, r), z), partial))| {
+                let base = chunk * CHUNK;
+                let mut sum = 0.0;
+                for (o, ((y, r), z)) in y.iter_mut().zip(r.iter_mut()).zip(z.iter_mut()).enumerate()
+                {
+                    let i = base + o;
+                    let yi = vec3(y) + alpha * vec3(&dir[i]);
+                    let ri = vec3(r) - alpha * vec3(&a_dir[i]);
+                    let zi = self.diag_inv[i] * ri;
+                    sum += ri.dot(&zi);
+                    *y = yi.into();
+                    *r = ri.into();
+                    *z = zi.into();
+                }
+                *partial = sum;
+            });
+        partials.iter().sum()
     }
 }
 
@@ -512,21 +605,6 @@ fn block_inverse(d: &Mat3) -> Mat3 {
 #[inline]
 fn corner(face: &[u32; 3], i: usize) -> usize {
     face.iter().position(|&u| u as usize == i).unwrap_or(0)
-}
-
-/// `Σ_i a_i · b_i`, summed in fixed chunks (the same for any thread count).
-fn dot(a: &[[f64; 3]], b: &[[f64; 3]], partials: &mut [f64]) -> f64 {
-    partials
-        .par_iter_mut()
-        .zip(a.par_chunks(CHUNK).zip(b.par_chunks(CHUNK)))
-        .for_each(|(p, (a, b))| {
-            *p = a
-                .iter()
-                .zip(b)
-                .map(|(x, y)| x[0] * y[0] + x[1] * y[1] + x[2] * y[2])
-                .sum();
-        });
-    partials.iter().sum()
 }
 
 /// The upper median of `values` (0 when empty), selected in `scratch`.
