@@ -67,6 +67,13 @@ impl Tracker {
         Ok(())
     }
 
+    /// Takes `fitted` as the next frame's fit without fitting it (a frame done elsewhere).
+    fn accept(&self, fitted: PyReadonlyArray2<'_, f64>) -> PyResult<()> {
+        let pts = points("fitted", &fitted)?;
+        self.inner()?.accept(pts).map_err(to_pyerr)?;
+        Ok(())
+    }
+
     /// Fits the next frame: `fit_raw`'s dict, with the frame's figures under `"tracking"`.
     #[pyo3(signature = (target, target_faces=None, target_weights=None, threads=None))]
     fn step<'py>(
