@@ -26,7 +26,7 @@
 
 use crate::curvature::neighbourhood_frame;
 use crate::knn::{BoxTree, PointIndex};
-use crate::math::{dist2, vec3, Mat3, Vec3};
+use crate::math::{dist2, sym_eigen3, vec3, Mat3, Vec3};
 use crate::mesh::VertexFaces;
 use crate::metrics::upper_median;
 use crate::quality::closest_barycentric;
@@ -591,15 +591,32 @@ impl System<'_> {
     }
 }
 
-/// The inverse of a diagonal block: symmetric positive definite where the vertex has
-/// neighbours; a singular block is inverted through its trace (0 when it is 0).
+/// The (pseudo-)inverse of a diagonal block, which is symmetric positive semi-definite. A
+/// vertex with springs has a well-conditioned block (its Cholesky factor); one without (a
+/// vertex no face uses, or spring weight 0) may have a singular block, say `t n nᵀ` alone,
+/// whose pseudo-inverse keeps the vertex's step in the block's range — an inverse of a
+/// round-off pivot would send it along its tangent plane without bound.
 fn block_inverse(d: &Mat3) -> Mat3 {
-    match d.cholesky() {
-        Some(ch) => ch.inverse(),
-        None if d.trace() > 0.0 => Mat3::identity() * (3.0 / d.trace()),
-        None => Mat3::zeros(),
+    if let Some(ch) = d.cholesky() {
+        let l = ch.l_dirty();
+        let pivots = [l[(0, 0)], l[(1, 1)], l[(2, 2)]].map(|x| x * x);
+        let (lo, hi) = pivots
+            .iter()
+            .fold((f64::INFINITY, 0.0_f64), |(lo, hi), &p| {
+                (lo.min(p), hi.max(p))
+            });
+        if lo > SINGULAR * hi {
+            return ch.inverse();
+        }
     }
+    let eigen = sym_eigen3(d);
+    let largest = eigen.values.iter().fold(0.0_f64, |m, &x| m.max(x));
+    eigen.map(|x| if x > SINGULAR * largest { 1.0 / x } else { 0.0 })
 }
+
+/// A block's eigenvalue (or squared Cholesky pivot) below this share of its largest counts as
+/// zero.
+const SINGULAR: f64 = 1e-9;
 
 /// The position of corner `i` of `face`.
 #[inline]

@@ -5,6 +5,7 @@ use super::*;
 use crate::fit::{DEFAULT_ISOMETRIC_WEIGHT as WEIGHT, TRACKING_ISOMETRIC_ITERATIONS as ITERATIONS};
 use crate::metrics::bbox_diagonal;
 use crate::synthetic::{grid_sheet, sample_surface, SplitMix64};
+use nalgebra::Rotation3;
 
 /// A grid bent onto a cylinder of radius 1 about the y axis (a 120° arc): sliding it about the
 /// axis keeps it on its own surface, which only its rim and its metric can tell.
@@ -139,4 +140,44 @@ fn the_same_result_for_any_thread_count() {
         })
     };
     assert_eq!(run(1), run(3));
+}
+
+/// A vertex no face uses has no springs, only its scan point's tangent plane (a rank-one
+/// block): it moves onto that plane and no farther, at any spring weight, and with spring
+/// weight 0 no vertex is sent away along its tangent plane. The sheet is tilted so that no
+/// block is diagonal (a rank-one block then factors with round-off pivots).
+#[test]
+fn a_vertex_without_springs_only_moves_onto_its_scan_plane() {
+    let (flat, faces) = grid_sheet(15, 15, 1.0, 1.0);
+    let tilt = Rotation3::from_euler_angles(0.4, -0.7, 0.3);
+    let truth: Vec<[f64; 3]> = flat.iter().map(|p| (tilt * vec3(p)).into()).collect();
+    let normal = tilt * Vec3::z();
+    let scan = scan_of(&truth, &faces, 2000);
+    let mut rest = truth.clone();
+    // Off the sheet's middle, above it.
+    let lone_start = tilt * Vec3::new(0.03, 0.02, 0.05);
+    rest.push(lone_start.into());
+    let incidence = VertexFaces::new(&faces, rest.len());
+    let refine = IsometricRefine::new(&rest, &faces, &incidence, &scan, None);
+    for weight in [0.0, 3.0, 10.0] {
+        let mut fit = rest.clone();
+        refine.run(&mut fit, 30, weight);
+        assert!(
+            fit.iter().flatten().all(|x| x.is_finite()),
+            "weight {weight}"
+        );
+        let step = vec3(&fit[truth.len()]) - lone_start;
+        let along = step - step.dot(&normal) * normal;
+        let height = vec3(&fit[truth.len()]).dot(&normal);
+        assert!(
+            height.abs() < 2e-3,
+            "weight {weight}: {height} off the plane"
+        );
+        assert!(
+            along.norm() < 1e-6,
+            "weight {weight}: moved {along:?} along the plane"
+        );
+        let moved = rms(&fit[..truth.len()], &truth);
+        assert!(moved < 0.02, "weight {weight}: the sheet moved {moved:.4}");
+    }
 }
