@@ -33,7 +33,7 @@ mod validate;
 
 pub use attraction::{DRESSED_TRUST_FACTOR, GARMENT_FRAME_RATIO};
 pub use garments::GARMENT_MIN_SHARE;
-pub use isometric::IsometricRefine;
+pub use isometric::{IsometricRefine, SpringScale};
 pub use model::{deformation_model, TemplateTopology, Workspace};
 pub use params::{
     Acceleration, FitParams, Method, ModelConstants, Prealign, Readings, RotationSource, Schedule,
@@ -377,9 +377,17 @@ fn fit_from(
         start_vertices
     } else if refine {
         let mut refined = vertices;
+        // A tracked frame's rest shape is its sequence's own metric; a single fit's template
+        // may be placed at any size.
+        let scale = if rest.is_some() {
+            SpringScale::Rest
+        } else {
+            SpringScale::Fit
+        };
         isometric_refinement(
             &mut refined,
             rest_shape,
+            scale,
             &prepared,
             target,
             target_weights,
@@ -542,15 +550,13 @@ struct Comparison {
 /// (`None`: it did not run).
 type Placement = (Option<Vec<[f64; 3]>>, Option<PrealignFigures>);
 
-/// The template moved by the global pre-alignment of [`FitParams::prealign`] (`Rigid`,
-/// `Similarity`: [`crate::prealign::align`] onto the scan points that remain), so that the fit,
-/// and its result, are in the scan's frame as given (`None` when the template stays as given),
-/// and what the search found (`None` when it did not run).
 /// The [`IsometricRefine`] of `vertices` (in place) against the scan points the fit was drawn
 /// to (`assessed`, else all), weighted by `weights`; nothing when fewer than a plane's worth.
+#[allow(clippy::too_many_arguments)]
 fn isometric_refinement(
     vertices: &mut [[f64; 3]],
     rest: &[[f64; 3]],
+    scale: SpringScale,
     prepared: &Prepared,
     target: &[[f64; 3]],
     weights: Option<&[f64]>,
@@ -573,9 +579,14 @@ fn isometric_refinement(
         vertices,
         params.schedule.isometric_iterations,
         params.schedule.isometric_weight,
+        scale,
     );
 }
 
+/// The template moved by the global pre-alignment of [`FitParams::prealign`] (`Rigid`,
+/// `Similarity`: [`crate::prealign::align`] onto the scan points that remain), so that the fit,
+/// and its result, are in the scan's frame as given (`None` when the template stays as given),
+/// and what the search found (`None` when it did not run).
 fn prealigned(
     template_vertices: &[[f64; 3]],
     target: &[[f64; 3]],

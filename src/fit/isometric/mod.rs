@@ -2,7 +2,7 @@
 //! moved to the minimum of
 //!
 //! ```text
-//! E(Y) = w Σ_edges ‖(Y_i − Y_k) − d_ik‖²        edge springs, d_ik = ℓ⁰_ik (Y_i − Y_k) / ‖Y_i − Y_k‖
+//! E(Y) = w Σ_edges ‖(Y_i − Y_k) − d_ik‖²        edge springs, d_ik = s ℓ⁰_ik (Y_i − Y_k) / ‖Y_i − Y_k‖
 //!      + Σ_i t_i (n_i · (Y_i − x_i))²             fit → scan: the tangent plane of Y_i's nearest
 //!                                                 scan point x_i (normal n_i)
 //!      + c Σ_j ω_j (e_j · (Σ_l b_jl Y_{f_j,l} − x_j))²
@@ -16,7 +16,12 @@
 //! towards x_j where it lies on the face's border — the scan beyond the fit's rim); the global
 //! step is a sparse linear solve in 3 × 3 blocks, here a few block-Jacobi-preconditioned
 //! conjugate-gradient steps warm-started from the current fit. The springs keep every edge at
-//! its rest length ℓ⁰ and leave bending free: cloth barely stretches but folds anywhere. Both
+//! its rest length ℓ⁰ and leave bending free: cloth barely stretches but folds anywhere. `s` is
+//! 1 where the rest shape is the scan's own metric (a tracked frame's anchor); in a single fit
+//! it is the fit's own scale as the refinement starts (the median over edges of its length ÷
+//! ℓ⁰, [`SpringScale`]), so that a template placed at another size than its scan's (a
+//! similarity placement, the harness's simulated drapes) keeps its proportions and is not
+//! pulled back to its own size. Both
 //! distance terms measure across the surface only, so the fit moves along the scan freely —
 //! where the springs and the scan beyond its rim ask — which undoes a slide along the scan (what
 //! makes a tracked sequence drift, docs/method.md "Tracking"). `c` makes the scan → fit term
@@ -67,6 +72,17 @@ pub struct IsometricRefine<'a> {
     normals: Vec<[f64; 3]>,
     /// Matches within this distance are never dropped: [`REACH`] mean rest edge lengths.
     reach: f64,
+}
+
+/// The size the edge springs hold the rest shape's proportions at.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SpringScale {
+    /// The rest lengths themselves: the rest shape is the scan's own metric (a tracked
+    /// sequence's first frame).
+    Rest,
+    /// The rest lengths times the fit's own scale as the refinement starts (the median edge
+    /// length ratio): a template placed at any size keeps its proportions.
+    Fit,
 }
 
 /// Per-iteration buffers (allocated once).
@@ -178,8 +194,15 @@ impl<'a> IsometricRefine<'a> {
     }
 
     /// `iterations` local–global steps from `vertices` (moved in place), edge springs of
-    /// weight `isometry` against a fit → scan weight of 1 per vertex.
-    pub fn run(&self, vertices: &mut [[f64; 3]], iterations: usize, isometry: f64) {
+    /// weight `isometry` against a fit → scan weight of 1 per vertex, at the rest lengths
+    /// times `scale`'s factor.
+    pub fn run(
+        &self,
+        vertices: &mut [[f64; 3]],
+        iterations: usize,
+        isometry: f64,
+        scale: SpringScale,
+    ) {
         let (m, n) = (vertices.len(), self.scan.len());
         let mut b = Buffers {
             nearest: vec![(u32::MAX, f64::INFINITY); m],
@@ -204,6 +227,10 @@ impl<'a> IsometricRefine<'a> {
             a_dir: vec![[0.0; 3]; m],
             partials: vec![0.0; m.div_ceil(CHUNK)],
         };
+        let scale = match scale {
+            SpringScale::Rest => 1.0,
+            SpringScale::Fit => self.scale_of(vertices, &mut b.scratch),
+        };
         let mut c = 0.0;
         for step in 0..iterations {
             if step % MATCH_EVERY == 0 {
@@ -211,8 +238,27 @@ impl<'a> IsometricRefine<'a> {
                 c = self.scan_to_fit(vertices, &mut b);
                 self.assemble_matrix(&mut b, isometry, c);
             }
-            self.assemble_rhs(vertices, &mut b, isometry, c);
+            self.assemble_rhs(vertices, &mut b, isometry, c, scale);
             solve(vertices, &self.ring, &mut b);
+        }
+    }
+
+    /// The springs' scale `s`: the median over edges of `y`'s length ÷ the rest length.
+    fn scale_of(&self, y: &[[f64; 3]], scratch: &mut Vec<f64>) -> f64 {
+        scratch.clear();
+        for i in 0..y.len() {
+            let lo = self.ring.offsets[i];
+            for (e, &k) in self.ring.of(i).iter().enumerate() {
+                let r0 = self.rest_length[lo + e];
+                if r0 > 0.0 {
+                    scratch.push((vec3(&y[i]) - vec3(&y[k as usize])).norm() / r0);
+                }
+            }
+        }
+        if scratch.is_empty() {
+            1.0
+        } else {
+            upper_median(scratch)
         }
     }
 
@@ -373,7 +419,7 @@ impl<'a> IsometricRefine<'a> {
 
     /// The global step's right-hand side at the edge directions of `y` (the local step):
     /// rhs = w Dᵀd + t n (n · x) + c Σ_j ω_j b_j e_j (e_j · x_j).
-    fn assemble_rhs(&self, y: &[[f64; 3]], b: &mut Buffers, isometry: f64, c: f64) {
+    fn assemble_rhs(&self, y: &[[f64; 3]], b: &mut Buffers, isometry: f64, c: f64, scale: f64) {
         let (ring, rest_length) = (&self.ring, &self.rest_length);
         let (t, p, face_r) = (&b.t, &b.p, &b.face_r);
         b.rhs
@@ -388,7 +434,7 @@ impl<'a> IsometricRefine<'a> {
                     let edge = vi - vec3(&y[k as usize]);
                     let len = edge.norm();
                     if len > 0.0 {
-                        sum += edge * (rest_length[lo + e] / len);
+                        sum += edge * (scale * rest_length[lo + e] / len);
                     }
                 }
                 let mut out = isometry * sum + t[i] * vec3(&p[i]);

@@ -56,7 +56,12 @@ fn refine(
     steps: usize,
 ) {
     let incidence = VertexFaces::new(faces, rest.len());
-    IsometricRefine::new(rest, faces, &incidence, scan, weights).run(fit, steps, WEIGHT);
+    IsometricRefine::new(rest, faces, &incidence, scan, weights).run(
+        fit,
+        steps,
+        WEIGHT,
+        SpringScale::Rest,
+    );
 }
 
 fn scan_of(v: &[[f64; 3]], faces: &[[u32; 3]], count: usize) -> Vec<[f64; 3]> {
@@ -161,7 +166,7 @@ fn a_vertex_without_springs_only_moves_onto_its_scan_plane() {
     let refine = IsometricRefine::new(&rest, &faces, &incidence, &scan, None);
     for weight in [0.0, 3.0, 10.0] {
         let mut fit = rest.clone();
-        refine.run(&mut fit, 30, weight);
+        refine.run(&mut fit, 30, weight, SpringScale::Rest);
         assert!(
             fit.iter().flatten().all(|x| x.is_finite()),
             "weight {weight}"
@@ -180,4 +185,29 @@ fn a_vertex_without_springs_only_moves_onto_its_scan_plane() {
         let moved = rms(&fit[..truth.len()], &truth);
         assert!(moved < 0.02, "weight {weight}: the sheet moved {moved:.4}");
     }
+}
+
+/// The springs hold the rest shape's proportions at the fit's own scale: a template placed at
+/// 0.6 × its scan's size, fitted onto the scan, is not pulled back to the template's size.
+#[test]
+fn a_template_at_another_scale_keeps_the_fit_s_size() {
+    let (truth, faces) = cylinder_patch();
+    let scan = scan_of(&truth, &faces, 4000);
+    let small: Vec<[f64; 3]> = truth.iter().map(|p| p.map(|x| 0.6 * x)).collect();
+    let incidence = VertexFaces::new(&faces, small.len());
+    let refine = IsometricRefine::new(&small, &faces, &incidence, &scan, None);
+    let mut fit = turned(&truth, 3.0);
+    let before = rms(&fit, &truth);
+    refine.run(&mut fit, ITERATIONS, WEIGHT, SpringScale::Fit);
+    let after = rms(&fit, &truth);
+    assert!(after < 0.5 * before, "from {before:.4} to {after:.4}");
+    let strain = worst_strain(&fit, &truth, &faces);
+    assert!(
+        strain < 0.05,
+        "strain against the scan's own size {strain:.3}"
+    );
+    // At the rest lengths themselves the same fit shrinks towards the template's size.
+    let mut shrunk = turned(&truth, 3.0);
+    refine.run(&mut shrunk, ITERATIONS, WEIGHT, SpringScale::Rest);
+    assert!(worst_strain(&shrunk, &truth, &faces) > 0.2);
 }
