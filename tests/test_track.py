@@ -74,3 +74,20 @@ def test_settings_are_checked_at_the_call(sequence):
         fm.track(shape, faces, [], prediction=2.0)
     with pytest.raises(fm.InvalidParameterError, match="iterations"):
         fm.track(shape, faces, [], iterations=-1)
+
+
+def test_the_core_tracker_takes_a_frame_fitted_elsewhere(sequence):
+    # `_core.Tracker.accept`: a frame done elsewhere counts as the last fit (the next frame
+    # starts from it); a fit of another vertex count is refused.
+    from foldmatch_rs import _core
+
+    shape, faces, copies = sequence
+    settings = fm.FitParams("tracking", iterations=30).to_dict()
+    tracker = _core.Tracker(shape, faces.astype(np.int64), settings, 0.0, 0.15, 2.0, False)
+    tracker.accept(copies[6])
+    assert tracker.frames == 1
+    with pytest.raises(fm.InvalidInputError):
+        tracker.accept(copies[6][:-1])
+    raw = tracker.step(copies[7], None, None, None)
+    assert raw["tracking"]["warm_started"]
+    assert rms(raw["vertices"], copies[7]) < 0.2 * rms(copies[6], copies[7])

@@ -305,6 +305,14 @@ class FitParams(Mapping[str, Any]):
         against a vertex's fit → scan distance (weight 1): higher keeps the rest shape's
         lengths more strictly.
         """
+    @property
+    def isometric_hold(self) -> float:
+        """The weight of holding each edge of `isometric_iterations`
+        at its vector in the schedule's result (against a vertex's fit → scan weight of 1): it
+        keeps the refinement from crumpling the mesh after the noise of a noisy scan (flipped
+        faces), and holds back the slides the refinement corrects. 0: off (the default and
+        every preset).
+        """
 
     # ---- Acceleration
     @property

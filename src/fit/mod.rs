@@ -33,7 +33,7 @@ mod validate;
 
 pub use attraction::{DRESSED_TRUST_FACTOR, GARMENT_FRAME_RATIO};
 pub use garments::GARMENT_MIN_SHARE;
-pub use isometric::{IsometricRefine, SpringScale};
+pub use isometric::{IsometricRefine, SpringScale, Springs};
 pub use model::{deformation_model, TemplateTopology, Workspace};
 pub use params::{
     Acceleration, FitParams, Method, ModelConstants, Prealign, Readings, RotationSource, Schedule,
@@ -578,8 +578,11 @@ fn isometric_refinement(
     IsometricRefine::new(rest, faces, incidence, &points, point_weights.as_deref()).run(
         vertices,
         params.schedule.isometric_iterations,
-        params.schedule.isometric_weight,
-        scale,
+        Springs {
+            weight: params.schedule.isometric_weight,
+            hold: params.schedule.isometric_hold,
+            scale,
+        },
     );
 }
 

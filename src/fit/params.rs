@@ -425,6 +425,12 @@ pub struct Schedule {
     /// against a vertex's fit → scan distance (weight 1): higher keeps the rest shape's
     /// lengths more strictly.
     pub isometric_weight: f64,
+    /// The weight of holding each edge of [`isometric_iterations`](Self::isometric_iterations)
+    /// at its vector in the schedule's result (against a vertex's fit → scan weight of 1): it
+    /// keeps the refinement from crumpling the mesh after the noise of a noisy scan (flipped
+    /// faces), and holds back the slides the refinement corrects. 0: off (the default and
+    /// every preset).
+    pub isometric_hold: f64,
 }
 
 /// Acceleration: samples and approximate neighborhoods that make a fit faster and change its
@@ -563,6 +569,7 @@ impl Default for Schedule {
             compression_limit: 0.0,
             isometric_iterations: 0,
             isometric_weight: DEFAULT_ISOMETRIC_WEIGHT,
+            isometric_hold: 0.0,
         }
     }
 }

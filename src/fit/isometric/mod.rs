@@ -3,6 +3,8 @@
 //!
 //! ```text
 //! E(Y) = w Σ_edges ‖(Y_i − Y_k) − d_ik‖²        edge springs, d_ik = s ℓ⁰_ik (Y_i − Y_k) / ‖Y_i − Y_k‖
+//!      + h Σ_edges ‖(Y_i − Y_k) − (Y⁰_i − Y⁰_k)‖²  hold: the edge vectors of the fit Y⁰ as the
+//!                                                 refinement starts
 //!      + Σ_i t_i (n_i · (Y_i − x_i))²             fit → scan: the tangent plane of Y_i's nearest
 //!                                                 scan point x_i (normal n_i)
 //!      + c Σ_j ω_j (e_j · (Σ_l b_jl Y_{f_j,l} − x_j))²
@@ -21,7 +23,9 @@
 //! it is the fit's own scale as the refinement starts (the median over edges of its length ÷
 //! ℓ⁰, [`SpringScale`]), so that a template placed at another size than its scan's (a
 //! similarity placement, the harness's simulated drapes) keeps its proportions and is not
-//! pulled back to its own size. Both
+//! pulled back to its own size. The hold (`h`, 0 unless set) keeps the edge vectors near the
+//! schedule's result: on a noisy scan, whose points the point-to-plane term would follow,
+//! it keeps the mesh from crumpling at the edge-length scale (flipped faces). Both
 //! distance terms measure across the surface only, so the fit moves along the scan freely —
 //! where the springs and the scan beyond its rim ask — which undoes a slide along the scan (what
 //! makes a tracked sequence drift, docs/method.md "Tracking"). `c` makes the scan → fit term
@@ -74,6 +78,17 @@ pub struct IsometricRefine<'a> {
     reach: f64,
 }
 
+/// The refinement's edge terms.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Springs {
+    /// `w`: each edge held at its rest length (times `scale`'s factor).
+    pub weight: f64,
+    /// `h`: each edge vector held at its value in the fit as the refinement starts.
+    pub hold: f64,
+    /// The size the rest lengths are taken at.
+    pub scale: SpringScale,
+}
+
 /// The size the edge springs hold the rest shape's proportions at.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum SpringScale {
@@ -119,6 +134,9 @@ struct Buffers {
     dir: Vec<[f64; 3]>,
     a_dir: Vec<[f64; 3]>,
     partials: Vec<f64>,
+    /// Each vertex's `Σ_k (Y⁰_i − Y⁰_k)` over its ring, `Y⁰` the fit as the refinement starts
+    /// (the hold term's right-hand side).
+    held: Vec<[f64; 3]>,
 }
 
 /// Below this many items a parallel loop is not split further.
@@ -193,16 +211,9 @@ impl<'a> IsometricRefine<'a> {
         }
     }
 
-    /// `iterations` local–global steps from `vertices` (moved in place), edge springs of
-    /// weight `isometry` against a fit → scan weight of 1 per vertex, at the rest lengths
-    /// times `scale`'s factor.
-    pub fn run(
-        &self,
-        vertices: &mut [[f64; 3]],
-        iterations: usize,
-        isometry: f64,
-        scale: SpringScale,
-    ) {
+    /// `iterations` local–global steps from `vertices` (moved in place) with the edge
+    /// terms of `springs`, against a fit → scan weight of 1 per vertex.
+    pub fn run(&self, vertices: &mut [[f64; 3]], iterations: usize, springs: Springs) {
         let (m, n) = (vertices.len(), self.scan.len());
         let mut b = Buffers {
             nearest: vec![(u32::MAX, f64::INFINITY); m],
@@ -226,8 +237,26 @@ impl<'a> IsometricRefine<'a> {
             dir: vec![[0.0; 3]; m],
             a_dir: vec![[0.0; 3]; m],
             partials: vec![0.0; m.div_ceil(CHUNK)],
+            held: vec![[0.0; 3]; m],
         };
-        let scale = match scale {
+        if springs.hold > 0.0 {
+            let ring = &self.ring;
+            let start = &*vertices;
+            b.held
+                .par_iter_mut()
+                .enumerate()
+                .with_min_len(MIN_LEN)
+                .for_each(|(i, held)| {
+                    let si = vec3(&start[i]);
+                    let sum: Vec3 = ring
+                        .of(i)
+                        .iter()
+                        .map(|&k| si - vec3(&start[k as usize]))
+                        .sum();
+                    *held = sum.into();
+                });
+        }
+        let scale = match springs.scale {
             SpringScale::Rest => 1.0,
             SpringScale::Fit => self.scale_of(vertices, &mut b.scratch),
         };
@@ -236,9 +265,9 @@ impl<'a> IsometricRefine<'a> {
             if step % MATCH_EVERY == 0 {
                 self.fit_to_scan(vertices, &mut b);
                 c = self.scan_to_fit(vertices, &mut b);
-                self.assemble_matrix(&mut b, isometry, c);
+                self.assemble_matrix(&mut b, springs.weight + springs.hold, c);
             }
-            self.assemble_rhs(vertices, &mut b, isometry, c, scale);
+            self.assemble_rhs(vertices, &mut b, &springs, c, scale);
             solve(vertices, &self.ring, &mut b);
         }
     }
@@ -379,8 +408,8 @@ impl<'a> IsometricRefine<'a> {
 
     /// The global step's matrix, in 3 × 3 blocks on the ring's pattern (two vertices of one
     /// face are neighbours); it changes only with the matches:
-    /// A = w L ⊗ I + diag(t n nᵀ) + c Σ_j ω_j (b_j b_jᵀ) ⊗ e_j e_jᵀ.
-    fn assemble_matrix(&self, b: &mut Buffers, isometry: f64, c: f64) {
+    /// A = (w + h) L ⊗ I + diag(t n nᵀ) + c Σ_j ω_j (b_j b_jᵀ) ⊗ e_j e_jᵀ.
+    fn assemble_matrix(&self, b: &mut Buffers, edges: f64, c: f64) {
         let ring = &self.ring;
         let t = &b.t;
         let face_q = &b.face_q;
@@ -392,7 +421,7 @@ impl<'a> IsometricRefine<'a> {
             .zip(self.edge_faces.par_iter())
             .with_min_len(MIN_LEN)
             .for_each(|(a, shared)| {
-                *a = -isometry * Mat3::identity();
+                *a = -edges * Mat3::identity();
                 for e in shared.iter().filter(|e| e.face != u32::MAX) {
                     let [li, lk] = e.corners;
                     *a += c * coupling(e.face as usize, li as usize, lk as usize);
@@ -405,8 +434,8 @@ impl<'a> IsometricRefine<'a> {
             .with_min_len(MIN_LEN)
             .for_each(|(i, (diag, diag_inv))| {
                 let n = vec3(&normal[i]);
-                let mut d = isometry * ring.of(i).len() as f64 * Mat3::identity()
-                    + t[i] * n * n.transpose();
+                let mut d =
+                    edges * ring.of(i).len() as f64 * Mat3::identity() + t[i] * n * n.transpose();
                 for &f in self.vertex_faces.of(i) {
                     let f = f as usize;
                     let l = corner(&self.faces[f], i);
@@ -418,10 +447,11 @@ impl<'a> IsometricRefine<'a> {
     }
 
     /// The global step's right-hand side at the edge directions of `y` (the local step):
-    /// rhs = w Dᵀd + t n (n · x) + c Σ_j ω_j b_j e_j (e_j · x_j).
-    fn assemble_rhs(&self, y: &[[f64; 3]], b: &mut Buffers, isometry: f64, c: f64, scale: f64) {
+    /// rhs = w Dᵀd + h Dᵀd⁰ + t n (n · x) + c Σ_j ω_j b_j e_j (e_j · x_j).
+    fn assemble_rhs(&self, y: &[[f64; 3]], b: &mut Buffers, springs: &Springs, c: f64, scale: f64) {
         let (ring, rest_length) = (&self.ring, &self.rest_length);
         let (t, p, face_r) = (&b.t, &b.p, &b.face_r);
+        let held = &b.held;
         b.rhs
             .par_iter_mut()
             .enumerate()
@@ -437,7 +467,8 @@ impl<'a> IsometricRefine<'a> {
                         sum += edge * (scale * rest_length[lo + e] / len);
                     }
                 }
-                let mut out = isometry * sum + t[i] * vec3(&p[i]);
+                let mut out =
+                    springs.weight * sum + springs.hold * vec3(&held[i]) + t[i] * vec3(&p[i]);
                 for &f in self.vertex_faces.of(i) {
                     let f = f as usize;
                     out += c * face_r[f][corner(&self.faces[f], i)];

@@ -59,9 +59,17 @@ fn refine(
     IsometricRefine::new(rest, faces, &incidence, scan, weights).run(
         fit,
         steps,
-        WEIGHT,
-        SpringScale::Rest,
+        springs(WEIGHT, SpringScale::Rest),
     );
+}
+
+/// Springs of `weight` at `scale`, no hold.
+fn springs(weight: f64, scale: SpringScale) -> Springs {
+    Springs {
+        weight,
+        hold: 0.0,
+        scale,
+    }
 }
 
 fn scan_of(v: &[[f64; 3]], faces: &[[u32; 3]], count: usize) -> Vec<[f64; 3]> {
@@ -166,7 +174,7 @@ fn a_vertex_without_springs_only_moves_onto_its_scan_plane() {
     let refine = IsometricRefine::new(&rest, &faces, &incidence, &scan, None);
     for weight in [0.0, 3.0, 10.0] {
         let mut fit = rest.clone();
-        refine.run(&mut fit, 30, weight, SpringScale::Rest);
+        refine.run(&mut fit, 30, springs(weight, SpringScale::Rest));
         assert!(
             fit.iter().flatten().all(|x| x.is_finite()),
             "weight {weight}"
@@ -198,7 +206,7 @@ fn a_template_at_another_scale_keeps_the_fit_s_size() {
     let refine = IsometricRefine::new(&small, &faces, &incidence, &scan, None);
     let mut fit = turned(&truth, 3.0);
     let before = rms(&fit, &truth);
-    refine.run(&mut fit, ITERATIONS, WEIGHT, SpringScale::Fit);
+    refine.run(&mut fit, ITERATIONS, springs(WEIGHT, SpringScale::Fit));
     let after = rms(&fit, &truth);
     assert!(after < 0.5 * before, "from {before:.4} to {after:.4}");
     let strain = worst_strain(&fit, &truth, &faces);
@@ -208,6 +216,41 @@ fn a_template_at_another_scale_keeps_the_fit_s_size() {
     );
     // At the rest lengths themselves the same fit shrinks towards the template's size.
     let mut shrunk = turned(&truth, 3.0);
-    refine.run(&mut shrunk, ITERATIONS, WEIGHT, SpringScale::Rest);
+    refine.run(&mut shrunk, ITERATIONS, springs(WEIGHT, SpringScale::Rest));
     assert!(worst_strain(&shrunk, &truth, &faces) > 0.2);
+}
+
+/// The hold keeps the edge vectors of the start: held strongly, a slid patch keeps its shape
+/// (it may only translate), where the free refinement brings it back.
+#[test]
+fn a_strong_hold_keeps_the_start_s_shape() {
+    let (truth, faces) = cylinder_patch();
+    let scan = scan_of(&truth, &faces, 4000);
+    let incidence = VertexFaces::new(&faces, truth.len());
+    let refine = IsometricRefine::new(&truth, &faces, &incidence, &scan, None);
+    let start = turned(&truth, 8.0);
+    let run = |hold: f64| {
+        let mut fit = start.clone();
+        let springs = Springs {
+            weight: WEIGHT,
+            hold,
+            scale: SpringScale::Rest,
+        };
+        refine.run(&mut fit, ITERATIONS, springs);
+        fit
+    };
+    let held = run(1e4);
+    let shift: Vec3 = held
+        .iter()
+        .zip(&start)
+        .map(|(a, b)| vec3(a) - vec3(b))
+        .sum::<Vec3>()
+        / held.len() as f64;
+    let unshifted: Vec<[f64; 3]> = held.iter().map(|p| (vec3(p) - shift).into()).collect();
+    assert!(
+        rms(&unshifted, &start) < 1e-3,
+        "{:.5}",
+        rms(&unshifted, &start)
+    );
+    assert!(rms(&run(0.0), &truth) < 0.2 * rms(&start, &truth));
 }
