@@ -109,6 +109,7 @@ struct Buffers {
     normal: Vec<[f64; 3]>,
     p: Vec<[f64; 3]>,
     distance: Vec<f64>,
+    /// Room for the medians: of the distances, and of the edge-length ratios ([`IsometricRefine::scale_of`]).
     scratch: Vec<f64>,
     /// Scan → fit: the tree of the fit's vertices, every scan point's nearest vertex (index,
     /// squared distance) and the face of that vertex its closest point lies on.
@@ -221,7 +222,7 @@ impl<'a> IsometricRefine<'a> {
             normal: vec![[0.0; 3]; m],
             p: vec![[0.0; 3]; m],
             distance: vec![0.0; m.max(n)],
-            scratch: Vec::with_capacity(m.max(n)),
+            scratch: Vec::with_capacity(m.max(n).max(self.ring.members.len())),
             tree: BoxTree::default(),
             matched: vec![(u32::MAX, f64::INFINITY); n],
             face_of: vec![0; n],
@@ -578,24 +579,13 @@ impl System<'_> {
         z: &mut [[f64; 3]],
         partials: &mut [f64],
     ) -> f64 {
-        r.par_chunks_mut(CHUNK)
-            .zip(z.par_chunks_mut(CHUNK))
-            .zip(partials.par_iter_mut())
-            .enumerate()
-            .for_each(|(chunk, ((r, z), partial))| {
-                let base = chunk * CHUNK;
-                let mut sum = 0.0;
-                for (o, (r, z)) in r.iter_mut().zip(z.iter_mut()).enumerate() {
-                    let i = base + o;
-                    let ri = vec3(&rhs[i]) - self.row(i, y);
-                    let zi = self.diag_inv[i] * ri;
-                    sum += ri.dot(&zi);
-                    *r = ri.into();
-                    *z = zi.into();
-                }
-                *partial = sum;
-            });
-        partials.iter().sum()
+        chunked_sum(r, z, partials, |i, r, z| {
+            let ri = vec3(&rhs[i]) - self.row(i, y);
+            let zi = self.diag_inv[i] * ri;
+            *r = ri.into();
+            *z = zi.into();
+            ri.dot(&zi)
+        })
     }
 
     /// `p = z + β p` and `A p = A z + β A p` (β = 0: `p = z`, `A p = A z`); returns `p · A p`.
@@ -607,28 +597,13 @@ impl System<'_> {
         a_dir: &mut [[f64; 3]],
         partials: &mut [f64],
     ) -> f64 {
-        dir.par_chunks_mut(CHUNK)
-            .zip(a_dir.par_chunks_mut(CHUNK))
-            .zip(partials.par_iter_mut())
-            .enumerate()
-            .for_each(|(chunk, ((dir, a_dir), partial))| {
-                let base = chunk * CHUNK;
-                let mut sum = 0.0;
-                for (o, (d, ad)) in dir.iter_mut().zip(a_dir.iter_mut()).enumerate() {
-                    let i = base + o;
-                    let az = self.row(i, z);
-                    let (di, adi) = if beta == 0.0 {
-                        (vec3(&z[i]), az)
-                    } else {
-                        (vec3(&z[i]) + beta * vec3(d), az + beta * vec3(ad))
-                    };
-                    sum += di.dot(&adi);
-                    *d = di.into();
-                    *ad = adi.into();
-                }
-                *partial = sum;
-            });
-        partials.iter().sum()
+        chunked_sum(dir, a_dir, partials, |i, d, ad| {
+            let di = vec3(&z[i]) + beta * vec3(d);
+            let adi = self.row(i, z) + beta * vec3(ad);
+            *d = di.into();
+            *ad = adi.into();
+            di.dot(&adi)
+        })
     }
 
     /// `y += α p`, `r −= α A p`, `z = M⁻¹ r`; returns `r · z`.
@@ -666,6 +641,31 @@ impl System<'_> {
             });
         partials.iter().sum()
     }
+}
+
+/// `f(i, &mut a[i], &mut b[i])` for every vertex, in parallel over [`CHUNK`]-sized chunks,
+/// returning the sum of its values: summed per chunk, then over the chunks in order (the same
+/// result for any thread count). `partials` holds one slot per chunk.
+fn chunked_sum(
+    a: &mut [[f64; 3]],
+    b: &mut [[f64; 3]],
+    partials: &mut [f64],
+    f: impl Fn(usize, &mut [f64; 3], &mut [f64; 3]) -> f64 + Sync,
+) -> f64 {
+    a.par_chunks_mut(CHUNK)
+        .zip(b.par_chunks_mut(CHUNK))
+        .zip(partials.par_iter_mut())
+        .enumerate()
+        .for_each(|(chunk, ((a, b), partial))| {
+            let base = chunk * CHUNK;
+            *partial = a
+                .iter_mut()
+                .zip(b.iter_mut())
+                .enumerate()
+                .map(|(o, (a, b))| f(base + o, a, b))
+                .sum();
+        });
+    partials.iter().sum()
 }
 
 /// The (pseudo-)inverse of a diagonal block, which is symmetric positive semi-definite. A
