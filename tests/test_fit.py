@@ -47,7 +47,7 @@ def test_foldmatch_halves_the_ground_truth_error(case, fitted):
     before = rmse(case["template_vertices"], case["ground_truth"])
     after = rmse(fitted.vertices, case["ground_truth"])
     assert after < before / 2, (before, after)
-    assert fitted.iterations == 100
+    assert fitted.iterations == fm.DEFAULT_PARAMS["iterations"] == 80
     assert fitted.vertices.shape == case["template_vertices"].shape
 
 
@@ -403,8 +403,15 @@ def test_wide_selection_selects_among_three_schedules(case):
     annealing) schedules and keeps the one the selection rule picks from brute-force scan→fit
     distances and NumPy edge-length spreads; each equals its single run."""
     v, f, x = case["template_vertices"], case["faces"], case["scan"]
-    r = fm.fit(v, f, x, iterations=20, params=dict(selection="scan_distance_wide", rigid_sample=1))
-    single = fm.FitParams(iterations=20, selection="single", rigid_sample=1)
+    # The schedules alone: the candidates are compared before the isometric refinement.
+    r = fm.fit(
+        v,
+        f,
+        x,
+        iterations=20,
+        params=dict(selection="scan_distance_wide", rigid_sample=1, isometric_iterations=0),
+    )
+    single = fm.FitParams(iterations=20, selection="single", rigid_sample=1, isometric_iterations=0)
     alone = [
         fm.fit(v, f, x, params=single),
         fm.fit(
@@ -494,16 +501,20 @@ def test_selection_keeps_the_closer_schedule_or_on_a_near_tie_the_less_stretched
     margin 0 keeps the closer; each candidate equals the single-schedule fit run on its
     own."""
     v, f, x = case["template_vertices"], case["faces"], case["scan"]
-    # From the placement as given (the margins below pick both schedules from there).
-    chosen = fm.fit(v, f, x, iterations=30, prealign="none")
-    given = fm.fit(v, f, x, iterations=30, prealign="none", params=dict(selection="single"))
+    # From the placement as given (the margins below pick both schedules from there); the
+    # schedules alone (the candidates are compared before the isometric refinement).
+    alone = dict(isometric_iterations=0)
+    chosen = fm.fit(v, f, x, iterations=30, prealign="none", params=alone)
+    given = fm.fit(v, f, x, iterations=30, prealign="none", params=dict(selection="single", **alone))
     sharp = fm.fit(
         v,
         f,
         x,
         iterations=30,
         prealign="none",
-        params=dict(selection="single", two_way=1.0, coarse_fraction=0.3, anneal=1.0, anneal_fraction=0.0),
+        params=dict(
+            selection="single", two_way=1.0, coarse_fraction=0.3, anneal=1.0, anneal_fraction=0.0, **alone
+        ),
     )
 
     want = [scan_distance(x, given.vertices), scan_distance(x, sharp.vertices)]
@@ -523,7 +534,7 @@ def test_selection_keeps_the_closer_schedule_or_on_a_near_tie_the_less_stretched
                 x,
                 iterations=30,
                 prealign="none",
-                params=dict(selection_margin=margin),
+                params=dict(selection_margin=margin, **alone),
             )
         )
         k = selected(want, spreads, margin)
@@ -543,7 +554,9 @@ def test_rigid_sample_moves_the_template_rigidly(case):
     pairwise distance (NumPy, 300 random pairs) and lands near the fit driven by every vertex,
     without equalling it; out-of-range values are refused by name."""
     v, f, x = case["template_vertices"], case["faces"], case["scan"]
-    rigid_only = dict(iterations=8, rigid_fraction=1.0, coarse_fraction=0.0, selection="single")
+    rigid_only = dict(
+        iterations=8, rigid_fraction=1.0, coarse_fraction=0.0, selection="single", isometric_iterations=0
+    )
     sampled = fm.fit(v, f, x, prealign="none", params=dict(rigid_sample=4, **rigid_only)).vertices
     full = fm.fit(v, f, x, prealign="none", params=dict(rigid_sample=1, **rigid_only)).vertices
     rng = np.random.default_rng(5)
@@ -654,7 +667,8 @@ def test_rest_rigidity_keeps_edge_lengths_over_a_scan_hole(case):
 def test_fast_preset_is_one_schedule_between_the_default_s_two(case):
     """preset="fast" runs one schedule: the default's parameters with the sharp candidate's
     phases and constant softening and a two-way weight of 3 (between the candidates' 1 and
-    4.5); the same fit as asking for those parameters, and not either candidate's fit."""
+    4.5), without the isometric refinement; the same fit as asking for those parameters, and
+    not either candidate's fit."""
     v, f, x = case["template_vertices"], case["faces"], case["scan"]
     r = fm.fit(v, f, x, preset="fast", iterations=30)
     mine = {
@@ -664,6 +678,8 @@ def test_fast_preset_is_one_schedule_between_the_default_s_two(case):
         "anneal": 1.0,
         "anneal_fraction": 0.0,
         "iterations": 30,
+        "isometric_iterations": 0,
+        "isometric_hold": 0.0,
     }
     assert r.params == {**fm.DEFAULT_PARAMS, **mine}
     np.testing.assert_array_equal(r.vertices, fm.fit(v, f, x, params=mine).vertices)

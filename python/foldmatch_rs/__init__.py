@@ -323,13 +323,15 @@ def fit(
     preset : {"default", "accurate", "fast", "paper", "tracking"}, optional
         Where the settings not given come from (default ``"default"``): ``"default"``, the most
         accurate configuration for its cost; ``"accurate"``, the default with 150 iterations
-        instead of 100 (closer to the truth and to the scan, about 1.3× the time); ``"fast"``,
-        one schedule instead of the default's two (about 0.6× the time, less accurate);
+        instead of 80 (closer to the truth and to the scan, about 1.5× the time); ``"fast"``,
+        one schedule instead of the default's two and no isometric refinement (about 0.7× the
+        time, less accurate);
         ``"paper"``, the method as the paper describes it; ``"tracking"``, for a fit
         warm-started close to its scan (the previous frame of a sequence). Not with a
         :class:`FitParams` ``params``, which carries its own preset.
     iterations : int, optional
-        ξ, the number of iterations (100; ``"accurate"`` 150).
+        ξ, the number of iterations (80, then 30 steps of isometric refinement; ``"accurate"``
+        150; ``"fast"`` and ``"paper"`` 100).
     rings : int, optional
         n of the n-ring template neighborhoods (2).
     psi : float, optional

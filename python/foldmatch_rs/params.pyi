@@ -33,7 +33,7 @@ class FitParams(Mapping[str, Any]):
         """FoldMatch or NRGa."""
     @property
     def iterations(self) -> int:
-        """ξ, the number of iterations."""
+        """ξ, the number of iterations (`DEFAULT_ITERATIONS` by default)."""
     @property
     def tolerance(self) -> float:
         """Stop early when the mean displacement of an iteration (normalized units) is below this
@@ -297,7 +297,8 @@ class FitParams(Mapping[str, Any]):
         fit → scan (point-to-plane) and scan → fit distances (docs/method.md "Isometric
         refinement"). It undoes sliding along the scan, which the schedule's pulls cannot see:
         a tracked sequence (whose rest shape is the first frame's own mesh) no longer drifts.
-        0: off (the default); 60 in the `"tracking"` preset.
+        30 by default (a single fit; on a scan larger than the garment, in the garment refit's
+        fits only), 60 in the `"tracking"` preset; 0: off (the `"paper"` and `"fast"` presets).
         """
     @property
     def isometric_weight(self) -> float:
@@ -310,8 +311,8 @@ class FitParams(Mapping[str, Any]):
         """The weight of holding each edge of `isometric_iterations`
         at its vector in the schedule's result (against a vertex's fit → scan weight of 1): it
         keeps the refinement from crumpling the mesh after the noise of a noisy scan (flipped
-        faces), and holds back the slides the refinement corrects. 0: off (the default and
-        every preset).
+        faces), and holds back the slides the refinement corrects. 1 by default; 0 (off) in
+        the `"tracking"` preset, whose springs hold the sequence's own metric.
         """
 
     # ---- Acceleration

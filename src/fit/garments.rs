@@ -557,7 +557,8 @@ mod tests {
         assert_eq!(r.history.len(), r.iterations);
         // The observer counts both garments' iterations as one fit's.
         assert!(seen.windows(2).all(|w| w[0].0 <= w[1].0), "{seen:?}");
-        assert_eq!(seen.last(), Some(&(100, 100)));
+        let n = FitParams::default().iterations;
+        assert_eq!(seen.last(), Some(&(n, n)));
         // Stopped during the first garment, the second stays where it started.
         let r = fit(&v, &f, &x, None, &FitParams::default(), &mut |p| {
             p.iteration < 10

@@ -39,11 +39,13 @@ pub use params::{
     Acceleration, FitParams, Method, ModelConstants, Prealign, Readings, RotationSource, Schedule,
     Selection, ACCURATE_ITERATIONS, AUTO_COARSE_RINGS, AUTO_COARSE_RINGS_MAX,
     COARSE_RINGS_REFERENCE_VERTICES, COARSE_SCAN_MAX_AUTO_STRIDE, COARSE_SCAN_POINTS_PER_VERTEX,
-    DEFAULT_ISOMETRIC_WEIGHT, DEFAULT_KEEP_MARGIN, DEFAULT_KNN_SLACK, DEFAULT_K_MAX,
+    DEFAULT_ISOMETRIC_HOLD, DEFAULT_ISOMETRIC_ITERATIONS, DEFAULT_ISOMETRIC_WEIGHT,
+    DEFAULT_ITERATIONS, DEFAULT_KEEP_MARGIN, DEFAULT_KNN_SLACK, DEFAULT_K_MAX,
     DEFAULT_LANDMARK_WEIGHT, DEFAULT_RHO, DEFAULT_STRAIN_LIMIT, DEFAULT_TWO_WAY_RIM,
-    DEFAULT_TWO_WAY_TRUST, FAR_AWAY, FAST_TWO_WAY, MAX_SCAN_SAMPLE, PAPER_K_MAX, PAPER_RHO,
-    RIGID_SCAN_POINTS_PER_VERTEX, SCHEDULE_NAMES, SIZE_MISMATCH, TRACKING_ISOMETRIC_ITERATIONS,
-    TRACKING_ITERATIONS, TRACKING_REST_RIGIDITY, TRACKING_STRAIN_LIMIT,
+    DEFAULT_TWO_WAY_TRUST, FAR_AWAY, FAST_ITERATIONS, FAST_TWO_WAY, MAX_SCAN_SAMPLE,
+    PAPER_ITERATIONS, PAPER_K_MAX, PAPER_RHO, RIGID_SCAN_POINTS_PER_VERTEX, SCHEDULE_NAMES,
+    SIZE_MISMATCH, TRACKING_ISOMETRIC_ITERATIONS, TRACKING_ITERATIONS, TRACKING_REST_RIGIDITY,
+    TRACKING_STRAIN_LIMIT,
 };
 pub use result::{
     ComponentFigures, Diagnostics, FitResult, IterationRecord, PrealignFigures, Progress,
@@ -392,6 +394,7 @@ fn fit_from(
             target,
             target_weights,
             assessed,
+            landmarks,
             params,
         );
         // The result's motion (its accumulated wrinkle field) ends at the refined fit.
@@ -551,7 +554,9 @@ struct Comparison {
 type Placement = (Option<Vec<[f64; 3]>>, Option<PrealignFigures>);
 
 /// The [`IsometricRefine`] of `vertices` (in place) against the scan points the fit was drawn
-/// to (`assessed`, else all), weighted by `weights`; nothing when fewer than a plane's worth.
+/// to (`assessed`, else all), weighted by `weights`, the landmark vertices held at their
+/// landmarks ([`LANDMARK_ANCHOR`] × the landmark weight); nothing when fewer than a plane's
+/// worth of points.
 #[allow(clippy::too_many_arguments)]
 fn isometric_refinement(
     vertices: &mut [[f64; 3]],
@@ -561,6 +566,7 @@ fn isometric_refinement(
     target: &[[f64; 3]],
     weights: Option<&[f64]>,
     assessed: Option<&[usize]>,
+    landmarks: Option<&Landmarks>,
     params: &FitParams,
 ) {
     let (points, point_weights): (Vec<[f64; 3]>, Option<Vec<f64>>) = match assessed {
@@ -575,7 +581,13 @@ fn isometric_refinement(
         return;
     }
     let (faces, incidence) = (&prepared.faces, &prepared.incidence);
-    IsometricRefine::new(rest, faces, incidence, &points, point_weights.as_deref()).run(
+    let mut refine =
+        IsometricRefine::new(rest, faces, incidence, &points, point_weights.as_deref());
+    if let Some(l) = landmarks {
+        let weight = LANDMARK_ANCHOR * params.landmark_weight;
+        refine = refine.with_anchors(&l.vertices, &l.positions, weight);
+    }
+    refine.run(
         vertices,
         params.schedule.isometric_iterations,
         Springs {
@@ -585,6 +597,11 @@ fn isometric_refinement(
         },
     );
 }
+
+/// The weight of a landmark vertex's anchor in the isometric refinement, per unit of
+/// [`FitParams::landmark_weight`], against a vertex's fit → scan weight of 1: it keeps the
+/// landmark vertices at their landmarks, as the schedule's landmark pull left them.
+pub const LANDMARK_ANCHOR: f64 = 100.0;
 
 /// The template moved by the global pre-alignment of [`FitParams::prealign`] (`Rigid`,
 /// `Similarity`: [`crate::prealign::align`] onto the scan points that remain), so that the fit,

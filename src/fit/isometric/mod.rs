@@ -76,6 +76,10 @@ pub struct IsometricRefine<'a> {
     normals: Vec<[f64; 3]>,
     /// Matches within this distance are never dropped: [`REACH`] mean rest edge lengths.
     reach: f64,
+    /// Anchors ([`IsometricRefine::with_anchors`]): each vertex's weight `a_i` (empty: none)
+    /// and the point it is held at.
+    anchor_weight: Vec<f64>,
+    anchor_at: Vec<[f64; 3]>,
 }
 
 /// The refinement's edge terms.
@@ -209,7 +213,33 @@ impl<'a> IsometricRefine<'a> {
             scan_index,
             normals,
             reach,
+            anchor_weight: Vec::new(),
+            anchor_at: Vec::new(),
         }
+    }
+
+    /// Holds the vertices `vertices` at `positions` with the weight `weight` each (against a
+    /// fit → scan weight of 1): the term `a Σ ‖Y_v − z_v‖²` joins `E`, so that the refinement
+    /// keeps a fit's landmark vertices at their landmarks (docs/method.md "Landmarks").
+    /// Indices out of range are ignored.
+    pub fn with_anchors(mut self, vertices: &[u32], positions: &[[f64; 3]], weight: f64) -> Self {
+        let m = self.ring.len();
+        if weight > 0.0 && !vertices.is_empty() {
+            self.anchor_weight = vec![0.0; m];
+            self.anchor_at = vec![[0.0; 3]; m];
+            for (&v, z) in vertices.iter().zip(positions) {
+                if let Some(a) = self.anchor_weight.get_mut(v as usize) {
+                    *a = weight;
+                    self.anchor_at[v as usize] = *z;
+                }
+            }
+        }
+        self
+    }
+
+    /// The anchor weight `a_i` of vertex `i` (0: none).
+    fn anchor(&self, i: usize) -> f64 {
+        self.anchor_weight.get(i).copied().unwrap_or(0.0)
     }
 
     /// `iterations` local–global steps from `vertices` (moved in place) with the edge
@@ -409,7 +439,7 @@ impl<'a> IsometricRefine<'a> {
 
     /// The global step's matrix, in 3 × 3 blocks on the ring's pattern (two vertices of one
     /// face are neighbours); it changes only with the matches:
-    /// A = (w + h) L ⊗ I + diag(t n nᵀ) + c Σ_j ω_j (b_j b_jᵀ) ⊗ e_j e_jᵀ.
+    /// A = (w + h) L ⊗ I + diag(t n nᵀ + a I) + c Σ_j ω_j (b_j b_jᵀ) ⊗ e_j e_jᵀ.
     fn assemble_matrix(&self, b: &mut Buffers, edges: f64, c: f64) {
         let ring = &self.ring;
         let t = &b.t;
@@ -435,8 +465,8 @@ impl<'a> IsometricRefine<'a> {
             .with_min_len(MIN_LEN)
             .for_each(|(i, (diag, diag_inv))| {
                 let n = vec3(&normal[i]);
-                let mut d =
-                    edges * ring.of(i).len() as f64 * Mat3::identity() + t[i] * n * n.transpose();
+                let mut d = (edges * ring.of(i).len() as f64 + self.anchor(i)) * Mat3::identity()
+                    + t[i] * n * n.transpose();
                 for &f in self.vertex_faces.of(i) {
                     let f = f as usize;
                     let l = corner(&self.faces[f], i);
@@ -448,7 +478,7 @@ impl<'a> IsometricRefine<'a> {
     }
 
     /// The global step's right-hand side at the edge directions of `y` (the local step):
-    /// rhs = w Dᵀd + h Dᵀd⁰ + t n (n · x) + c Σ_j ω_j b_j e_j (e_j · x_j).
+    /// rhs = w Dᵀd + h Dᵀd⁰ + t n (n · x) + a z + c Σ_j ω_j b_j e_j (e_j · x_j).
     fn assemble_rhs(&self, y: &[[f64; 3]], b: &mut Buffers, springs: &Springs, c: f64, scale: f64) {
         let (ring, rest_length) = (&self.ring, &self.rest_length);
         let (t, p, face_r) = (&b.t, &b.p, &b.face_r);
@@ -470,6 +500,10 @@ impl<'a> IsometricRefine<'a> {
                 }
                 let mut out =
                     springs.weight * sum + springs.hold * vec3(&held[i]) + t[i] * vec3(&p[i]);
+                let a = self.anchor(i);
+                if a > 0.0 {
+                    out += a * vec3(&self.anchor_at[i]);
+                }
                 for &f in self.vertex_faces.of(i) {
                     let f = f as usize;
                     out += c * face_r[f][corner(&self.faces[f], i)];

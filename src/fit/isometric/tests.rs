@@ -254,3 +254,52 @@ fn a_strong_hold_keeps_the_start_s_shape() {
     );
     assert!(rms(&run(0.0), &truth) < 0.2 * rms(&start, &truth));
 }
+
+/// Anchors (a fit's landmark vertices) hold their vertices where they are told: the patch slid
+/// along itself, which the refinement alone brings back, stays slid where four of its vertices
+/// are anchored at their slid places; an index past the mesh is ignored.
+#[test]
+fn anchored_vertices_stay_at_their_anchors() {
+    let (truth, faces) = cylinder_patch();
+    let scan = scan_of(&truth, &faces, 4000);
+    let slid = turned(&truth, 8.0);
+    let chosen: [u32; 5] = [26, 48, 276, 298, 10_000];
+    let at: Vec<[f64; 3]> = chosen
+        .iter()
+        .map(|&v| slid.get(v as usize).copied().unwrap_or([0.0; 3]))
+        .collect();
+    let incidence = VertexFaces::new(&faces, truth.len());
+    let run = |anchor_weight: f64| {
+        let mut fit = slid.clone();
+        IsometricRefine::new(&truth, &faces, &incidence, &scan, None)
+            .with_anchors(&chosen, &at, anchor_weight)
+            .run(&mut fit, ITERATIONS, springs(WEIGHT, SpringScale::Rest));
+        fit
+    };
+    let gap = |fit: &[[f64; 3]]| {
+        chosen[..4]
+            .iter()
+            .zip(&at)
+            .map(|(&v, z)| dist2(&fit[v as usize], z).sqrt())
+            .fold(0.0, f64::max)
+    };
+    let slide = rms(&slid, &truth);
+    let (free, held) = (run(0.0), run(100.0));
+    assert!(
+        gap(&free) > 0.5 * slide,
+        "free: {:.4} of {slide:.4}",
+        gap(&free)
+    );
+    assert!(
+        gap(&held) < 0.05 * slide,
+        "anchored: {:.4} of {slide:.4}",
+        gap(&held)
+    );
+    // The rest of the patch follows its anchors (the rim pulls it back in between).
+    assert!(
+        rms(&held, &slid) < 0.4 * rms(&free, &slid),
+        "the anchored patch stays slid: {:.4} from it (free: {:.4})",
+        rms(&held, &slid),
+        rms(&free, &slid)
+    );
+}

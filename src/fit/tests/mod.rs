@@ -95,9 +95,11 @@ fn rigid_only(iterations: usize) -> FitParams {
         p.schedule.rigid_fraction = 1.0;
         p.schedule.coarse_fraction = 0.0;
         p.schedule.selection = Selection::Single;
-        // The rigid phase alone, without the end-of-fit comparison with the start or a refit.
+        // The rigid phase alone, without the end-of-fit comparison with the start, a refit or
+        // the isometric refinement.
         p.schedule.keep_margin = 0.0;
         p.schedule.garment_refit = 0.0;
+        p.schedule.isometric_iterations = 0;
         p
     }
 }

@@ -8,10 +8,14 @@ fn fast_preset_is_one_schedule_between_the_given_and_the_sharp() {
     assert_eq!(fast, FitParams::fast());
     let default = FitParams::default();
     let sharp = default.sharp_schedule();
-    // The sharp schedule's phases and constant softening, a two-way weight between the two.
+    // The sharp schedule's phases and constant softening, a two-way weight between the two,
+    // 100 iterations and no refinement.
     assert_eq!(fast, {
         let mut p = sharp.clone();
         p.schedule.two_way = FAST_TWO_WAY;
+        p.iterations = FAST_ITERATIONS;
+        p.schedule.isometric_iterations = 0;
+        p.schedule.isometric_hold = 0.0;
         p
     });
     assert!(
@@ -38,15 +42,16 @@ fn accurate_preset_is_the_default_lengthened() {
     assert_eq!(
         {
             let mut p = accurate.clone();
-            p.iterations = 100;
+            p.iterations = DEFAULT_ITERATIONS;
             p
         },
         FitParams::default()
     );
-    // Every phase keeps its share of the iterations: 45 rigid, 75 coarse, 30 FoldMatch.
+    // Every phase keeps its share of the iterations: 45 rigid, 75 coarse, 30 FoldMatch (24,
+    // 40 and 16 of the default's 80).
     assert_eq!(accurate.iterations, ACCURATE_ITERATIONS);
     assert_eq!(accurate.phase_iterations(), (45, 75));
-    assert_eq!(FitParams::default().phase_iterations(), (30, 50));
+    assert_eq!(FitParams::default().phase_iterations(), (24, 40));
 }
 
 #[test]
@@ -57,6 +62,8 @@ fn wide_selection_chooses_among_three_candidates() {
             iterations: 20,
             ..FitParams::default()
         };
+        // The schedules alone (the candidates are compared before the refinement).
+        p.schedule.isometric_iterations = 0;
         p.schedule.selection = Selection::ScanDistanceWide;
         p.acceleration.rigid_sample = 1;
         p
@@ -200,6 +207,8 @@ fn early_selection_compares_there_and_runs_the_chosen_schedule_alone() {
             iterations: 20,
             ..FitParams::default()
         };
+        // The schedules alone (the candidates are compared before the refinement).
+        p.schedule.isometric_iterations = 0;
         p.schedule.selection_at = 0.5;
         p
     };
@@ -247,10 +256,12 @@ fn early_selection_compares_there_and_runs_the_chosen_schedule_alone() {
 #[test]
 fn selection_chooses_between_the_given_and_the_sharp_schedule() {
     let (v, f, x) = grid_case();
-    let params = FitParams {
+    let mut params = FitParams {
         iterations: 20,
         ..FitParams::default()
     };
+    // The schedules alone (the candidates are compared before the refinement).
+    params.schedule.isometric_iterations = 0;
     let chosen = fit_simple(&v, &f, &x, None, &params).unwrap();
     let given = {
         let mut p = params.clone();
