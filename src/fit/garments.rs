@@ -125,6 +125,7 @@ pub(super) fn fit_garments(
             target_weights,
             landmarks,
             false,
+            false,
             params,
             observer,
         );
@@ -202,6 +203,7 @@ pub(super) fn fit_garments(
             target_weights,
             landmarks.as_ref(),
             true,
+            false,
             &each,
             &mut observed,
         )?;

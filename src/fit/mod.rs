@@ -198,7 +198,9 @@ pub fn fit_anchored(
 
 /// The fit of one garment ([`garments::fit_garments`] splits a template of several): from
 /// `template_vertices`, with `rest` (`None`: the template itself) as the rest shape; `several`:
-/// the template is one garment of several, so the scan holds more than it whatever its size.
+/// the template is one garment of several, so the scan holds more than it whatever its size;
+/// `garment_pass`: a garment refit's fit onto the garment's points of a larger scan
+/// (`target_weights`), whose isometric refinement is not pulled by the points beyond its rim.
 #[allow(clippy::too_many_arguments)]
 fn fit_from(
     template_vertices: &[[f64; 3]],
@@ -209,6 +211,7 @@ fn fit_from(
     target_weights: Option<&[f64]>,
     landmarks: Option<&Landmarks>,
     several: bool,
+    garment_pass: bool,
     params: &FitParams,
     observer: &mut (dyn FnMut(&Progress) -> bool + Send),
 ) -> Result<FitResult> {
@@ -395,6 +398,7 @@ fn fit_from(
             target_weights,
             assessed,
             landmarks,
+            garment_pass,
             params,
         );
         // The result's motion (its accumulated wrinkle field) ends at the refined fit.
@@ -493,6 +497,7 @@ fn fit_from(
             Some(weights),
             landmarks,
             several,
+            true,
             &inner,
             &mut *observer,
         )?;
@@ -555,8 +560,8 @@ type Placement = (Option<Vec<[f64; 3]>>, Option<PrealignFigures>);
 
 /// The [`IsometricRefine`] of `vertices` (in place) against the scan points the fit was drawn
 /// to (`assessed`, else all), weighted by `weights`, the landmark vertices held at their
-/// landmarks ([`LANDMARK_ANCHOR`] × the landmark weight); nothing when fewer than a plane's
-/// worth of points.
+/// landmarks ([`LANDMARK_ANCHOR`] × the landmark weight), without the pull of the points
+/// beyond the rim on a `garment_pass`; nothing when fewer than a plane's worth of points.
 #[allow(clippy::too_many_arguments)]
 fn isometric_refinement(
     vertices: &mut [[f64; 3]],
@@ -567,6 +572,7 @@ fn isometric_refinement(
     weights: Option<&[f64]>,
     assessed: Option<&[usize]>,
     landmarks: Option<&Landmarks>,
+    garment_pass: bool,
     params: &FitParams,
 ) {
     let (points, point_weights): (Vec<[f64; 3]>, Option<Vec<f64>>) = match assessed {
@@ -586,6 +592,9 @@ fn isometric_refinement(
     if let Some(l) = landmarks {
         let weight = LANDMARK_ANCHOR * params.landmark_weight;
         refine = refine.with_anchors(&l.vertices, &l.positions, weight);
+    }
+    if garment_pass {
+        refine = refine.without_rim_pull();
     }
     refine.run(
         vertices,

@@ -54,6 +54,10 @@ const NORMAL_NEIGHBOURS: usize = 12;
 /// The matches (the local step's correspondences) are refreshed every this many steps; the
 /// edge directions every step.
 pub const MATCH_EVERY: usize = 3;
+/// A scan point whose closest point lies on a face's border counts as beyond the fit's rim
+/// when its direction from there makes a cosine below this with the face's normal (it lies
+/// along the surface, past the border, rather than above or below it).
+pub const RIM_ACROSS: f64 = 0.7;
 /// Conjugate-gradient steps per global step.
 const CG_STEPS: usize = 10;
 /// Chunk of the deterministic parallel sums (the same result for any thread count).
@@ -80,6 +84,8 @@ pub struct IsometricRefine<'a> {
     /// and the point it is held at.
     anchor_weight: Vec<f64>,
     anchor_at: Vec<[f64; 3]>,
+    /// Whether scan points beyond the fit's rim pull it ([`IsometricRefine::without_rim_pull`]).
+    rim_pull: bool,
 }
 
 /// The refinement's edge terms.
@@ -215,7 +221,17 @@ impl<'a> IsometricRefine<'a> {
             reach,
             anchor_weight: Vec::new(),
             anchor_at: Vec::new(),
+            rim_pull: true,
         }
+    }
+
+    /// Scan points beyond the fit's rim (`RIM_ACROSS`) do not pull it: on the garment's
+    /// points of a dressed-body scan, those are mostly skin that the garment cut left in (past
+    /// a hem or a cuff), and the fit's rim must not follow them (docs/method.md "Scans of
+    /// dressed people"). Elsewhere they are what tells a slide along the scan.
+    pub fn without_rim_pull(mut self) -> Self {
+        self.rim_pull = false;
+        self
     }
 
     /// Holds the vertices `vertices` at `positions` with the weight `weight` each (against a
@@ -399,10 +415,16 @@ impl<'a> IsometricRefine<'a> {
                 } else {
                     Vec3::zeros()
                 };
+                // Off the face's border and along the surface rather than across it: the scan
+                // beyond the fit's rim.
+                let beyond_rim = !inside
+                    && normal.norm() > 0.0
+                    && direction.dot(&normal.normalize()).abs() < RIM_ACROSS;
                 *cl = Closest {
                     bary: w,
                     distance,
                     direction,
+                    beyond_rim,
                 };
             });
         let n = self.scan.len();
@@ -414,7 +436,7 @@ impl<'a> IsometricRefine<'a> {
         b.face_r.iter_mut().for_each(|r| *r = [Vec3::zeros(); 3]);
         let mut total = 0.0;
         for (j, (&f, cl)) in b.face_of.iter().zip(&b.closest).enumerate() {
-            if cl.distance > cut {
+            if cl.distance > cut || (cl.beyond_rim && !self.rim_pull) {
                 continue;
             }
             let w = self.weights.map_or(1.0, |w| w[j]);
@@ -519,6 +541,8 @@ struct Closest {
     bary: [f64; 3],
     distance: f64,
     direction: Vec3,
+    /// The point lies beyond the fit's rim ([`RIM_ACROSS`]).
+    beyond_rim: bool,
 }
 
 /// The index of the pair of corners `(l, k)`, in either order, among the six of a face.

@@ -303,3 +303,35 @@ fn anchored_vertices_stay_at_their_anchors() {
         rms(&free, &slid)
     );
 }
+
+/// Scan beyond the fit's rim pulls the rim outward (the fit slides towards it), unless
+/// [`IsometricRefine::without_rim_pull`] (a garment pass on a dressed-body scan, whose points
+/// beyond the rim are mostly skin).
+#[test]
+fn without_the_rim_pull_the_scan_beyond_the_rim_does_not_move_the_fit() {
+    let (rest, faces) = grid_sheet(21, 21, 1.0, 1.0);
+    // The sheet's plane, and 30 % more of it past its rim at x = max.
+    let x_max = rest.iter().map(|p| p[0]).fold(f64::MIN, f64::max);
+    let wide: Vec<[f64; 3]> = rest
+        .iter()
+        .map(|p| [p[0] + 0.3 * (p[0] - x_max + 1.0), p[1], p[2]])
+        .collect();
+    let scan = scan_of(&wide, &faces, 4000);
+    let incidence = VertexFaces::new(&faces, rest.len());
+    let shift = |refine: IsometricRefine| {
+        let mut fit = rest.clone();
+        refine.run(&mut fit, ITERATIONS, springs(WEIGHT, SpringScale::Rest));
+        fit.iter().zip(&rest).map(|(a, b)| a[0] - b[0]).sum::<f64>() / rest.len() as f64
+    };
+    let pulled = shift(IsometricRefine::new(&rest, &faces, &incidence, &scan, None));
+    let held =
+        shift(IsometricRefine::new(&rest, &faces, &incidence, &scan, None).without_rim_pull());
+    assert!(
+        pulled > 0.02,
+        "the rim follows the scan past it: {pulled:.4}"
+    );
+    assert!(
+        held.abs() < 0.1 * pulled,
+        "without the rim pull: {held:.4} (with: {pulled:.4})"
+    );
+}

@@ -622,6 +622,7 @@ fn rigid_phase_moves_each_piece_by_its_own_rigid_motion_on_a_dressed_scan() {
             None,
             None,
             false,
+            false,
             &params,
             &mut |_| true,
         )
