@@ -402,7 +402,7 @@ pub struct ParamArgs {
     /// Motion and deformation model [default: foldmatch].
     #[arg(long, value_enum, value_name = "METHOD")]
     pub method: Option<MethodArg>,
-    /// ξ, the number of iterations [default: 80].
+    /// ξ, the number of iterations [default: 80] (`accurate`: 150; `fast`, `paper`: 100; `tracking`: 60).
     #[arg(long, value_name = "N")]
     pub iterations: Option<usize>,
     /// n of the n-ring template neighborhoods, 1..=8 [default: 2].

