@@ -434,11 +434,18 @@ def test_wide_selection_selects_among_three_schedules(case):
 
 def test_wall_seconds_split_the_call(case):
     """Setup, iterations and finish are timed inside the call: non-negative, within the wall
-    time measured around it; the iterations take the largest part of a 40-iteration fit."""
+    time measured around it; the iterations take the largest part of a 40-iteration fit (the
+    isometric refinement, part of the finish, off: its 30 steps cost about 30 iterations)."""
     import time
 
     t0 = time.perf_counter()
-    r = fm.fit(case["template_vertices"], case["faces"], case["scan"], iterations=40)
+    r = fm.fit(
+        case["template_vertices"],
+        case["faces"],
+        case["scan"],
+        iterations=40,
+        params={"isometric_iterations": 0},
+    )
     wall = time.perf_counter() - t0
     setup, iterations, finish = r.diagnostics["wall_seconds"]
     assert min(setup, iterations, finish) >= 0 and setup + iterations + finish <= wall
