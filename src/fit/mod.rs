@@ -59,6 +59,7 @@ use crate::math::vec3;
 use rayon::prelude::*;
 use schedule::{drive, median_scan_distance, selection_distance, weighted_median, ScheduleRun};
 use setup::Prepared;
+use std::borrow::Cow;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// Fits the template to the target.
@@ -580,16 +581,18 @@ fn isometric_refinement(
     let stride = live
         .div_ceil(REFINE_POINTS_PER_VERTEX * vertices.len().max(1))
         .max(1);
-    let (points, point_weights): (Vec<[f64; 3]>, Option<Vec<f64>>) = match assessed {
-        Some(kept) => (
-            kept.iter().step_by(stride).map(|&j| target[j]).collect(),
-            weights.map(|w| kept.iter().step_by(stride).map(|&j| w[j]).collect()),
-        ),
-        None => (
-            target.iter().step_by(stride).copied().collect(),
-            weights.map(|w| w.iter().step_by(stride).copied().collect()),
-        ),
+    // The scan as given when it is seen whole; else a copy of the points seen.
+    let whole = assessed.is_none() && stride == 1;
+    let points: Cow<[[f64; 3]]> = match assessed {
+        _ if whole => Cow::Borrowed(target),
+        Some(kept) => kept.iter().step_by(stride).map(|&j| target[j]).collect(),
+        None => target.iter().step_by(stride).copied().collect(),
     };
+    let point_weights: Option<Cow<[f64]>> = weights.map(|w| match assessed {
+        _ if whole => Cow::Borrowed(w),
+        Some(kept) => kept.iter().step_by(stride).map(|&j| w[j]).collect(),
+        None => w.iter().step_by(stride).copied().collect(),
+    });
     let point_weights = point_weights.filter(|w| w.iter().any(|&x| x > 0.0));
     if points.len() < 12 {
         return;

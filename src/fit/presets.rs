@@ -18,9 +18,8 @@ impl FitParams {
         let mut p = Self {
             iterations: PAPER_ITERATIONS,
             ..Self::default()
-        };
-        p.schedule.isometric_iterations = 0;
-        p.schedule.isometric_hold = 0.0;
+        }
+        .without_isometric_refinement();
         p.model.rho = PAPER_RHO;
         p.model.k_max = PAPER_K_MAX;
         p.schedule.two_way = 0.0;
@@ -130,18 +129,27 @@ impl FitParams {
     /// One schedule instead of schedule selection's two (the `"fast"` preset), between the
     /// given and the sharp one: the default's [`FitParams::sharp_schedule`] (a 30 % coarse
     /// phase, constant softening) with two-way weight [`FAST_TWO_WAY`]. About 0.7× the
-    /// default's time (the second run, the comparison and the refinement are spared), at a higher error than
-    /// the default's, and a lower one than either of the default's candidates alone
+    /// default's time (the second run, the comparison and the refinement are spared), at a
+    /// higher error than the default's, and a lower one than either of the default's candidates
+    /// alone
     /// (docs/method.md, "Beyond the paper: the default configuration"). It runs
     /// [`FAST_ITERATIONS`] iterations and no isometric refinement, which would cost it about
     /// 15 % more time. For previews and large batches where time comes first.
     pub fn fast() -> Self {
-        let mut p = Self::default().sharp_schedule();
+        let mut p = Self::default()
+            .sharp_schedule()
+            .without_isometric_refinement();
         p.schedule.two_way = FAST_TWO_WAY;
         p.iterations = FAST_ITERATIONS;
-        p.schedule.isometric_iterations = 0;
-        p.schedule.isometric_hold = 0.0;
         p
+    }
+
+    /// These parameters without the isometric refinement (no steps, no hold): the `"paper"`
+    /// and `"fast"` presets.
+    fn without_isometric_refinement(mut self) -> Self {
+        self.schedule.isometric_iterations = 0;
+        self.schedule.isometric_hold = 0.0;
+        self
     }
 
     /// A named preset: `"default"` (the most accurate configuration for its cost, see

@@ -406,20 +406,19 @@ impl<'a> IsometricRefine<'a> {
                 let distance = residual.norm();
                 // Inside the face: along its normal (point to plane); on its border (the
                 // scan beyond the fit's rim): towards the point.
-                let normal = (corners[1] - corners[0]).cross(&(corners[2] - corners[0]));
+                let normal = (corners[1] - corners[0])
+                    .cross(&(corners[2] - corners[0]))
+                    .try_normalize(0.0);
                 let inside = w.iter().all(|&b| b > 0.0);
-                let direction = if (inside || distance == 0.0) && normal.norm() > 0.0 {
-                    normal.normalize()
-                } else if distance > 0.0 {
-                    residual / distance
-                } else {
-                    Vec3::zeros()
+                let direction = match normal {
+                    Some(n) if inside || distance == 0.0 => n,
+                    _ if distance > 0.0 => residual / distance,
+                    _ => Vec3::zeros(),
                 };
                 // Off the face's border and along the surface rather than across it: the scan
                 // beyond the fit's rim.
-                let beyond_rim = !inside
-                    && normal.norm() > 0.0
-                    && direction.dot(&normal.normalize()).abs() < RIM_ACROSS;
+                let beyond_rim =
+                    !inside && normal.is_some_and(|n| direction.dot(&n).abs() < RIM_ACROSS);
                 *cl = Closest {
                     bary: w,
                     distance,
