@@ -191,6 +191,15 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
             ..unchanged(identity_score)
         };
     }
+    // In a scene the two-sided score is mostly the body's: a placement elsewhere is taken only
+    // when the template itself lies on the scan better there, by [`SEARCH_GAIN`].
+    if scene && clouds.scores(&transform).1 > SEARCH_GAIN * identity_forward {
+        return Alignment {
+            searched: true,
+            readings,
+            ..unchanged(identity_score)
+        };
+    }
     let moved = (transform.translation + (transform.rotation - Mat3::identity()) * sa.centroid)
         .norm()
         .max((transform.scale - 1.0).abs() * sa.rms_radius);
