@@ -615,7 +615,10 @@ def prealign(template_vertices: Any, target: Any, motion: str = "rigid") -> dict
     robust two-sided distances ``identity_score`` (the placement as given) and ``score`` (after),
     ``searched`` (False: the placement as given was already good and was kept) and ``readings``
     (the orientations that fit the scan alike; above 1, a symmetric template's reading was
-    chosen by least turn, and landmarks settle it; 0 when nothing was searched)."""
+    chosen by least turn, and landmarks settle it; 0 when nothing was searched). ``fit`` goes
+    further when two such readings are other shapes of the template (a garment back to front,
+    not a symmetric image): it fits from both and keeps the closer
+    (``diagnostics["prealign"]["fitted_readings"] == 2``)."""
     if motion not in ("rigid", "similarity"):
         raise InvalidParameterError(f'parameter motion = {motion!r}: must be "rigid" or "similarity"')
     return _core.prealign_transform(

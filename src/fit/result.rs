@@ -233,6 +233,11 @@ pub struct PrealignFigures {
     /// cannot tell the template's symmetric readings apart and the least turned was taken (a
     /// garment may be placed back to front: landmarks settle it); 0 when nothing was searched.
     pub readings: usize,
+    /// 2 when two of those readings were other shapes of the template (not its symmetric
+    /// images) and the fit was made from both, the one closer to the scan kept; else 1 (0 when
+    /// nothing was searched).
+    #[serde(default)]
+    pub fitted_readings: usize,
 }
 
 /// The outcome of a fit, in the user's frame.

@@ -31,6 +31,7 @@
 mod axes;
 mod icp;
 mod matching;
+mod symmetry;
 mod transform;
 
 pub use axes::{cube_rotations, principal_axes, Axes};
@@ -109,6 +110,12 @@ pub struct Alignment {
     /// tell the template's symmetric readings apart (a square sheet, a tube skirt, a T-shirt
     /// turned 90°), which the least turned then settles; 0 when nothing was searched.
     pub readings: usize,
+    /// When the template was moved: the best-scoring other reading within [`NEAR_TIE`] of the
+    /// best score (turned [`SAME_ANGLE`] or more from [`Alignment::transform`]) under which
+    /// the template is another shape, not its own symmetric image — a T-shirt back to front.
+    /// Rigid scores cannot decide between the two; the fit fits from both and keeps the one
+    /// closer to the scan.
+    pub alternative: Option<Similarity>,
 }
 
 /// The pre-alignment of `template` onto `scan` (see the module documentation). Either set with
@@ -121,6 +128,7 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
         score,
         searched: false,
         readings: 0,
+        alternative: None,
     };
     if template.len() < 3 || scan.len() < 3 {
         return unchanged(f64::NAN);
@@ -192,8 +200,9 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
         };
     }
     // In a scene the two-sided score is mostly the body's: a placement elsewhere is taken only
-    // when the template itself lies on the scan better there, by [`SEARCH_GAIN`].
-    if scene && clouds.scores(&transform).1 > SEARCH_GAIN * identity_forward {
+    // when the template itself lies on the scan better there, by [`SEARCH_GAIN`]. (With the
+    // scale free, a larger scan is no scene: it may be the garment in other units.)
+    if scene && !scaled && clouds.scores(&transform).1 > SEARCH_GAIN * identity_forward {
         return Alignment {
             searched: true,
             readings,
@@ -216,7 +225,24 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
         score,
         searched: true,
         readings,
+        alternative: other_reading(template, &refined, &transform),
     }
+}
+
+/// Of `refined` (non-empty), the best-scoring placement within [`NEAR_TIE`] of the best score
+/// and turned [`SAME_ANGLE`] or more from `chosen`, unless the template turned from `chosen`
+/// to it is its own symmetric image ([`symmetry::maps_onto_itself`]).
+fn other_reading(
+    template: &[[f64; 3]],
+    refined: &[(Similarity, f64)],
+    chosen: &Similarity,
+) -> Option<Similarity> {
+    let best = refined.iter().map(|r| r.1).fold(f64::INFINITY, f64::min);
+    let (other, _) = refined
+        .iter()
+        .filter(|r| r.1 <= best * (1.0 + NEAR_TIE) && r.0.turned_from(chosen) >= SAME_ANGLE)
+        .min_by(|a, b| a.1.total_cmp(&b.1))?;
+    (!symmetry::maps_onto_itself(template, &symmetry::relative(chosen, other))).then_some(*other)
 }
 
 /// Of the coarse refinements `coarse` (non-empty), those within [`COARSE_MARGIN`] of the best
