@@ -191,8 +191,11 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
     // A template placed roughly right — the basin of its placement as given ties with the
     // best — stays as given unless the search improves its score by [`SEARCH_GAIN`].
     let best = refined.iter().map(|r| r.1).fold(f64::INFINITY, f64::min);
-    let given_basin = refined[given_index].1;
-    if given_basin <= best * (1.0 + NEAR_TIE) && score > SEARCH_GAIN * identity_score {
+    let (basin, given_basin) = refined[given_index];
+    // (With the scale free, a basin that rescales the template was not placed right: a scan in
+    // other units.)
+    let same_size = (basin.scale - 1.0).abs() < PLACED;
+    if same_size && given_basin <= best * (1.0 + NEAR_TIE) && score > SEARCH_GAIN * identity_score {
         return Alignment {
             searched: true,
             readings,

@@ -224,3 +224,22 @@ fn finalists_are_the_distinct_near_best_coarse_placements() {
     assert_eq!(angles, vec![0.0, 30.0, 90.0, 0.0]);
     assert_eq!(got[3].translation.x, 0.5);
 }
+
+#[test]
+fn a_deformed_scan_in_other_units_is_rescaled_even_where_the_given_basin_ties() {
+    // The folded scan of `a_roughly_placed_template_of_a_deformed_scan_is_left_to_the_fit`,
+    // 1.5 times the size (other units): the basin of the placement as given, refined with the
+    // scale free, ties with the best, but it rescales the template — the placement as given
+    // was not right, and is not kept.
+    let template = asymmetric_surface(2000, 0.0, 10);
+    let bent: Vec<[f64; 3]> = asymmetric_surface(3000, 0.002, 11)
+        .into_iter()
+        .map(|[x, y, z]| {
+            let z = z + 0.08 * (std::f64::consts::TAU * x / 0.2).sin();
+            [1.5 * (x + 0.03), 1.5 * y, 1.5 * z]
+        })
+        .collect();
+    let got = align(&template, &bent, Motion::Similarity);
+    assert!(got.searched && !got.transform.is_identity(), "{got:?}");
+    assert!((got.transform.scale / 1.5 - 1.0).abs() < 0.2, "{got:?}");
+}
