@@ -14,6 +14,7 @@ divided by the f_R of the default's fit of the unmoved scan. A ratio above ``--l
 
     .venv/bin/python -m bench.prealign                       # tuning set: real + small
     .venv/bin/python -m bench.prealign --set held-out        # cases not tuned on
+    .venv/bin/python -m bench.prealign --set sim             # the physically simulated cases
     .venv/bin/python -m bench.prealign --align-only          # the transforms alone, no fits
     .venv/bin/python -m bench.prealign --timing              # prealign="none" vs the default, placed scans
 
@@ -84,6 +85,11 @@ def held_out_cases() -> list[cases_mod.Case]:
     wind = [c for c in cases_mod.wind_samples()][::3]
     sheets = list(cases_mod.sheet_samples())[:8]
     return wind + sheets
+
+
+def variants_sim_cases() -> list[cases_mod.Case]:
+    """The physically simulated cases (z up), never tuned on here."""
+    return variants.group_cases("sim")
 
 
 def up_axis(case: cases_mod.Case) -> int:
@@ -198,7 +204,12 @@ def timing(cases: list[cases_mod.Case], repeats: int) -> None:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--set", choices=("tuning", "held-out"), default="tuning")
+    ap.add_argument(
+        "--set",
+        choices=("tuning", "held-out", "sim"),
+        default="tuning",
+        help="sim: the physically simulated cases (bench/sim_cases.py, docs/simulated.md)",
+    )
     ap.add_argument("--cases", help="only the cases whose name contains one of these (comma-separated)")
     ap.add_argument(
         "--align-only",
@@ -213,7 +224,7 @@ def main() -> int:
     ap.add_argument("--limit", type=float, default=1.25)
     ap.add_argument("--out", default=str(HERE / "out" / "prealign.json"))
     args = ap.parse_args()
-    cases = tuning_cases() if args.set == "tuning" else held_out_cases()
+    cases = {"tuning": tuning_cases, "held-out": held_out_cases, "sim": variants_sim_cases}[args.set]()
     if args.cases:
         keys = args.cases.split(",")
         cases = [c for c in cases if any(k in c.name for k in keys)]
