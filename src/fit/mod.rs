@@ -625,8 +625,7 @@ struct Comparison {
 }
 
 /// The template as the pre-alignment moved it (`None`: as given), what the search found
-/// (`None`: it did not run)
-/// and the template placed by the other reading to fit from too
+/// (`None`: it did not run), and the template placed by the other reading to fit from too
 /// ([`crate::prealign::Alignment::alternative`]).
 type Placement = (
     Option<Vec<[f64; 3]>>,
@@ -705,9 +704,10 @@ pub const REFINE_POINTS_PER_VERTEX: usize = 4;
 pub const LANDMARK_ANCHOR: f64 = 100.0;
 
 /// The other reading's fit replaces the first (the least turned) only when it lies closer to
-/// the scan by this share: a garment fitted back to front wraps its scan nearly as closely
-/// (1–2 % on the bent-over T-shirt and the folded ones of the harness), the right reading of
-/// a garment turned 90° lies 8–24 % closer than the wrong one (`bench/prealign.py`).
+/// the scan by this share: a garment fitted back to front can wrap its scan as closely (0.2–1.2
+/// % closer than the right reading on the bent-over T-shirt, a folded one and a square sheet
+/// of the harness), the right reading of a garment turned 90° lies 5–24 % closer than the
+/// wrong one (`bench/prealign.py`; docs/notes/prealign-readings.md).
 pub const READING_MARGIN: f64 = 0.04;
 
 /// The template moved by the global pre-alignment of [`FitParams::prealign`] (`Rigid`,
