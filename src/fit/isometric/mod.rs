@@ -133,6 +133,11 @@ struct Buffers {
     /// corners l ≤ k ([`pair`]) and `Σ ω b_l e (e · x)` for each corner.
     face_q: Vec<[Mat3; 6]>,
     face_r: Vec<[Vec3; 3]>,
+    /// The scan points that count, bucketed by their face (in scan order within a face):
+    /// face `f`'s are `face_points[face_start[f]..face_start[f + 1]]`, so the faces'
+    /// sums run in parallel and in the same order as one pass over the points.
+    face_start: Vec<u32>,
+    face_points: Vec<u32>,
     /// The global step's matrix (`diag`, and `off` on the ring's slots), right-hand side and
     /// conjugate-gradient vectors.
     diag: Vec<Mat3>,
@@ -275,6 +280,8 @@ impl<'a> IsometricRefine<'a> {
             closest: vec![Closest::default(); n],
             face_q: vec![[Mat3::zeros(); 6]; self.faces.len()],
             face_r: vec![[Vec3::zeros(); 3]; self.faces.len()],
+            face_start: vec![0; self.faces.len() + 1],
+            face_points: vec![0; n],
             diag: vec![Mat3::zeros(); m],
             diag_inv: vec![Mat3::zeros(); m],
             off: vec![Mat3::zeros(); self.ring.members.len()],
@@ -431,26 +438,55 @@ impl<'a> IsometricRefine<'a> {
             *d = cl.distance;
         }
         let cut = (TRIM * median(&b.distance[..n], &mut b.scratch)).max(self.reach);
-        b.face_q.iter_mut().for_each(|q| *q = [Mat3::zeros(); 6]);
-        b.face_r.iter_mut().for_each(|r| *r = [Vec3::zeros(); 3]);
+        let counts = |cl: &Closest| !(cl.distance > cut || (cl.beyond_rim && !self.rim_pull));
+        // The counting sort of the points that count by face (sequential, integers only).
+        let (start, points) = (&mut b.face_start, &mut b.face_points);
+        start.iter_mut().for_each(|s| *s = 0);
         let mut total = 0.0;
         for (j, (&f, cl)) in b.face_of.iter().zip(&b.closest).enumerate() {
-            if cl.distance > cut || (cl.beyond_rim && !self.rim_pull) {
-                continue;
+            if counts(cl) {
+                start[f as usize + 1] += 1;
+                total += self.weights.map_or(1.0, |w| w[j]);
             }
-            let w = self.weights.map_or(1.0, |w| w[j]);
-            let f = f as usize;
-            let (e, bc) = (cl.direction, cl.bary);
-            let eet = w * e * e.transpose();
-            let along = w * e.dot(&vec3(&self.scan[j])) * e;
-            for l in 0..3 {
-                b.face_r[f][l] += bc[l] * along;
-                for k in l..3 {
-                    b.face_q[f][pair(l, k)] += (bc[l] * bc[k]) * eet;
-                }
-            }
-            total += w;
         }
+        for f in 0..self.faces.len() {
+            start[f + 1] += start[f];
+        }
+        // Each point at its face's cursor, which ends at the next face's start; shifted back.
+        for (j, (&f, cl)) in b.face_of.iter().zip(&b.closest).enumerate() {
+            if counts(cl) {
+                points[start[f as usize] as usize] = j as u32;
+                start[f as usize] += 1;
+            }
+        }
+        start.copy_within(..self.faces.len(), 1);
+        start[0] = 0;
+        // Per face, in parallel: Σ ω b_l b_k e eᵀ and Σ ω b_l e (e · x) over its points.
+        let (start, points, closest) = (&b.face_start, &b.face_points, &b.closest);
+        let (scan, weights) = (self.scan, self.weights);
+        b.face_q
+            .par_iter_mut()
+            .zip(b.face_r.par_iter_mut())
+            .enumerate()
+            .with_min_len(MIN_LEN)
+            .for_each(|(f, (q, r))| {
+                *q = [Mat3::zeros(); 6];
+                *r = [Vec3::zeros(); 3];
+                for &j in &points[start[f] as usize..start[f + 1] as usize] {
+                    let j = j as usize;
+                    let cl = &closest[j];
+                    let w = weights.map_or(1.0, |w| w[j]);
+                    let (e, bc) = (cl.direction, cl.bary);
+                    let eet = w * e * e.transpose();
+                    let along = w * e.dot(&vec3(&scan[j])) * e;
+                    for l in 0..3 {
+                        r[l] += bc[l] * along;
+                        for k in l..3 {
+                            q[pair(l, k)] += (bc[l] * bc[k]) * eet;
+                        }
+                    }
+                }
+            });
         if total > 0.0 {
             y.len() as f64 / total
         } else {
