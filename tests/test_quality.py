@@ -83,3 +83,37 @@ def test_thresholds_can_be_replaced_and_turned_off():
         fm.assess(tv, faces, tv, case["scan"], thresholds={"no_such_figure": 1.0})
     with pytest.raises(InvalidParameterError, match="asymmetry"):
         fm.assess(tv, faces, tv, case["scan"], thresholds={"asymmetry": -1.0})
+
+
+def test_scan_weights_leave_the_points_of_weight_zero_out_of_the_verdict():
+    # A good fit, its scan with a "body" beside it (a block of points as large again, as a
+    # dressed-body scan holds skin): on the whole scan the scan -> fit distance and the
+    # asymmetry flag the fit; with the garment mask as target_weights the verdict is the one of
+    # the garment's points alone, and the correspondences index the whole scan.
+    case = sheet_case()
+    tv, faces, scan = case["template_vertices"], case["faces"], case["scan"]
+    r = fm.fit(tv, faces, scan)
+    rng = np.random.default_rng(0)
+    lo, hi = scan.min(0), scan.max(0)
+    body = lo + [0.0, 0.0, 0.5 * np.ptp(scan[:, 0])] + rng.random((3000, 3)) * (hi - lo + 0.3)
+    whole = np.concatenate([body, scan])
+    mask = np.r_[np.zeros(len(body)), np.ones(len(scan))]
+    flagged = fm.assess(tv, faces, r.vertices, whole)
+    assert flagged["quality"]["verdict"] == "suspicious"
+    masked = fm.assess(tv, faces, r.vertices, whole, target_weights=mask)
+    alone = fm.assess(tv, faces, r.vertices, scan)
+    assert masked["quality"]["verdict"] == "ok", masked["quality"]["reasons"]
+    for key in FIGURES:
+        assert math.isclose(masked["quality"][key], alone["quality"][key], rel_tol=1e-12, abs_tol=1e-15), key
+    np.testing.assert_array_equal(masked["correspondences"], alone["correspondences"] + len(body))
+    # Weights other than 0 count alike; bad weights are refused as fm.fit refuses them.
+    half = fm.assess(tv, faces, r.vertices, whole, target_weights=0.5 * mask)
+    assert half["quality"]["scan_to_fit"] == masked["quality"]["scan_to_fit"]
+    for bad, match in [
+        (mask[:-1], "one weight per scan point"),
+        (np.where(mask > 0, 1.0, -1.0), r"target_weights\[0\]"),
+        (np.where(mask > 0, np.nan, 0.0), r"target_weights\[3000\]"),
+        (0.0 * mask, "all zero"),
+    ]:
+        with pytest.raises(InvalidParameterError, match=match):
+            fm.assess(tv, faces, r.vertices, whole, target_weights=bad)

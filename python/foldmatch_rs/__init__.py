@@ -739,6 +739,7 @@ def assess(
     scan: Any,
     *,
     thresholds: Optional[dict[str, float]] = None,
+    target_weights: Any = None,
 ) -> dict[str, Any]:
     """Does a fit look right? The quality verdict from figures that need no ground truth
     (docs/method.md "Quality verdict"); :func:`fit` puts the same into ``FitResult.quality``.
@@ -755,6 +756,11 @@ def assess(
     thresholds : dict, optional
         Replaces the verdict's thresholds (every key of ``quality`` below from ``fit_to_scan``
         to ``edge_distortion``); ``float("inf")`` turns a test off.
+    target_weights : (N,) float, optional
+        As in :func:`fit`; the scan points of weight 0 are left out of every figure (a
+        dressed-body scan's garment mask: the body's points lie far from any garment fit and
+        would make the scan → fit distance and the asymmetry flag a right fit), the others
+        count alike. The same checks as :func:`fit`'s.
 
     Returns
     -------
@@ -771,19 +777,46 @@ def assess(
     if thresholds is not None:
         # Missing keys keep their defaults; +inf turns a threshold off.
         thresholds = {k: float(v) for k, v in thresholds.items()}
+    x = _points(scan, "scan")
+    kept = _kept_points(_inputs.weights(target_weights, len(x), scan), len(x))
     raw = _core.assess_raw(
         _points(template, "template_vertices"),
         _faces(template_faces, "template_faces"),
         _points(fitted, "fitted_vertices"),
-        _points(scan, "scan"),
+        x if kept is None else np.ascontiguousarray(x[kept]),
         thresholds,
     )
+    correspondences = raw["correspondences"]
+    if kept is not None:  # indices of the whole scan
+        correspondences = kept[correspondences].astype(np.uint32)
     return {
         "quality": raw["quality"],
-        "correspondences": raw["correspondences"],
+        "correspondences": correspondences,
         "residuals": raw["residuals"],
         "support": raw["support"],
     }
+
+
+def _kept_points(weights: Optional[np.ndarray], n: int) -> Optional[np.ndarray]:
+    """The indices of the scan points with a positive weight (None: no weights), after the
+    checks :func:`fit` makes: one weight per point, finite, non-negative, not all zero."""
+    if weights is None:
+        return None
+    if len(weights) != n:
+        raise InvalidParameterError(
+            f"parameter target_weights = {len(weights)} weights: need one weight per scan point ({n})"
+        )
+    bad = np.flatnonzero(~np.isfinite(weights) | (weights < 0))
+    if len(bad):
+        j = int(bad[0])
+        raise InvalidParameterError(
+            f"parameter target_weights[{j}] = {weights[j]}: weights must be finite and >= 0"
+        )
+    if not (weights > 0).any():
+        raise InvalidParameterError(
+            "parameter target_weights = all zero: at least one scan point needs a positive weight"
+        )
+    return np.flatnonzero(weights > 0)
 
 
 def folded_sheet(**spec: Any) -> dict[str, np.ndarray]:
