@@ -558,9 +558,9 @@ fn fit_from(
 }
 
 /// The fits from two placements of the template (the pre-alignment's readings, in the
-/// scan's frame), without a pre-alignment of their own; the one whose fit lies closer to the
-/// scan (mean of the two directed distances of its verdict) is returned, with `prealign`'s
-/// figures. Each reports its half of the progress.
+/// scan's frame), without a pre-alignment of their own; the second replaces the first when its
+/// fit lies closer to the scan by [`READING_MARGIN`] (the sum of its verdict's two directed
+/// distances), returned with `prealign`'s figures. Each reports its half of the progress.
 #[allow(clippy::too_many_arguments)]
 fn fit_readings(
     placements: [&[[f64; 3]]; 2],
@@ -577,6 +577,7 @@ fn fit_readings(
     let mut inner = params.clone();
     inner.prealign = Prealign::None;
     let total = params.iterations;
+    let closeness = |r: &FitResult| r.quality.fit_to_scan + r.quality.scan_to_fit;
     let mut best: Option<FitResult> = None;
     for (part, placement) in placements.into_iter().enumerate() {
         let mut halves = |p: &Progress| observer(&p.of_parts(part, 2, total));
@@ -596,7 +597,6 @@ fn fit_readings(
         fitted.params = params.clone();
         fitted.diagnostics.prealign = prealign;
         let stopped = fitted.diagnostics.stopped_by_callback;
-        let closeness = |r: &FitResult| r.quality.fit_to_scan + r.quality.scan_to_fit;
         if best
             .as_ref()
             .is_none_or(|b| closeness(&fitted) < (1.0 - READING_MARGIN) * closeness(b))
@@ -744,8 +744,11 @@ fn prealigned(
         identity_score: alignment.identity_score,
         score: alignment.score,
         readings: alignment.readings,
-        fitted_readings: usize::from(alignment.searched)
-            * (1 + usize::from(moved && alignment.alternative.is_some())),
+        fitted_readings: match (alignment.searched, alignment.alternative) {
+            (false, _) => 0,
+            (true, Some(_)) if moved => 2,
+            (true, _) => 1,
+        },
     };
     Ok((
         moved.then(|| alignment.transform.apply_all(template_vertices)),

@@ -90,6 +90,11 @@ impl Clouds {
         }
     }
 
+    /// The template's points, every one, indexed.
+    pub fn template_index(&self) -> &PointIndex {
+        &self.indices[Level::Full as usize].0
+    }
+
     /// The matches under `t` (template coordinates → scan coordinates) of the samples of
     /// `level`, each direction sorted by distance and trimmed to its closest
     /// [`KEPT_FRACTION`]: (template → scan, scan → template), every pair as (template point,

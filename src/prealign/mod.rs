@@ -228,7 +228,7 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
         score,
         searched: true,
         readings,
-        alternative: other_reading(template, &refined, &transform),
+        alternative: other_reading(template, &clouds, &ta, &refined, &transform),
     }
 }
 
@@ -237,6 +237,8 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
 /// to it is its own symmetric image ([`symmetry::maps_onto_itself`]).
 fn other_reading(
     template: &[[f64; 3]],
+    clouds: &Clouds,
+    axes: &Axes,
     refined: &[(Similarity, f64)],
     chosen: &Similarity,
 ) -> Option<Similarity> {
@@ -245,7 +247,9 @@ fn other_reading(
         .iter()
         .filter(|r| r.1 <= best * (1.0 + NEAR_TIE) && r.0.turned_from(chosen) >= SAME_ANGLE)
         .min_by(|a, b| a.1.total_cmp(&b.1))?;
-    (!symmetry::maps_onto_itself(template, &symmetry::relative(chosen, other))).then_some(*other)
+    let turn = symmetry::relative(chosen, other);
+    let symmetric = symmetry::maps_onto_itself(template, clouds.template_index(), axes, &turn);
+    (!symmetric).then_some(*other)
 }
 
 /// Of the coarse refinements `coarse` (non-empty), those within [`COARSE_MARGIN`] of the best

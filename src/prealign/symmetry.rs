@@ -6,7 +6,7 @@
 //! apart; readings of two shapes are fitted both and compared (docs/method.md "Global
 //! pre-alignment").
 
-use super::axes::{candidate_rotations, principal_axes};
+use super::axes::{candidate_rotations, Axes};
 use super::matching::spread_sample;
 use super::transform::{fit_pairs, Similarity};
 use crate::knn::PointIndex;
@@ -34,12 +34,17 @@ pub fn relative(a: &Similarity, b: &Similarity) -> Similarity {
 }
 
 /// Whether `template` moved by `motion` (rigid part only) and registered back onto itself by
-/// ICP lies on itself within [`SYMMETRIC`] of its point spacing.
-pub fn maps_onto_itself(template: &[[f64; 3]], motion: &Similarity) -> bool {
+/// ICP lies on itself within [`SYMMETRIC`] of its point spacing; `index` holds every template
+/// point, `axes` are the template's principal axes (both as the search made them).
+pub fn maps_onto_itself(
+    template: &[[f64; 3]],
+    index: &PointIndex,
+    axes: &Axes,
+    motion: &Similarity,
+) -> bool {
     if template.len() < 3 {
         return true;
     }
-    let index = PointIndex::new(template);
     let sample = spread_sample(template, SAMPLE);
     // The mean distance of `points` from their nearest template point, and those points.
     let nearest = |points: &[[f64; 3]]| -> (f64, Vec<[f64; 3]>) {
@@ -65,12 +70,11 @@ pub fn maps_onto_itself(template: &[[f64; 3]], motion: &Similarity) -> bool {
     // Started from the symmetry of the template's principal frame nearest to `motion` (the
     // readings come from those frames, refined on a deformed scan: a few degrees off a
     // symmetry, from which ICP on a regular grid stalls between vertices).
-    let axes = principal_axes(template);
     let turn = Similarity {
         scale: 1.0,
         ..*motion
     };
-    let mut current = candidate_rotations(&axes, &axes)
+    let mut current = candidate_rotations(axes, axes)
         .into_iter()
         .map(|rotation| Similarity {
             rotation,
@@ -127,6 +131,11 @@ mod tests {
         (flat, bumped)
     }
 
+    fn maps(template: &[[f64; 3]], motion: &Similarity) -> bool {
+        let axes = super::super::axes::principal_axes(template);
+        maps_onto_itself(template, &PointIndex::new(template), &axes, motion)
+    }
+
     #[test]
     fn a_square_sheet_turned_near_a_symmetry_maps_onto_itself_a_bumped_one_does_not() {
         let (flat, bumped) = grids();
@@ -138,16 +147,16 @@ mod tests {
             ([1.0, 0.0, 0.0], 184.0),
         ] {
             assert!(
-                maps_onto_itself(&flat, &turn(axis, degrees, centre)),
+                maps(&flat, &turn(axis, degrees, centre)),
                 "{axis:?} {degrees}"
             );
             assert!(
-                !maps_onto_itself(&bumped, &turn(axis, degrees, centre)),
+                !maps(&bumped, &turn(axis, degrees, centre)),
                 "{axis:?} {degrees}"
             );
         }
         // The identity is a symmetry of everything.
-        assert!(maps_onto_itself(&bumped, &Similarity::identity()));
+        assert!(maps(&bumped, &Similarity::identity()));
     }
 
     #[test]

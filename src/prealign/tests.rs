@@ -30,6 +30,18 @@ fn asymmetric_surface(count: usize, noise: f64, seed: u64) -> Vec<[f64; 3]> {
         .collect()
 }
 
+/// A noisy scan of the surface of `asymmetric_surface(_, _, 10)` with folds along x (cloth
+/// draped otherwise than its template), moved by 0.03 along x and scaled by `scale`.
+fn folded_scan(scale: f64) -> Vec<[f64; 3]> {
+    asymmetric_surface(3000, 0.002, 11)
+        .into_iter()
+        .map(|[x, y, z]| {
+            let z = z + 0.08 * (std::f64::consts::TAU * x / 0.2).sin();
+            [scale * (x + 0.03), scale * y, scale * z]
+        })
+        .collect()
+}
+
 fn rotation(axis: [f64; 3], degrees: f64) -> Mat3 {
     *Rotation3::from_axis_angle(&Unit::new_normalize(vec3(&axis)), degrees.to_radians()).matrix()
 }
@@ -177,16 +189,7 @@ fn a_roughly_placed_template_of_a_deformed_scan_is_left_to_the_fit() {
     // slightly moved: the placement as given is rough (above PLACED), and a rigid match of the
     // unfolded shape is no better placement than the one given.
     let template = asymmetric_surface(2000, 0.0, 10);
-    let bent: Vec<[f64; 3]> = asymmetric_surface(3000, 0.002, 11)
-        .into_iter()
-        .map(|[x, y, z]| {
-            [
-                x + 0.03,
-                y,
-                z + 0.08 * (std::f64::consts::TAU * x / 0.2).sin(),
-            ]
-        })
-        .collect();
+    let bent = folded_scan(1.0);
     let got = align(&template, &bent, Motion::Rigid);
     assert!(got.searched, "{got:?}");
     assert!(got.transform.is_identity(), "{got:?}");
@@ -232,13 +235,7 @@ fn a_deformed_scan_in_other_units_is_rescaled_even_where_the_given_basin_ties() 
     // scale free, ties with the best, but it rescales the template — the placement as given
     // was not right, and is not kept.
     let template = asymmetric_surface(2000, 0.0, 10);
-    let bent: Vec<[f64; 3]> = asymmetric_surface(3000, 0.002, 11)
-        .into_iter()
-        .map(|[x, y, z]| {
-            let z = z + 0.08 * (std::f64::consts::TAU * x / 0.2).sin();
-            [1.5 * (x + 0.03), 1.5 * y, 1.5 * z]
-        })
-        .collect();
+    let bent = folded_scan(1.5);
     let got = align(&template, &bent, Motion::Similarity);
     assert!(got.searched && !got.transform.is_identity(), "{got:?}");
     assert!((got.transform.scale / 1.5 - 1.0).abs() < 0.2, "{got:?}");
