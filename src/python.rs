@@ -522,7 +522,7 @@ fn folded_sheet<'py>(
 
 /// The paper's metrics (paper §4) of a fit: a dict keyed by the metric names.
 #[pyfunction]
-#[pyo3(signature = (template_vertices, template_faces, fitted_vertices, target, ground_truth=None, tau_s=0.02, tau_e=2.0))]
+#[pyo3(signature = (template_vertices, template_faces, fitted_vertices, target, ground_truth=None, tau_s=0.02, tau_e=2.0, target_weights=None))]
 #[allow(clippy::too_many_arguments)]
 fn evaluate<'py>(
     py: Python<'py>,
@@ -533,7 +533,17 @@ fn evaluate<'py>(
     ground_truth: Option<PyReadonlyArray2<'py, f64>>,
     tau_s: f64,
     tau_e: f64,
+    target_weights: Option<PyReadonlyArray1<'py, f64>>,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let weights = match &target_weights {
+        Some(w) => Some(w.as_slice().map_err(|_| {
+            to_pyerr(FoldMatchError::shape(
+                "target_weights",
+                "must be a contiguous (N,) float64 array",
+            ))
+        })?),
+        None => None,
+    };
     let tv = points("template_vertices", &template_vertices)?;
     let fv = points("fitted_vertices", &fitted_vertices)?;
     let x = points("target", &target)?;
@@ -554,7 +564,10 @@ fn evaluate<'py>(
         target: x,
         ground_truth: gt,
     };
-    let m = compute(py, None, |_| metrics::evaluate(&input, &params))?.map_err(to_pyerr)?;
+    let m = compute(py, None, |_| {
+        metrics::evaluate_weighted(&input, weights, &params)
+    })?
+    .map_err(to_pyerr)?;
     let d = PyDict::new(py);
     d.set_item("f_H", m.f_h)?;
     d.set_item("f_S", m.f_s)?;

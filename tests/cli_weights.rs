@@ -371,3 +371,70 @@ fn batch_and_sequence_take_a_property_of_every_scan() {
         .assert()
         .code(1);
 }
+
+/// `eval` takes the fit's weights: on a dressed scan with its mask (a file or a PLY property)
+/// it prints the metrics the fit's report holds, measured on the garment's points; without the
+/// mask the other points count (the scan → fit distance grows). Bad weights are refused as
+/// `fit` refuses them.
+#[test]
+fn eval_measures_the_points_the_weights_keep() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    write_case(d);
+    let (points, mask) = dressed(2);
+    write_mesh(
+        &d.join("dressed.ply"),
+        &MeshData::point_cloud(points.clone()),
+        &[],
+        false,
+    )
+    .unwrap();
+    std::fs::write(d.join("mask.npy"), npy_bytes("|b1", "(500,)", &mask)).unwrap();
+    write_labelled_cloud(&d.join("labelled.ply"), &points, "label", &mask);
+    fit_quietly(
+        d,
+        "dressed.ply",
+        "fitted.ply",
+        &["--scan-weights", "mask.npy"],
+    );
+    let report = json(&d.join("fitted.ply.json"));
+    let eval = |scan: &str, out: &str, extra: &[&str]| {
+        foldmatch(d)
+            .args(["-q", "eval", "template.ply", "fitted.ply", scan, "-o", out])
+            .args(extra)
+            .assert()
+            .code(0);
+        json(&d.join(out))
+    };
+    let masked = eval(
+        "dressed.ply",
+        "masked.json",
+        &["--scan-weights", "mask.npy"],
+    );
+    let labelled = eval(
+        "labelled.ply",
+        "labelled.json",
+        &["--scan-weights-property", "label"],
+    );
+    let whole = eval("dressed.ply", "whole.json", &[]);
+    assert_eq!(masked, report["metrics"]);
+    assert_eq!(labelled, report["metrics"]);
+    let s2f = |m: &serde_json::Value| m["scan_to_fit_mean"].as_f64().unwrap();
+    assert!(
+        s2f(&whole) > 2.0 * s2f(&masked),
+        "the 100 points 0.3 off the sheet count without the mask: {} vs {}",
+        s2f(&whole),
+        s2f(&masked)
+    );
+    write_npy_f64(&d.join("short.npy"), &[1.0; 499]);
+    foldmatch(d)
+        .args(["eval", "template.ply", "fitted.ply", "dressed.ply"])
+        .args(["--scan-weights", "short.npy"])
+        .assert()
+        .code(1)
+        .stdout_eq(str![""])
+        .stderr_eq(str![[r#"
+error: short.npy (the weights of dressed.ply): parameter target_weights = 499 weights: need one weight per scan point (500)
+
+"#]]);
+}

@@ -314,3 +314,26 @@ def test_shape_errors():
     bad[3, 1] = np.nan
     with pytest.raises(ValueError):
         call(template, faces, bad, target)  # NaN coordinate
+
+
+def test_target_weights_leave_out_the_points_of_weight_zero():
+    # The fit lies on the garment's points; 30 "body" points lie 0.5 above it. With the garment
+    # mask as target_weights the figures are the garment's alone, as fm.fit measures them.
+    template, faces, _, _, _ = random_case(5, False)
+    fitted = template + [0.0, 0.0, 0.5]
+    body = fitted[:30] + [0.0, 0.0, 0.5]
+    scan = np.vstack([fitted, body])
+    mask = np.r_[np.ones(len(fitted)), np.zeros(len(body))]
+    garment = foldmatch_rs.evaluate(template, faces, fitted, fitted, ground_truth=fitted)
+    for w in (mask, 3.0 * mask, mask.astype(bool), mask.astype(np.float32)):
+        got = foldmatch_rs.evaluate(template, faces, fitted, scan, ground_truth=fitted, target_weights=w)
+        assert got == garment
+    whole = foldmatch_rs.evaluate(template, faces, fitted, scan, ground_truth=fitted)
+    assert whole["scan_to_fit_mean"] > 0.0 and whole["target_diagonal"] > garment["target_diagonal"]
+    for bad, match in (
+        (mask[1:], "need one weight per scan point"),
+        (np.where(mask > 0, 1.0, -1.0), r"target_weights\[{}\]".format(len(fitted))),
+        (np.zeros(len(scan)), "all zero"),
+    ):
+        with pytest.raises(ValueError, match=match):
+            foldmatch_rs.evaluate(template, faces, fitted, scan, target_weights=bad)

@@ -695,6 +695,7 @@ def evaluate(
     *,
     tau_s: float = 0.02,
     tau_e: float = 2.0,
+    target_weights: Any = None,
 ) -> dict[str, Any]:
     """The paper's evaluation metrics (§4, SPEC §3) of a fit.
 
@@ -711,6 +712,11 @@ def evaluate(
         True positions of the template vertices, when known.
     tau_s, tau_e : float
         Area-ratio thresholds of f_S (collapse) and f_E (expansion).
+    target_weights : (N,) float, optional
+        As in :func:`fit`: the scan points of weight 0 are left out (a dressed-body scan's
+        garment mask: the fit is measured against the garment's points, and ``f_R`` and
+        ``target_diagonal`` are relative to their diagonal), the others count alike. The same
+        checks as :func:`fit`'s.
 
     Returns
     -------
@@ -721,14 +727,16 @@ def evaluate(
         ``chamfer``, ``scan_to_fit_mean``, ``scan_to_fit_p95``, ``fit_to_scan_mean``,
         ``hausdorff_before``, ``hausdorff_after``, ``rmse``, ``target_diagonal`` and face counts.
     """
+    x = _points(target, "target")
     return _core.evaluate(
         _points(template, "template_vertices"),
         _faces(template_faces, "template_faces"),
         _points(fitted, "fitted_vertices"),
-        _points(target, "target"),
+        x,
         None if ground_truth is None else _points(ground_truth, "ground_truth"),
         float(tau_s),
         float(tau_e),
+        _inputs.weights(target_weights, len(x), target),
     )
 
 

@@ -109,6 +109,7 @@ def evaluate(
     ground_truth: Optional[_F64] = None,
     tau_s: float = 0.02,
     tau_e: float = 2.0,
+    target_weights: Optional[_F64] = None,
 ) -> dict[str, Any]: ...
 def run_cli(argv: list[str]) -> int: ...
 def render_preview(

@@ -260,6 +260,19 @@ pub struct EvalCmd {
     /// Ground-truth positions of the template vertices, for f_R.
     #[arg(long, value_name = "GT")]
     pub gt: Option<PathBuf>,
+    /// A weight per scan point, as `fit --scan-weights` takes it (a NumPy .npy array of shape
+    /// (N,) or (N, 1)): the points of weight 0 are left out of the metrics, as the fit left
+    /// them out (a garment mask on a dressed-body scan).
+    #[arg(
+        long,
+        value_name = "FILE.npy",
+        conflicts_with = "scan_weights_property"
+    )]
+    pub scan_weights: Option<PathBuf>,
+    /// A weight per scan point from this per-vertex property of the scan's PLY, as
+    /// --scan-weights.
+    #[arg(long, value_name = "NAME")]
+    pub scan_weights_property: Option<String>,
     /// Also write the JSON to this file.
     #[arg(short, long, value_name = "FILE")]
     pub output: Option<PathBuf>,

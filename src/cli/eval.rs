@@ -1,10 +1,11 @@
 //! `foldmatch eval`: the paper's metrics (paper §4) of a fitted mesh, as JSON on standard output.
 
 use super::args::EvalCmd;
-use super::job::read_named;
+use super::job::{read_named, ScanWeights};
 use super::report::write_json;
 use super::{exit_code, Context};
-use crate::metrics::{evaluate, MetricsInput, MetricsParams};
+use crate::fit::validate_weights;
+use crate::metrics::{evaluate_weighted, MetricsInput, MetricsParams};
 
 /// Runs `eval`.
 pub fn eval(cmd: &EvalCmd, ctx: &Context) -> i32 {
@@ -20,7 +21,19 @@ pub fn eval(cmd: &EvalCmd, ctx: &Context) -> i32 {
 fn run(cmd: &EvalCmd, ctx: &Context) -> Result<(), String> {
     let template = read_named("template", &cmd.template)?;
     let fitted = read_named("fitted mesh", &cmd.fitted)?;
-    let scan = read_named("scan", &cmd.scan)?;
+    let source = match (&cmd.scan_weights, &cmd.scan_weights_property) {
+        (Some(file), _) => Some(ScanWeights::File(file.clone())),
+        (None, Some(name)) => Some(ScanWeights::Property(name.clone())),
+        (None, None) => None,
+    };
+    let (scan, weights) = match &source {
+        None => (read_named("scan", &cmd.scan)?, None),
+        Some(source) => {
+            let (scan, weights, _, what) = source.read(&cmd.scan)?;
+            validate_weights(&weights, scan.vertices.len()).map_err(|e| format!("{what}: {e}"))?;
+            (scan, Some(weights))
+        }
+    };
     let gt = cmd
         .gt
         .as_ref()
@@ -57,7 +70,7 @@ fn run(cmd: &EvalCmd, ctx: &Context) -> Result<(), String> {
     };
     let metrics = ctx
         .pool
-        .install(|| evaluate(&input, &params))
+        .install(|| evaluate_weighted(&input, weights.as_deref(), &params))
         .map_err(|e| e.to_string())?;
     let json = serde_json::to_string_pretty(&metrics).map_err(|e| e.to_string())?;
     println!("{json}");

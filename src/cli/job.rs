@@ -114,7 +114,10 @@ impl ScanWeights {
     /// The scan at `path` and its weights, with their report entry and the name of the
     /// weights in messages (not validated yet). Errors name the file (and the property).
     #[allow(clippy::type_complexity)]
-    fn read(&self, path: &Path) -> Result<(MeshData, Vec<f64>, ScanWeightsReport, String), String> {
+    pub(super) fn read(
+        &self,
+        path: &Path,
+    ) -> Result<(MeshData, Vec<f64>, ScanWeightsReport, String), String> {
         let named = |e: FoldMatchError| name_file(path, e);
         let (scan, weights, source, report) = match self {
             Self::File(file) => {
@@ -142,16 +145,6 @@ impl ScanWeights {
         let report = report.counted(&weights);
         Ok((scan, weights, report, source))
     }
-}
-
-/// The points of `scan` whose weight is positive: what the fit explains, so what the metrics
-/// and the wrinkle field are computed on.
-fn positive_points(scan: &[[f64; 3]], weights: &[f64]) -> Vec<[f64; 3]> {
-    scan.iter()
-        .zip(weights)
-        .filter(|(_, &w)| w > 0.0)
-        .map(|(p, _)| *p)
-        .collect()
 }
 
 /// One file to fit.
@@ -297,7 +290,7 @@ impl Runner<'_> {
         let explained = weights
             .as_deref()
             .filter(|w| w.contains(&0.0))
-            .map(|w| positive_points(&scan.vertices, w));
+            .map(|w| crate::metrics::positive_points(&scan.vertices, w));
         let explained = explained.as_deref().unwrap_or(&scan.vertices);
         let gt = match &job.gt {
             None => None,

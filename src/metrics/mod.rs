@@ -305,6 +305,41 @@ pub fn evaluate(input: &MetricsInput<'_>, params: &MetricsParams) -> Result<Metr
     })
 }
 
+/// [`evaluate`] against the scan points of positive weight: `weights` (one per target point,
+/// checked as a fit checks its `target_weights`: finite, non-negative, not all zero) leave out
+/// the points of weight 0, as a fit with these weights ignores them; the positive weights count
+/// alike. So a garment fitted onto a dressed-body scan with a garment mask is measured on the
+/// garment's points (docs/dressed.md "Checking a fit"), and its `f_R` is relative to their
+/// diagonal. `None`: [`evaluate`].
+pub fn evaluate_weighted(
+    input: &MetricsInput<'_>,
+    weights: Option<&[f64]>,
+    params: &MetricsParams,
+) -> Result<Metrics> {
+    let Some(weights) = weights else {
+        return evaluate(input, params);
+    };
+    crate::fit::validate_weights(weights, input.target.len())?;
+    let kept = positive_points(input.target, weights);
+    evaluate(
+        &MetricsInput {
+            target: &kept,
+            ..*input
+        },
+        params,
+    )
+}
+
+/// The points of `points` whose weight is positive, in order.
+pub fn positive_points(points: &[[f64; 3]], weights: &[f64]) -> Vec<[f64; 3]> {
+    points
+        .iter()
+        .zip(weights)
+        .filter(|(_, &w)| w > 0.0)
+        .map(|(p, _)| *p)
+        .collect()
+}
+
 /// Shapes, finiteness and face indices of `input` (see [`evaluate`]).
 fn validate_input(input: &MetricsInput<'_>) -> Result<()> {
     let m = input.template_vertices.len();

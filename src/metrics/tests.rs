@@ -487,6 +487,47 @@ fn fit_onto_target_vertices_gives_zero_distances() {
 }
 
 #[test]
+fn weights_leave_out_the_points_of_weight_zero() {
+    // The fit lies on its scan's garment points; two "body" points lie 2 above it. Weighted 0,
+    // they are out: the figures are those of the garment points alone (distances 0, the
+    // garment's diagonal), whatever positive weight the others carry.
+    let mut rng = ChaCha8Rng::seed_from_u64(33);
+    let (y, f) = grid_mesh(&mut rng, 6, 6);
+    let yh: Vec<[f64; 3]> = y.iter().map(|p| [p[0] + 0.5, p[1], p[2]]).collect();
+    let mut x = yh.clone();
+    x.push([yh[0][0], yh[0][1], yh[0][2] + 2.0]);
+    x.push([yh[7][0], yh[7][1], yh[7][2] + 2.0]);
+    let g = Some(&yh[..]);
+    let params = MetricsParams::default();
+    let mut w: Vec<f64> = (0..yh.len()).map(|j| 0.5 + (j % 3) as f64).collect();
+    w.extend([0.0, 0.0]);
+    let masked = evaluate_weighted(&input(&y, &f, &yh, &x, g), Some(&w), &params).unwrap();
+    let garment = evaluate(&input(&y, &f, &yh, &yh, g), &params).unwrap();
+    assert_eq!(masked, garment);
+    assert_eq!((masked.scan_to_fit_mean, masked.f_h), (0.0, 0.0));
+    // Without the weights the two points count: each at most 2 from the fitted surface (2
+    // from their vertex; the jittered grid is nearly flat).
+    let whole = evaluate_weighted(&input(&y, &f, &yh, &x, g), None, &params).unwrap();
+    let two_points = 4.0 / x.len() as f64;
+    assert!(
+        (0.9 * two_points..=two_points).contains(&whole.scan_to_fit_mean),
+        "{}",
+        whole.scan_to_fit_mean
+    );
+    assert!(whole.target_diagonal > garment.target_diagonal);
+    // Refused as a fit refuses them, naming the point.
+    let bad = |w: &[f64]| {
+        evaluate_weighted(&input(&y, &f, &yh, &x, g), Some(w), &params)
+            .unwrap_err()
+            .to_string()
+    };
+    assert!(bad(&w[1..]).contains("need one weight per scan point"));
+    w[4] = f64::NAN;
+    assert!(bad(&w).contains("target_weights[4]"));
+    assert!(bad(&vec![0.0; x.len()]).contains("all zero"));
+}
+
+#[test]
 fn zero_hausdorff_before() {
     let (y, f) = single_triangle();
     // Template already equals the target; fit stays → f_H = 0.
