@@ -83,8 +83,10 @@ def run_fit(
     kw: dict[str, Any],
     target_faces: np.ndarray | None = None,
     weights: np.ndarray | None = None,
+    keep: dict[str, Any] | None = None,
 ) -> tuple[np.ndarray | None, float, str | None]:
-    """One ``fm.fit``: (fitted vertices or None, seconds, error or None)."""
+    """One ``fm.fit``: (fitted vertices or None, seconds, error or None); ``keep`` receives
+    the result's ``garment_points``."""
     import foldmatch_rs as fm
 
     extra = {} if weights is None else {"target_weights": weights}
@@ -97,6 +99,8 @@ def run_fit(
         )
     except Exception as e:  # noqa: BLE001  (recorded in the table)
         return None, time.perf_counter() - t0, f"{type(e).__name__}: {str(e)[:200]}"
+    if keep is not None:
+        keep["garment_points"] = np.asarray(r.garment_points)
     return np.asarray(r.vertices, float), time.perf_counter() - t0, None
 
 
@@ -142,7 +146,10 @@ def fit_source(
         if weights:
             runs["masked"] = (scan_pts, garment.astype(np.float64))
         for kind, (pts, w) in runs.items():
-            fitted, sec, err = run_fit(tpl, faces, pts, kw, weights=w)
+            kept: dict[str, Any] = {}
+            fitted, sec, err = run_fit(tpl, faces, pts, kw, weights=w, keep=kept)
+            if kind == "whole" and "garment_points" in kept:
+                row["segmentation"] = segmentation(kept["garment_points"], labels)
             row["seconds"][kind] = round(sec, 2)
             row[f"rms_{kind}"] = None if fitted is None else rms(fitted, truth)
             if err:
@@ -164,6 +171,41 @@ def fit_source(
         }
         rows.append(row)
     return rows
+
+
+def segmentation(points: np.ndarray, labels: np.ndarray) -> dict[str, Any]:
+    """How the fit's own segmentation (``FitResult.garment_points``) of a whole scan compares
+    with the scanner's labels: the points taken, the share of them that is skin (label 0) and
+    the share of the garment's points taken."""
+    taken = np.zeros(len(labels), bool)
+    taken[points] = True
+    garment = labels > 0
+    return {
+        "points": int(taken.sum()),
+        "skin_share": float((taken & ~garment).sum() / max(int(taken.sum()), 1)),
+        "garment_recall": float((taken & garment).sum() / max(int(garment.sum()), 1)),
+    }
+
+
+def render_segmentation(rows: list[dict[str, Any]]) -> str:
+    body = []
+    for r in rows:
+        s = r.get("segmentation")
+        if not s or not s["points"]:
+            body.append([r["source"], r["start"], "—", "—", "—"])
+            continue
+        body.append(
+            [
+                r["source"],
+                r["start"],
+                str(s["points"]),
+                f"{100 * s['skin_share']:.1f} %",
+                f"{100 * s['garment_recall']:.1f} %",
+            ]
+        )
+    return table(
+        ["case", "start", "points taken", "of them skin", "of the garment's points taken"], body, "llrrr"
+    )
 
 
 def fit_components_alone(built: dict[str, Any], kw: dict[str, Any], log: Any) -> dict[int, dict[str, Any]]:
@@ -620,6 +662,10 @@ def main() -> int:
         print(f"\n{passes(part)}\n")
     if rows:
         print(f"All cases: {passes(rows)}\n")
+    if any(r.get("segmentation") for r in rows):
+        print("## What the fit took for the garment (whole scan, `FitResult.garment_points`)\n")
+        print(render_segmentation(rows))
+        print()
     if two is not None and alone:
         print("## Two garments (shirt + skirt on one scan, held out)\n")
         row = next((r for r in rows if r["source"] == "two-garment" and r["start"] == "placed"), None)

@@ -460,6 +460,7 @@ fn result_dict(py: Python<'_>, r: fit::FitResult) -> PyResult<Bound<'_, PyDict>>
     let diagnostics = pythonize::pythonize(py, &r.diagnostics)
         .map_err(|e| InternalError::new_err(format!("diagnostics: {e}")))?;
     d.set_item("diagnostics", diagnostics)?;
+    d.set_item("garment_points", r.garment_points.into_pyarray(py))?;
     quality::assessment_items(
         &d,
         crate::quality::Assessment {

@@ -130,6 +130,14 @@ def test_the_default_fits_the_shirt_of_a_dressed_scan_almost_as_without_the_body
     rms = dressed_scans.rms
     assert 0 < whole.diagnostics["garment_refit_points"] < len(scan)
     assert free.diagnostics["garment_refit_points"] == once.diagnostics["garment_refit_points"] == 0
+    # The fit's own segmentation: the points of its last pass, nearly all the shirt's and
+    # nearly no skin (measured 99.7 % of the shirt, 0.7 % skin); none without a refit.
+    taken = whole.garment_points
+    assert taken.dtype == np.uint32 and len(taken) == whole.diagnostics["garment_refit_points"]
+    assert np.all(np.diff(taken.astype(np.int64)) > 0) and taken[-1] < len(scan)
+    assert np.mean(labels[taken] == 0) < 0.02
+    assert np.isin(np.flatnonzero(labels > 0), taken).mean() > 0.98
+    assert len(free.garment_points) == len(once.garment_points) == 0
     ratio = rms(whole.vertices, truth) / rms(free.vertices, truth)
     assert ratio <= 1.25, ratio
     assert rms(whole.vertices, truth) <= 0.8 * rms(tpl, truth)
@@ -179,6 +187,12 @@ def test_each_garment_of_two_ends_near_its_fit_alone():
     whole = fm.fit(tpl, faces, scan)
     assert len(whole.diagnostics["components"]) == 2
     assert rms(whole.vertices, truth) < 0.8 * rms(tpl, truth)
+    # Each garment's points, taken together (measured: 99.9 % of both, 0.4 % skin).
+    taken = whole.garment_points
+    assert np.all(np.diff(taken.astype(np.int64)) > 0)
+    for garment in (1, 2):
+        assert np.isin(np.flatnonzero(labels == garment), taken).mean() > 0.98
+    assert np.mean(labels[taken] == 0) < 0.02
     shirt = np.flatnonzero(parts == 1)
     remap = np.full(len(tpl), -1)
     remap[shirt] = np.arange(len(shirt))

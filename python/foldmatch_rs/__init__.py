@@ -114,6 +114,11 @@ class FitResult:
     support : (M,) bool
         Per template vertex, whether it has scan support: its nearest scan point lies within
         the support radius and is claimed back by the vertex or a template neighbour.
+    garment_points : (P,) uint32
+        On a scan that holds more than the garment (a dressed body), the fit's own
+        segmentation: the indices, into the scan as given and increasing, of the points it took
+        for the garment and was last fitted to (docs/dressed.md). Empty when the fit ran on the
+        whole scan (a garment-only scan).
     tracking : dict
         :func:`track` only, the frame's figures: ``frame``, ``fit_to_scan``, ``scan_to_fit``,
         ``edge_distortion`` (against the template), ``motion``, ``warm_started``,
@@ -135,6 +140,7 @@ class FitResult:
     correspondences: np.ndarray = field(default_factory=lambda: np.zeros(0, np.uint32))
     residuals: np.ndarray = field(default_factory=lambda: np.zeros(0))
     support: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    garment_points: np.ndarray = field(default_factory=lambda: np.zeros(0, np.uint32))
     tracking: dict[str, Any] = field(default_factory=dict)
 
     def save(self, path: str | os.PathLike[str], accumulated: bool = True, ascii: bool = False) -> None:
@@ -420,6 +426,7 @@ def _result(raw: dict[str, Any], tf: np.ndarray, settings: FitParams) -> FitResu
         correspondences=raw["correspondences"],
         residuals=raw["residuals"],
         support=raw["support"],
+        garment_points=raw.get("garment_points", np.zeros(0, np.uint32)),
         tracking=raw.get("tracking", {}),
     )
 

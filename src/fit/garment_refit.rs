@@ -288,6 +288,12 @@ mod tests {
         let weights = garment_weights(&scan, None, &first.vertices, &faces, 1.0);
         let garment = weights.iter().filter(|&&w| w > 0.0).count();
         assert_eq!(refit.diagnostics.garment_refit_points, garment);
+        // The result names those points (indices into the scan as given).
+        let taken: Vec<u32> = (0..scan.len() as u32)
+            .filter(|&j| weights[j as usize] > 0.0)
+            .collect();
+        assert_eq!(refit.garment_points, taken);
+        assert!(first.garment_points.is_empty());
         assert!(
             garment < 41 * 41 + 41 * 6,
             "{garment}: the strip past the edge is left out"
@@ -384,6 +390,10 @@ mod tests {
             params.schedule.garment_cut,
         );
         assert_eq!(full.diagnostics.garment_refit_points, garment_points(&cut));
+        assert!(full
+            .garment_points
+            .iter()
+            .all(|&j| cut[j as usize] > 0.0 && j < 41 * 41 + 41 * 12));
         assert!(
             cut[41 * 41 + 41 * 12..].iter().all(|&w| w == 0.0),
             "the far plane is the body's"

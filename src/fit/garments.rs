@@ -400,6 +400,13 @@ fn assemble(
         &assessment.support,
         assessment.quality.scan_diagonal,
     );
+    // Each garment's fit indexes the whole scan: their points together.
+    let mut garment_points: Vec<u32> = fitted
+        .iter()
+        .flat_map(|(_, f)| f.garment_points.iter().copied())
+        .collect();
+    garment_points.sort_unstable();
+    garment_points.dedup();
     Ok(FitResult {
         vertices,
         wvf,
@@ -413,6 +420,7 @@ fn assemble(
         correspondences: assessment.correspondences,
         residuals: assessment.residuals,
         support: assessment.support,
+        garment_points,
     })
 }
 

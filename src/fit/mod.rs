@@ -520,6 +520,9 @@ fn fit_from(
         )?;
         fitted.params = params.clone();
         fitted.diagnostics.garment_refit_points = garment_refit::garment_points(weights);
+        fitted.garment_points = (0..weights.len() as u32)
+            .filter(|&j| weights[j as usize] > 0.0)
+            .collect();
         Ok(fitted)
     };
     let mut last = fit_onto(&weights, 1)?;

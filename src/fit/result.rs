@@ -270,6 +270,12 @@ pub struct FitResult {
     pub residuals: Vec<f64>,
     /// Per template vertex, whether it has scan support ([`crate::quality`]).
     pub support: Vec<bool>,
+    /// The fit's own segmentation of a scan that holds more than the garment (a dressed body;
+    /// docs/dressed.md "What the fit took for the garment"): the indices, into the target as
+    /// given and increasing, of the scan points the returned fit was fitted to — the garment
+    /// refit's or the garment cut's points, over every garment of a template of several. Empty
+    /// when the fit ran on the whole scan (a garment-only scan, or no refit).
+    pub garment_points: Vec<u32>,
 }
 
 #[cfg(test)]

@@ -447,6 +447,7 @@ impl ScheduleRun {
             correspondences: assessment.correspondences,
             residuals: assessment.residuals,
             support: assessment.support,
+            garment_points: Vec::new(),
         }
     }
 }
