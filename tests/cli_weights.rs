@@ -438,3 +438,78 @@ error: short.npy (the weights of dressed.ply): parameter target_weights = 499 we
 
 "#]]);
 }
+
+/// `fit --garment-mask FILE.npy` writes the points the fit took for the garment as a bool
+/// mask in the scan's order: on a scan with a "body" (a far plane, so the scan is a scene) the
+/// sheet's points and not the body's; on the sheet alone every point. The mask reads back as
+/// `--scan-weights`; a name without `.npy` is refused before fitting.
+#[test]
+fn the_garment_mask_is_written_and_reads_back_as_weights() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    write_case(d);
+    let garment = sheet(15, 400, 1).scan;
+    let mut points = garment.clone();
+    for i in 0..20 {
+        for j in 0..20 {
+            let (x, y) = (-1.5 + 3.0 * i as f64 / 19.0, -1.5 + 3.0 * j as f64 / 19.0);
+            points.push([x, y, -1.5]);
+        }
+    }
+    write_mesh(
+        &d.join("scene.ply"),
+        &MeshData::point_cloud(points.clone()),
+        &[],
+        false,
+    )
+    .unwrap();
+    let read_mask = |name: &str| -> Vec<bool> {
+        foldmatch::io::read_npy(&d.join(name))
+            .unwrap()
+            .iter()
+            .map(|&w| w == 1.0)
+            .collect()
+    };
+    fit_quietly(
+        d,
+        "scene.ply",
+        "scene_fit.ply",
+        &["--garment-mask", "scene_mask.npy"],
+    );
+    let mask = read_mask("scene_mask.npy");
+    assert_eq!(mask.len(), points.len());
+    let on_sheet = mask[..400].iter().filter(|&&m| m).count();
+    assert!(on_sheet >= 380, "{on_sheet} of the 400 sheet points");
+    assert!(mask[400..].iter().all(|&m| !m), "the body's points are out");
+    let report = json(&d.join("scene_fit.ply.json"));
+    assert_eq!(report["garment_mask"], "scene_mask.npy");
+    assert_eq!(
+        report["diagnostics"]["garment_refit_points"].as_u64(),
+        Some(mask.iter().filter(|&&m| m).count() as u64)
+    );
+    // Fitted whole: every point.
+    fit_quietly(
+        d,
+        "scan.ply",
+        "plain.ply",
+        &["--garment-mask", "plain_mask.npy"],
+    );
+    assert_eq!(read_mask("plain_mask.npy"), vec![true; 400]);
+    // Back as weights.
+    fit_quietly(
+        d,
+        "scene.ply",
+        "again.ply",
+        &["--scan-weights", "scene_mask.npy"],
+    );
+    foldmatch(d)
+        .args(["fit", "template.ply", "scan.ply", "-o", "o.ply"])
+        .args(["--garment-mask", "mask.txt"])
+        .assert()
+        .code(1)
+        .stderr_eq(str![[r#"
+error: --garment-mask mask.txt: must end in .npy
+
+"#]]);
+    assert!(!d.join("o.ply").exists());
+}

@@ -145,6 +145,11 @@ pub struct FitCmd {
     /// the distance to the scan, from the front, three-quarter and back (docs/cli.md).
     #[arg(long, value_name = "FILE.png")]
     pub preview: Option<PathBuf>,
+    /// Also write which scan points the fit took for the garment, as a NumPy bool array of
+    /// shape (N,) in the scan's point order (what --scan-weights reads): on a dressed-body
+    /// scan the fit's own segmentation (docs/dressed.md), else every point of positive weight.
+    #[arg(long, value_name = "FILE.npy")]
+    pub garment_mask: Option<PathBuf>,
     #[command(flatten)]
     #[allow(missing_docs)]
     pub params: ParamArgs,

@@ -540,6 +540,7 @@ pub fn batch(cmd: &BatchCmd, ctx: &Context) -> i32 {
                     landmarks: None,
                     stage: Some(stage_path(&setup.outputs[i])),
                     preview: cmd.preview.then(|| preview_path(&setup.outputs[i])),
+                    garment_mask: None,
                 };
                 let outcome = runner.run(&job);
                 let finished = done.fetch_add(1, Ordering::SeqCst) + 1;
@@ -694,6 +695,7 @@ pub fn sequence(cmd: &SequenceCmd, ctx: &Context) -> i32 {
             landmarks: None,
             stage: Some(stage_path(&setup.outputs[i])),
             preview: None,
+            garment_mask: None,
         };
         let before = tracker.lock().map_or(i, |t| t.frames());
         let mut outcome = runner.run(&job);

@@ -573,6 +573,7 @@ impl FileFitter {
             stage: Some(stage_path(&file.output)),
             // `--preview` conflicts with `--scheduler` (args.rs): previews are local only.
             preview: None,
+            garment_mask: None,
         }
     }
 

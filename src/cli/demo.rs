@@ -86,6 +86,7 @@ fn run(cmd: &DemoCmd, ctx: &Context) -> Result<i32, String> {
         ascii: false,
         weights: None,
         preview: Some(preview_path.clone()),
+        garment_mask: None,
         landmarks: None,
     });
     let report = FitReport {

@@ -173,6 +173,9 @@ pub struct Job<'a> {
     /// Also draw the fit into this PNG ([`crate::render`]); staged like the mesh when
     /// `stage` is set ([`stage_path`]).
     pub preview: Option<PathBuf>,
+    /// Also write the scan points the fit took for the garment into this `.npy` mask
+    /// (`fit --garment-mask`; not staged: `fit` writes in place).
+    pub garment_mask: Option<PathBuf>,
 }
 
 impl Job<'_> {
@@ -379,6 +382,7 @@ impl Runner<'_> {
             result.wvf_accumulated
         };
         let fitted = result.vertices;
+        let garment_points = result.garment_points;
         let (mesh, extra) = fitted_mesh(&fitted, &template.faces, &field);
         if let Some(dir) = job.output.parent().filter(|d| !d.as_os_str().is_empty()) {
             std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
@@ -404,6 +408,23 @@ impl Runner<'_> {
                 .and_then(|p| write_png(&at, &p.image, &p.png_text()))
                 .map_err(|e| format!("preview: {e}"))?;
             report.preview = Some(preview.display().to_string());
+        }
+        if let Some(path) = &job.garment_mask {
+            // The fit's own garment points; fitted whole, the points of positive weight.
+            let mask: Vec<bool> = if garment_points.is_empty() {
+                weights.as_deref().map_or_else(
+                    || vec![true; scan.vertices.len()],
+                    |w| w.iter().map(|&x| x > 0.0).collect(),
+                )
+            } else {
+                let mut mask = vec![false; scan.vertices.len()];
+                for &j in &garment_points {
+                    mask[j as usize] = true;
+                }
+                mask
+            };
+            crate::io::write_npy_mask(path, &mask).map_err(|e| format!("garment mask: {e}"))?;
+            report.garment_mask = Some(path.display().to_string());
         }
         let metrics = self.pool.install(|| {
             evaluate(

@@ -154,6 +154,17 @@ fn fit(cmd: &FitCmd, ctx: &Context) -> i32 {
                 return Err(format!("--preview {}: must end in .png", preview.display()));
             }
         }
+        if let Some(mask) = &cmd.garment_mask {
+            let is_npy = mask
+                .extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("npy"));
+            if !is_npy {
+                return Err(format!(
+                    "--garment-mask {}: must end in .npy",
+                    mask.display()
+                ));
+            }
+        }
         let template = Template::load(&cmd.template, &params)?;
         let landmarks = match &cmd.landmarks {
             Some(path) => Some(
@@ -192,6 +203,7 @@ fn fit(cmd: &FitCmd, ctx: &Context) -> i32 {
             (None, None) => None,
         },
         preview: cmd.preview.clone(),
+        garment_mask: cmd.garment_mask.clone(),
         landmarks: landmarks.as_ref(),
     });
     let entry = &outcome.report;

@@ -77,6 +77,9 @@ pub struct FileReport {
     /// The preview image drawn of the fit (`--preview`), if any.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub preview: Option<String>,
+    /// The garment mask written of the fit (`--garment-mask`), if any.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub garment_mask: Option<String>,
 }
 
 /// Where a file's scan weights came from, and how many points they removed.
@@ -208,6 +211,7 @@ impl FileReport {
             tracking: None,
             scan_weights: None,
             preview: None,
+            garment_mask: None,
         }
     }
 }

@@ -58,7 +58,7 @@ pub use landmarks::{
     parse_csv as parse_landmarks_csv, parse_json as parse_landmarks_json, read_landmarks,
     LandmarkFile,
 };
-pub use npy::{parse_npy, read_npy};
+pub use npy::{parse_npy, read_npy, write_npy_mask};
 pub use obj::{parse_obj, read_obj, write_obj, write_obj_to};
 pub use ply::{
     parse_ply, parse_ply_property, read_ply, read_ply_property, write_ply, write_ply_to,

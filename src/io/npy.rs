@@ -1,5 +1,6 @@
 //! A reader of one-dimensional NumPy `.npy` arrays (what `np.save(path, w)` writes), for
-//! per-point scan weights.
+//! per-point scan weights, and a writer of boolean masks ([`write_npy_mask`]: the scan points a
+//! fit took for the garment).
 //!
 //! Accepts format versions 1.0, 2.0 and 3.0; a header dictionary with `'descr'`,
 //! `'fortran_order'` and `'shape'`; the little-endian (or byte-order-free) types `<f8 <f4`,
@@ -388,6 +389,32 @@ impl Dtype {
     }
 }
 
+/// Writes `mask` as a one-dimensional NumPy bool array (`|b1`, shape `(N,)`, format 1.0),
+/// atomically: what `np.load` reads as a boolean mask and [`read_npy`] reads back as 0/1.
+///
+/// # Errors
+/// [`FoldMatchError::Io`](crate::FoldMatchError::Io) when the file cannot be written.
+pub fn write_npy_mask(path: &Path, mask: &[bool]) -> Result<()> {
+    let mut header = format!(
+        "{{'descr': '|b1', 'fortran_order': False, 'shape': ({},), }}",
+        mask.len()
+    );
+    // The magic, version and length take 10 bytes; the header ends in a newline and pads the
+    // whole preamble to a multiple of 64 bytes.
+    let used = 10 + header.len() + 1;
+    header.push_str(&" ".repeat((64 - used % 64) % 64));
+    header.push('\n');
+    super::write_atomically(path, |w| {
+        use std::io::Write;
+        w.write_all(MAGIC)?;
+        w.write_all(&[1, 0])?;
+        w.write_all(&(header.len() as u16).to_le_bytes())?;
+        w.write_all(header.as_bytes())?;
+        let bytes: Vec<u8> = mask.iter().map(|&b| u8::from(b)).collect();
+        w.write_all(&bytes)
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -692,6 +719,24 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn a_written_mask_reads_back_with_an_aligned_header() {
+        let dir = std::env::temp_dir().join(format!("fm-npy-mask-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        for n in [0usize, 1, 5, 117, 100_000] {
+            let mask: Vec<bool> = (0..n).map(|j| j % 3 == 1).collect();
+            let path = dir.join(format!("m{n}.npy"));
+            write_npy_mask(&path, &mask).unwrap();
+            let data = std::fs::read(&path).unwrap();
+            let header = u16::from_le_bytes([data[8], data[9]]) as usize;
+            assert_eq!((10 + header) % 64, 0, "n = {n}");
+            assert_eq!(data.len(), 10 + header + n);
+            let back: Vec<bool> = read_npy(&path).unwrap().iter().map(|&w| w == 1.0).collect();
+            assert_eq!(back, mask);
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
