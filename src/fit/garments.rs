@@ -9,7 +9,7 @@
 
 use super::attraction::explained_points;
 use super::result::{component_figures, Diagnostics, FitResult, IterationRecord, Progress};
-use super::{fit_from, FitParams};
+use super::{fit_from, FitParams, FitRole};
 use crate::error::Result;
 use crate::knn::PointIndex;
 use crate::landmarks::Landmarks;
@@ -124,8 +124,7 @@ pub(super) fn fit_garments(
             target_faces,
             target_weights,
             landmarks,
-            false,
-            false,
+            FitRole::default(),
             params,
             observer,
         );
@@ -202,8 +201,10 @@ pub(super) fn fit_garments(
             target_faces,
             target_weights,
             landmarks.as_ref(),
-            true,
-            false,
+            FitRole {
+                several: true,
+                garment: false,
+            },
             &each,
             &mut observed,
         )?;

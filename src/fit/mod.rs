@@ -197,11 +197,21 @@ pub fn fit_anchored(
     )
 }
 
+/// What one [`fit_from`] is to the driver (docs/method.md "Scans of dressed people", "Several
+/// garments").
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct FitRole {
+    /// The template is one garment of several, so the scan holds more than it whatever its
+    /// size.
+    pub(crate) several: bool,
+    /// A garment refit's fit onto the garment's points of a larger scan (`target_weights`),
+    /// whose isometric refinement is not pulled by the points beyond its rim.
+    pub(crate) garment: bool,
+}
+
 /// The fit of one garment ([`garments::fit_garments`] splits a template of several): from
-/// `template_vertices`, with `rest` (`None`: the template itself) as the rest shape; `several`:
-/// the template is one garment of several, so the scan holds more than it whatever its size;
-/// `garment_pass`: a garment refit's fit onto the garment's points of a larger scan
-/// (`target_weights`), whose isometric refinement is not pulled by the points beyond its rim.
+/// `template_vertices`, with `rest` (`None`: the template itself) as the rest shape; `role`:
+/// what the fit is to the driver ([`FitRole`]).
 #[allow(clippy::too_many_arguments)]
 fn fit_from(
     template_vertices: &[[f64; 3]],
@@ -211,8 +221,7 @@ fn fit_from(
     target_faces: Option<&[[u32; 3]]>,
     target_weights: Option<&[f64]>,
     landmarks: Option<&Landmarks>,
-    several: bool,
-    garment_pass: bool,
+    role: FitRole,
     params: &FitParams,
     observer: &mut (dyn FnMut(&Progress) -> bool + Send),
 ) -> Result<FitResult> {
@@ -247,7 +256,7 @@ fn fit_from(
             target,
             target_faces,
             target_weights,
-            several,
+            role,
             params,
             prealign,
             observer,
@@ -270,7 +279,7 @@ fn fit_from(
         target_weights,
         kept.as_deref(),
         landmarks,
-        several,
+        role.several,
         &schedules,
     )?;
     // A scan that holds more than the garment is fitted more than once: the second fit onto
@@ -415,7 +424,7 @@ fn fit_from(
             target_weights,
             assessed,
             landmarks,
-            garment_pass,
+            role.garment,
             params,
         );
         // The result's motion (its accumulated wrinkle field) ends at the refined fit.
@@ -513,8 +522,10 @@ fn fit_from(
             target_faces,
             Some(weights),
             landmarks,
-            several,
-            true,
+            FitRole {
+                garment: true,
+                ..role
+            },
             &inner,
             &mut *observer,
         )?;
@@ -572,7 +583,7 @@ fn fit_readings(
     target: &[[f64; 3]],
     target_faces: Option<&[[u32; 3]]>,
     target_weights: Option<&[f64]>,
-    several: bool,
+    role: FitRole,
     params: &FitParams,
     prealign: Option<PrealignFigures>,
     observer: &mut (dyn FnMut(&Progress) -> bool + Send),
@@ -592,8 +603,7 @@ fn fit_readings(
             target_faces,
             target_weights,
             None,
-            several,
-            false,
+            role,
             &inner,
             &mut halves,
         )?;
