@@ -242,10 +242,63 @@ fn fit_from(
     let mut schedules = params.candidate_schedules();
     let clock = std::time::Instant::now();
     // Landmarks, when given, decide the pre-alignment (in Prepared::new) in its place.
-    let (placed, prealign, other) = match landmarks {
+    let (placed, mut prealign, other) = match landmarks {
         Some(_) => (None, None, None),
         None => prealigned(template_vertices, target, kept.as_deref(), params)?,
     };
+    // A similarity's scale is that of the scan's shape, which folds and drapes shrink: the
+    // fit from it says by how much its cloth had to stretch (docs/method.md "Global
+    // pre-alignment").
+    let (placed, other) = match (placed, params.prealign) {
+        (Some(p), Prealign::Similarity) => {
+            let mut inner = params.clone();
+            inner.prealign = Prealign::None;
+            let mut first = |q: &Progress| observer(&q.of_parts(0, 2, params.iterations));
+            let probe = fit_from(
+                &p,
+                rest,
+                template_faces,
+                target,
+                target_faces,
+                target_weights,
+                None,
+                role,
+                &inner,
+                &mut first,
+            )?;
+            let stretch = crate::prealign::fitted_stretch(&p, &probe.vertices, template_faces);
+            let off = (stretch - 1.0).abs();
+            let settled =
+                off <= crate::prealign::SCALE_SETTLED || off > crate::prealign::SCALE_TRUSTED;
+            if probe.diagnostics.stopped_by_callback || (other.is_none() && settled) {
+                let mut result = probe;
+                result.params = params.clone();
+                result.diagnostics.prealign = prealign;
+                return Ok(result);
+            }
+            if settled {
+                (Some(p), other)
+            } else {
+                if let Some(figures) = prealign.as_mut() {
+                    figures.scale_stretch = stretch;
+                }
+                let rescale =
+                    |q: Vec<[f64; 3]>| crate::prealign::scaled_about_centroid(&q, stretch);
+                (Some(rescale(p)), other.map(rescale))
+            }
+        }
+        (placed, _) => (placed, other),
+    };
+    // After a probe, the fits that follow report the second half of the progress.
+    let probed = params.prealign == Prealign::Similarity && placed.is_some();
+    let mut outer = |q: &Progress| {
+        if probed {
+            observer(&q.of_parts(1, 2, params.iterations))
+        } else {
+            observer(q)
+        }
+    };
+    let observer: &mut (dyn FnMut(&Progress) -> bool + Send) = &mut outer;
     if let (Some(placed), Some(other)) = (&placed, &other) {
         // Two readings of other shapes that rigid scores cannot tell apart (a garment turned
         // back to front): each fitted, the one closer to the scan kept.
@@ -762,6 +815,7 @@ fn prealigned(
             (true, Some(_)) if moved => 2,
             (true, _) => 1,
         },
+        scale_stretch: 1.0,
     };
     Ok((
         moved.then(|| alignment.transform.apply_all(template_vertices)),

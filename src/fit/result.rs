@@ -238,6 +238,15 @@ pub struct PrealignFigures {
     /// nothing was searched).
     #[serde(default)]
     pub fitted_readings: usize,
+    /// With `prealign="similarity"`: the median stretch of the edges of a first fit from the
+    /// similarity's placement, by which the template was scaled before the fit that was kept
+    /// when it lay more than 3 % from 1 (docs/method.md "Global pre-alignment"); 1 otherwise.
+    #[serde(default = "one")]
+    pub scale_stretch: f64,
+}
+
+fn one() -> f64 {
+    1.0
 }
 
 /// The outcome of a fit, in the user's frame.

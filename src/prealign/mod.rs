@@ -31,11 +31,13 @@
 mod axes;
 mod icp;
 mod matching;
+mod scale;
 mod symmetry;
 mod transform;
 
 pub use axes::{cube_rotations, principal_axes, Axes};
 pub use matching::{Clouds, Level, COARSE_SAMPLE_SIZE, KEPT_FRACTION, SAMPLE_SIZE};
+pub use scale::{fitted_stretch, scaled_about_centroid, SCALE_SETTLED, SCALE_TRUSTED};
 pub use transform::{fit_pairs, Similarity};
 
 use crate::math::Mat3;
