@@ -143,14 +143,15 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
     let (identity_score, identity_forward) = clouds.scores(&identity);
     // In a scene larger than the garment (a dressed body), most scan points are not the
     // garment's and the scan → template direction says nothing of the placement: a template
-    // that lies on the scan is placed.
-    let scene = bbox_diagonal(scan) > SCENE * bbox_diagonal(template);
+    // that lies on the scan is placed. (With the scale free, a larger scan is no scene: it may
+    // be the garment in other units, which a template lies on a part of.)
+    let scaled = motion == Motion::Similarity;
+    let scene = !scaled && bbox_diagonal(scan) > SCENE * bbox_diagonal(template);
     if identity_score <= PLACED * sa.rms_radius
         || (scene && identity_forward <= PLACED * ta.rms_radius)
     {
         return unchanged(identity_score);
     }
-    let scaled = motion == Motion::Similarity;
     let scale = if scaled {
         sa.rms_radius / ta.rms_radius
     } else {
@@ -205,9 +206,8 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
         };
     }
     // In a scene the two-sided score is mostly the body's: a placement elsewhere is taken only
-    // when the template itself lies on the scan better there, by [`SEARCH_GAIN`]. (With the
-    // scale free, a larger scan is no scene: it may be the garment in other units.)
-    if scene && !scaled && clouds.scores(&transform).1 > SEARCH_GAIN * identity_forward {
+    // when the template itself lies on the scan better there, by [`SEARCH_GAIN`].
+    if scene && clouds.scores(&transform).1 > SEARCH_GAIN * identity_forward {
         return Alignment {
             searched: true,
             readings,

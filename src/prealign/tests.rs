@@ -240,3 +240,31 @@ fn a_deformed_scan_in_other_units_is_rescaled_even_where_the_given_basin_ties() 
     assert!(got.searched && !got.transform.is_identity(), "{got:?}");
     assert!((got.transform.scale / 1.5 - 1.0).abs() < 0.2, "{got:?}");
 }
+
+#[test]
+fn a_template_on_part_of_its_scan_twice_the_size_is_rescaled_with_the_similarity() {
+    // A flat 0.8 × 0.5 template and the scan of the same sheet twice the size (other units),
+    // sharing a corner: the template lies on a quarter of the scan. Rigidly that is a scene
+    // and the placement is kept; with the scale free a larger scan is no scene, so the
+    // similarity is searched and finds the scale.
+    let mut rng = ChaCha8Rng::seed_from_u64(12);
+    let mut sheet = |count: usize, size: f64, noise: f64| -> Vec<[f64; 3]> {
+        (0..count)
+            .map(|_| {
+                let (u, v): (f64, f64) = (rng.random(), rng.random());
+                let n = noise * (rng.random::<f64>() - 0.5);
+                [size * 0.8 * u, size * 0.5 * v, n]
+            })
+            .collect()
+    };
+    let template = sheet(2000, 1.0, 0.0);
+    let scan = sheet(6000, 2.0, 0.004);
+    let rigid = align(&template, &scan, Motion::Rigid);
+    assert!(
+        !rigid.searched && rigid.transform.is_identity(),
+        "{rigid:?}"
+    );
+    let got = align(&template, &scan, Motion::Similarity);
+    assert!(got.searched && !got.transform.is_identity(), "{got:?}");
+    assert!((got.transform.scale / 2.0 - 1.0).abs() < 0.15, "{got:?}");
+}
