@@ -17,6 +17,8 @@ import itertools
 import numpy as np
 from scipy.spatial import cKDTree
 
+from bench import cases
+
 #: ICP iterations refining each candidate rotation.
 ICP_ITERATIONS = 30
 #: A candidate is a symmetry when its mean distance to the template is below this share of the
@@ -37,13 +39,6 @@ def _cube_rotations() -> list[np.ndarray]:
     return out
 
 
-def _kabsch(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """The rotation R minimising ‖R a − b‖ for centred point sets (rows)."""
-    u, _, vt = np.linalg.svd(b.T @ a)
-    d = np.sign(np.linalg.det(u @ vt))
-    return u @ np.diag([1.0, 1.0, d]) @ vt
-
-
 def symmetries(vertices: np.ndarray) -> list[np.ndarray]:
     """The template's exact rotational symmetries as vertex permutations ``s`` (vertex ``i``
     maps onto vertex ``s[i]``), the identity first."""
@@ -57,7 +52,7 @@ def symmetries(vertices: np.ndarray) -> list[np.ndarray]:
         r = axes @ q @ axes.T
         for _ in range(ICP_ITERATIONS):
             _, nearest = tree.query(centred @ r.T)
-            r = _kabsch(centred, centred[nearest])
+            r = cases.umeyama(centred, centred[nearest])[1]
         d, nearest = tree.query(centred @ r.T)
         if d.mean() > LANDS * spacing or len(np.unique(nearest)) != len(v):
             continue

@@ -210,6 +210,21 @@ fn points<'a>(name: &str, a: &'a PyReadonlyArray2<'_, f64>) -> PyResult<&'a [[f6
     Ok(flat.as_chunks::<3>().0)
 }
 
+/// Optional `target_weights`, a `(N,)` float64 C-contiguous array, viewed without a copy (its
+/// values are the core's to check).
+fn weights<'a>(w: &'a Option<PyReadonlyArray1<'_, f64>>) -> PyResult<Option<&'a [f64]>> {
+    w.as_ref()
+        .map(|w| {
+            w.as_slice().map_err(|_| {
+                to_pyerr(FoldMatchError::shape(
+                    "target_weights",
+                    "must be a contiguous (N,) float64 array",
+                ))
+            })
+        })
+        .transpose()
+}
+
 /// A `(t, 3)` int64 face array as `u32` triples (copied: faces are small, and the indices are
 /// range-checked on the way, negative ones included).
 fn faces(name: &str, a: &PyReadonlyArray2<'_, i64>, n_vertices: usize) -> PyResult<Vec<[u32; 3]>> {
@@ -336,15 +351,7 @@ fn fit_raw<'py>(
         Some(f) => Some(faces("target_faces", f, x.len())?),
         None => None,
     };
-    let weights = match &target_weights {
-        Some(w) => Some(w.as_slice().map_err(|_| {
-            to_pyerr(FoldMatchError::Shape {
-                name: "target_weights".into(),
-                reason: "must be a contiguous (N,) float64 array".into(),
-            })
-        })?),
-        None => None,
-    };
+    let weights = weights(&target_weights)?;
     let landmarks = match (&landmark_vertices, &landmark_positions) {
         (Some(v), Some(p)) => {
             let v = v.as_slice().map_err(|_| {
@@ -536,15 +543,7 @@ fn evaluate<'py>(
     tau_e: f64,
     target_weights: Option<PyReadonlyArray1<'py, f64>>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let weights = match &target_weights {
-        Some(w) => Some(w.as_slice().map_err(|_| {
-            to_pyerr(FoldMatchError::shape(
-                "target_weights",
-                "must be a contiguous (N,) float64 array",
-            ))
-        })?),
-        None => None,
-    };
+    let weights = weights(&target_weights)?;
     let tv = points("template_vertices", &template_vertices)?;
     let fv = points("fitted_vertices", &fitted_vertices)?;
     let x = points("target", &target)?;

@@ -50,6 +50,11 @@ fn dressed(seed: u64) -> (Vec<[f64; 3]>, Vec<u8>) {
     (points, mask)
 }
 
+/// Writes `points` as a PLY or OBJ point cloud (the extension decides).
+fn write_cloud(path: &Path, points: &[[f64; 3]]) {
+    write_mesh(path, &MeshData::point_cloud(points.to_vec()), &[], false).unwrap();
+}
+
 fn read(path: &Path) -> Vec<u8> {
     std::fs::read(path).unwrap()
 }
@@ -66,13 +71,7 @@ fn a_mask_fits_exactly_as_the_masked_scan() {
         (points.len(), mask.iter().filter(|&&m| m == 0).count()),
         (500, 100)
     );
-    write_mesh(
-        &d.join("dressed.ply"),
-        &MeshData::point_cloud(points.clone()),
-        &[],
-        false,
-    )
-    .unwrap();
+    write_cloud(&d.join("dressed.ply"), &points);
     std::fs::write(d.join("mask.npy"), npy_bytes("|b1", "(500,)", &mask)).unwrap();
     std::fs::write(d.join("mask_u8.npy"), npy_bytes("|u1", "(500, 1)", &mask)).unwrap();
     write_labelled_cloud(&d.join("labelled.ply"), &points, "label", &mask);
@@ -292,13 +291,7 @@ fn batch_and_sequence_take_a_property_of_every_scan() {
     let (points_b, mask_b) = dressed(2);
     write_labelled_cloud(&d.join("scans/b.ply"), &points_b, "label", &mask_b);
     write_labelled_cloud(&d.join("scans/c.ply"), &points, "segment", &mask);
-    write_mesh(
-        &d.join("scans/d.obj"),
-        &MeshData::point_cloud(points.clone()),
-        &[],
-        false,
-    )
-    .unwrap();
+    write_cloud(&d.join("scans/d.obj"), &points);
     foldmatch(d)
         .args(["-q", "fit", "template.ply", "scan.ply", "-o", "plain.ply"])
         .args(["--iterations", "8"])
@@ -382,13 +375,7 @@ fn eval_measures_the_points_the_weights_keep() {
     let d = dir.path();
     write_case(d);
     let (points, mask) = dressed(2);
-    write_mesh(
-        &d.join("dressed.ply"),
-        &MeshData::point_cloud(points.clone()),
-        &[],
-        false,
-    )
-    .unwrap();
+    write_cloud(&d.join("dressed.ply"), &points);
     std::fs::write(d.join("mask.npy"), npy_bytes("|b1", "(500,)", &mask)).unwrap();
     write_labelled_cloud(&d.join("labelled.ply"), &points, "label", &mask);
     fit_quietly(
@@ -456,13 +443,7 @@ fn the_garment_mask_is_written_and_reads_back_as_weights() {
             points.push([x, y, -1.5]);
         }
     }
-    write_mesh(
-        &d.join("scene.ply"),
-        &MeshData::point_cloud(points.clone()),
-        &[],
-        false,
-    )
-    .unwrap();
+    write_cloud(&d.join("scene.ply"), &points);
     let read_mask = |name: &str| -> Vec<bool> {
         foldmatch::io::read_npy(&d.join(name))
             .unwrap()

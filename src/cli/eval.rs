@@ -21,11 +21,10 @@ pub fn eval(cmd: &EvalCmd, ctx: &Context) -> i32 {
 fn run(cmd: &EvalCmd, ctx: &Context) -> Result<(), String> {
     let template = read_named("template", &cmd.template)?;
     let fitted = read_named("fitted mesh", &cmd.fitted)?;
-    let source = match (&cmd.scan_weights, &cmd.scan_weights_property) {
-        (Some(file), _) => Some(ScanWeights::File(file.clone())),
-        (None, Some(name)) => Some(ScanWeights::Property(name.clone())),
-        (None, None) => None,
-    };
+    let source = ScanWeights::from_options(
+        cmd.scan_weights.as_ref(),
+        cmd.scan_weights_property.as_ref(),
+    );
     let (scan, weights) = match &source {
         None => (read_named("scan", &cmd.scan)?, None),
         Some(source) => {

@@ -111,6 +111,16 @@ pub enum ScanWeights {
 }
 
 impl ScanWeights {
+    /// The source named by `--scan-weights FILE.npy` or `--scan-weights-property NAME` (the
+    /// two exclude each other on the command line); `None` without either.
+    pub fn from_options(file: Option<&PathBuf>, property: Option<&String>) -> Option<Self> {
+        match (file, property) {
+            (Some(file), _) => Some(Self::File(file.clone())),
+            (None, Some(name)) => Some(Self::Property(name.clone())),
+            (None, None) => None,
+        }
+    }
+
     /// The scan at `path` and its weights, with their report entry and the name of the
     /// weights in messages (not validated yet). Errors name the file (and the property).
     #[allow(clippy::type_complexity)]

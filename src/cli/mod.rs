@@ -197,11 +197,10 @@ fn fit(cmd: &FitCmd, ctx: &Context) -> i32 {
         gt: cmd.gt.clone(),
         tracker: None,
         ascii: cmd.ascii,
-        weights: match (&cmd.scan_weights, &cmd.scan_weights_property) {
-            (Some(file), _) => Some(ScanWeights::File(file.clone())),
-            (None, Some(name)) => Some(ScanWeights::Property(name.clone())),
-            (None, None) => None,
-        },
+        weights: ScanWeights::from_options(
+            cmd.scan_weights.as_ref(),
+            cmd.scan_weights_property.as_ref(),
+        ),
         preview: cmd.preview.clone(),
         garment_mask: cmd.garment_mask.clone(),
         landmarks: landmarks.as_ref(),

@@ -248,8 +248,9 @@ fn fit_from(
     };
     // A similarity's scale is that of the scan's shape, which folds and drapes shrink: the
     // fit from it says by how much its cloth had to stretch (docs/method.md "Global
-    // pre-alignment").
-    let (placed, other) = match (placed, params.prealign) {
+    // pre-alignment"). After such a probe the fits that follow report the second half of the
+    // progress.
+    let (placed, other, probed) = match (placed, params.prealign) {
         (Some(p), Prealign::Similarity) => {
             let mut inner = params.clone();
             inner.prealign = Prealign::None;
@@ -277,20 +278,18 @@ fn fit_from(
                 return Ok(result);
             }
             if settled {
-                (Some(p), other)
+                (Some(p), other, true)
             } else {
                 if let Some(figures) = prealign.as_mut() {
                     figures.scale_stretch = stretch;
                 }
                 let rescale =
                     |q: Vec<[f64; 3]>| crate::prealign::scaled_about_centroid(&q, stretch);
-                (Some(rescale(p)), other.map(rescale))
+                (Some(rescale(p)), other.map(rescale), true)
             }
         }
-        (placed, _) => (placed, other),
+        (placed, _) => (placed, other, false),
     };
-    // After a probe, the fits that follow report the second half of the progress.
-    let probed = params.prealign == Prealign::Similarity && placed.is_some();
     let mut outer = |q: &Progress| {
         if probed {
             observer(&q.of_parts(1, 2, params.iterations))
@@ -583,10 +582,10 @@ fn fit_from(
             &mut *observer,
         )?;
         fitted.params = params.clone();
-        fitted.diagnostics.garment_refit_points = garment_refit::garment_points(weights);
         fitted.garment_points = (0..weights.len() as u32)
             .filter(|&j| weights[j as usize] > 0.0)
             .collect();
+        fitted.diagnostics.garment_refit_points = fitted.garment_points.len();
         Ok(fitted)
     };
     let mut last = fit_onto(&weights, 1)?;

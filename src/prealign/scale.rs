@@ -5,7 +5,8 @@
 //! edge lengths to the placed template's says how much the fit had to stretch it, and the
 //! template placed at that much more scale fits as cloth.
 
-use crate::math::{dist2, vec3, Vec3};
+use crate::math::{vec3, Vec3};
+use crate::metrics::{upper_median, EdgeLengths};
 
 /// A fit's median edge stretch within this of 1 leaves the similarity's scale as it is.
 pub const SCALE_SETTLED: f64 = 0.03;
@@ -19,26 +20,11 @@ pub const SCALE_TRUSTED: f64 = 0.25;
 /// The median, over the edges of `faces`, of the ratio of an edge's length in `fitted` to its
 /// length in `placed` (1 when no edge has a length).
 pub fn fitted_stretch(placed: &[[f64; 3]], fitted: &[[f64; 3]], faces: &[[u32; 3]]) -> f64 {
-    let mut edges: Vec<(u32, u32)> = faces
-        .iter()
-        .flat_map(|f| [(f[0], f[1]), (f[1], f[2]), (f[2], f[0])])
-        .map(|(a, b)| (a.min(b), a.max(b)))
-        .collect();
-    edges.sort_unstable();
-    edges.dedup();
-    let mut ratios: Vec<f64> = edges
-        .iter()
-        .filter_map(|&(a, b)| {
-            let (a, b) = (a as usize, b as usize);
-            let rest = dist2(&placed[a], &placed[b]).sqrt();
-            (rest > 0.0).then(|| dist2(&fitted[a], &fitted[b]).sqrt() / rest)
-        })
-        .collect();
+    let mut ratios = EdgeLengths::new(placed, faces).ratios(fitted);
     if ratios.is_empty() {
         return 1.0;
     }
-    let mid = ratios.len() / 2;
-    *ratios.select_nth_unstable_by(mid, f64::total_cmp).1
+    upper_median(&mut ratios)
 }
 
 /// `points` scaled by `factor` about their centroid.

@@ -1,8 +1,9 @@
 //! The binding of sequence tracking (`foldmatch_rs.track`, [`crate::track`]): one
 //! [`crate::track::Tracker`] per sequence, each frame fitted without the GIL.
 
-use super::{compute, faces, params, points, result_dict, threads_arg, to_pyerr, InternalError};
-use crate::error::FoldMatchError;
+use super::{
+    compute, faces, params, points, result_dict, threads_arg, to_pyerr, weights, InternalError,
+};
 use crate::track::{self, TrackParams};
 use numpy::{PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
@@ -90,15 +91,7 @@ impl Tracker {
             Some(f) => Some(faces("target_faces", f, x.len())?),
             None => None,
         };
-        let weights = match &target_weights {
-            Some(w) => Some(w.as_slice().map_err(|_| {
-                to_pyerr(FoldMatchError::shape(
-                    "target_weights",
-                    "must be a contiguous (N,) float64 array",
-                ))
-            })?),
-            None => None,
-        };
+        let weights = weights(&target_weights)?;
         let mut tracker = self.inner()?;
         let tracker = &mut *tracker;
         let outcome = compute(py, threads, |cancel| {
