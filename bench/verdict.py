@@ -54,6 +54,7 @@ FIGURES = (
     "flipped_share",
     "collapsed_share",
     "edge_distortion",
+    "pose_gap",
 )
 WRONG_RATIO = 3.0
 
@@ -172,14 +173,24 @@ def flagged(row: dict[str, Any], thresholds: dict[str, float]) -> list[str]:
 FLOORS = {"collapsed_share": 0.005, "flipped_share": 0.015}
 
 
+#: The most thresholds: a fit that leaves 40 % of the template without scan support is not
+#: right whatever the tuning half saw (a back pulled through onto its front leaves about half).
+CEILINGS = {"unsupported_share": 0.4}
+#: Figures that are 1 on a perfect fit (ratios): their margin applies to the excess over 1.
+RATIOS = ("pose_gap",)
+
+
 def calibrate(rows: list[dict[str, Any]], margin: float) -> dict[str, float]:
-    """Each figure's threshold: the largest value among the tuning half's right fits × margin,
-    at least its :data:`FLOORS`."""
+    """Each figure's threshold: the largest value among the tuning half's right fits × margin
+    (for a ratio of :data:`RATIOS`, 1 + margin × its excess over 1), at least its
+    :data:`FLOORS` and at most its :data:`CEILINGS`."""
     right = [r for r in rows if r["split"] == "tune" and not r["wrong"]]
-    return {
-        k: max(FLOORS.get(k, 0.0), margin * max(abs(r[k]) if k == "asymmetry" else r[k] for r in right))
-        for k in FIGURES
-    }
+    out = {}
+    for k in FIGURES:
+        largest = max(abs(r[k]) if k == "asymmetry" else r[k] for r in right)
+        limit = 1.0 + margin * (largest - 1.0) if k in RATIOS else margin * largest
+        out[k] = min(CEILINGS.get(k, math.inf), max(FLOORS.get(k, 0.0), limit))
+    return out
 
 
 def table(rows: list[dict[str, Any]], thresholds: dict[str, float]) -> None:

@@ -69,6 +69,7 @@ fn fit_warns_when_the_fit_looks_wrong_and_the_report_says_why() {
         "flipped_share",
         "collapsed_share",
         "edge_distortion",
+        "pose_gap",
     ] {
         assert!(
             report["quality"][figure].as_f64().unwrap().is_finite(),

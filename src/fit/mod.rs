@@ -491,6 +491,12 @@ fn fit_from(
         .map(|n| &n.vertex[..]);
     let two_rings =
         (params.method == Method::FoldMatch && params.model.rings == 2).then_some(&prepared.rings);
+    // The pre-alignment's best rigid placement, when it scored the same template on the same
+    // points: the verdict's pose gap then needs no search of its own.
+    let pose_reference = prealign
+        .filter(|_| params.prealign == Prealign::Rigid && rest.is_none())
+        .filter(|_| prepared.garment.is_none())
+        .map(|p| p.best_score);
     let assessment = crate::quality::assess_points_with(
         &crate::quality::AssessInput {
             template_vertices: rest_shape,
@@ -504,6 +510,7 @@ fn fit_from(
             two_rings,
             edges: &rest_edges,
             scan_nearest,
+            pose_reference,
         }),
     )?;
     // Only the chosen run is finished (its wrinkle fields are a whole Eq. 4–8 pass).
@@ -808,6 +815,7 @@ fn prealigned(
         moved,
         identity_score: alignment.identity_score,
         score: alignment.score,
+        best_score: alignment.best_score,
         readings: alignment.readings,
         fitted_readings: match (alignment.searched, alignment.alternative) {
             (false, _) => 0,

@@ -229,6 +229,10 @@ pub struct PrealignFigures {
     pub identity_score: f64,
     /// The same of the placement the fit started from.
     pub score: f64,
+    /// The lowest of every rigid placement the search refined (the placement as given's when
+    /// nothing was searched): the quality verdict's pose-gap reference.
+    #[serde(default)]
+    pub best_score: f64,
     /// The distinct orientations that fit the scan within 10 % of the best: above 1, the scan
     /// cannot tell the template's symmetric readings apart and the least turned was taken (a
     /// garment may be placed back to front: landmarks settle it); 0 when nothing was searched.

@@ -105,6 +105,9 @@ pub struct Alignment {
     pub identity_score: f64,
     /// The same for [`Alignment::transform`].
     pub score: f64,
+    /// The lowest of every placement refined by the search (the placement as given's when
+    /// nothing was searched): how close a rigid placement of the template comes to the scan.
+    pub best_score: f64,
     /// Whether the candidates were searched (false: the identity was good enough).
     pub searched: bool,
     /// The distinct orientations (rotations [`SAME_ANGLE`] apart or more) among the refined
@@ -128,6 +131,7 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
         transform: identity,
         identity_score: score,
         score,
+        best_score: score,
         searched: false,
         readings: 0,
         alternative: None,
@@ -157,7 +161,70 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
     } else {
         1.0
     };
-    let mut starts: Vec<Similarity> = axes::candidate_rotations(&ta, &sa)
+    let (refined, given_index) = refined_placements(&clouds, &ta, &sa, scale, scaled, identity);
+    let (transform, score) = least_turned_near_tie(&refined);
+    let readings = distinct_readings(&refined);
+    // A template placed roughly right — the basin of its placement as given ties with the
+    // best — stays as given unless the search improves its score by [`SEARCH_GAIN`].
+    let best = best_of(&refined);
+    let (basin, given_basin) = refined[given_index];
+    // (With the scale free, a basin that rescales the template was not placed right: a scan in
+    // other units.)
+    let same_size = (basin.scale - 1.0).abs() < PLACED;
+    if same_size && given_basin <= best * (1.0 + NEAR_TIE) && score > SEARCH_GAIN * identity_score {
+        return Alignment {
+            searched: true,
+            readings,
+            best_score: best,
+            ..unchanged(identity_score)
+        };
+    }
+    // In a scene the two-sided score is mostly the body's: a placement elsewhere is taken only
+    // when the template itself lies on the scan better there, by [`SEARCH_GAIN`].
+    if scene && clouds.scores(&transform).1 > SEARCH_GAIN * identity_forward {
+        return Alignment {
+            searched: true,
+            readings,
+            best_score: best,
+            ..unchanged(identity_score)
+        };
+    }
+    let moved = (transform.translation + (transform.rotation - Mat3::identity()) * sa.centroid)
+        .norm()
+        .max((transform.scale - 1.0).abs() * sa.rms_radius);
+    if transform.angle_degrees() < SMALL_ANGLE && moved < PLACED * sa.rms_radius {
+        return Alignment {
+            searched: true,
+            readings,
+            best_score: best,
+            ..unchanged(identity_score)
+        };
+    }
+    Alignment {
+        transform,
+        identity_score,
+        score,
+        best_score: best,
+        searched: true,
+        readings,
+        alternative: other_reading(template, &clouds, &ta, &refined, &transform),
+    }
+}
+
+/// Every candidate placement of the template — the 24 rotations between the principal frames
+/// `ta` and `sa` (centroids matched, the template scaled by `scale`) and `given` — refined by
+/// trimmed ICP on the coarse samples, side by side; the distinct placements that score near
+/// the best there, and the basin of `given`, refined again on the full samples. Returns those
+/// and the index of `given`'s basin among them.
+fn refined_placements(
+    clouds: &Clouds,
+    ta: &Axes,
+    sa: &Axes,
+    scale: f64,
+    scaled: bool,
+    given: Similarity,
+) -> (Vec<(Similarity, f64)>, usize) {
+    let mut starts: Vec<Similarity> = axes::candidate_rotations(ta, sa)
         .into_iter()
         .map(|rotation| Similarity {
             rotation,
@@ -165,13 +232,10 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
             translation: sa.centroid - scale * (rotation * ta.centroid),
         })
         .collect();
-    starts.push(identity);
-    // Every candidate refined on the coarse samples, side by side; the distinct placements that
-    // score near the best there, and the basin of the placement as given (the last start),
-    // refined again on the full samples.
+    starts.push(given);
     let coarse: Vec<(Similarity, f64)> = starts
         .into_par_iter()
-        .map(|start| icp::refine(&clouds, start, scaled, Level::Coarse))
+        .map(|start| icp::refine(clouds, start, scaled, Level::Coarse))
         .collect();
     let mut chosen = finalists(&coarse, sa.rms_radius);
     let given = coarse[coarse.len() - 1].0;
@@ -187,51 +251,52 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
     };
     let refined: Vec<(Similarity, f64)> = chosen
         .into_par_iter()
-        .map(|start| icp::refine(&clouds, start, scaled, Level::Full))
+        .map(|start| icp::refine(clouds, start, scaled, Level::Full))
         .collect();
-    let (transform, score) = least_turned_near_tie(&refined);
-    let readings = distinct_readings(&refined);
-    // A template placed roughly right — the basin of its placement as given ties with the
-    // best — stays as given unless the search improves its score by [`SEARCH_GAIN`].
-    let best = refined.iter().map(|r| r.1).fold(f64::INFINITY, f64::min);
-    let (basin, given_basin) = refined[given_index];
-    // (With the scale free, a basin that rescales the template was not placed right: a scan in
-    // other units.)
-    let same_size = (basin.scale - 1.0).abs() < PLACED;
-    if same_size && given_basin <= best * (1.0 + NEAR_TIE) && score > SEARCH_GAIN * identity_score {
-        return Alignment {
-            searched: true,
-            readings,
-            ..unchanged(identity_score)
-        };
+    (refined, given_index)
+}
+
+/// The lowest score of `refined` (+∞ when empty).
+fn best_of(refined: &[(Similarity, f64)]) -> f64 {
+    refined.iter().map(|r| r.1).fold(f64::INFINITY, f64::min)
+}
+
+/// How a placement `pose` of `template` (a fit's rigid part, [`crate::quality`]'s pose gap)
+/// lies on `scan`: the trimmed two-sided distance of the rigid placement that trimmed ICP
+/// reaches from `pose` (its basin), and — with `search` — the lowest such distance of any
+/// placement the search of [`align`] reaches from the 24 principal-frame rotations and
+/// `pose` itself (without: the basin's again). The template moves rigidly at `pose.scale`.
+/// `None` when either set has fewer than three points or no spread.
+pub fn pose_scores(
+    template: &[[f64; 3]],
+    scan: &[[f64; 3]],
+    pose: &Similarity,
+    search: bool,
+) -> Option<(f64, f64)> {
+    if template.len() < 3 || scan.len() < 3 {
+        return None;
     }
-    // In a scene the two-sided score is mostly the body's: a placement elsewhere is taken only
-    // when the template itself lies on the scan better there, by [`SEARCH_GAIN`].
-    if scene && clouds.scores(&transform).1 > SEARCH_GAIN * identity_forward {
-        return Alignment {
-            searched: true,
-            readings,
-            ..unchanged(identity_score)
-        };
+    // The scale is the pose's own; the search moves the template rigidly at that size.
+    let sized: Vec<[f64; 3]> = template
+        .iter()
+        .map(|p| (pose.scale * crate::math::vec3(p)).into())
+        .collect();
+    let (ta, sa) = (principal_axes(&sized), principal_axes(scan));
+    if !(ta.rms_radius > 0.0 && sa.rms_radius > 0.0) {
+        return None;
     }
-    let moved = (transform.translation + (transform.rotation - Mat3::identity()) * sa.centroid)
-        .norm()
-        .max((transform.scale - 1.0).abs() * sa.rms_radius);
-    if transform.angle_degrees() < SMALL_ANGLE && moved < PLACED * sa.rms_radius {
-        return Alignment {
-            searched: true,
-            readings,
-            ..unchanged(identity_score)
-        };
+    let clouds = Clouds::new(&sized, scan);
+    let rigid = Similarity {
+        scale: 1.0,
+        ..*pose
+    };
+    if !search {
+        let (coarse, _) = icp::refine(&clouds, rigid, false, Level::Coarse);
+        let basin = icp::refine(&clouds, coarse, false, Level::Full).1;
+        return Some((basin, basin));
     }
-    Alignment {
-        transform,
-        identity_score,
-        score,
-        searched: true,
-        readings,
-        alternative: other_reading(template, &clouds, &ta, &refined, &transform),
-    }
+    let (refined, given_index) = refined_placements(&clouds, &ta, &sa, 1.0, false, rigid);
+    Some((refined[given_index].1, best_of(&refined)))
 }
 
 /// Of `refined` (non-empty), the best-scoring placement within [`NEAR_TIE`] of the best score
@@ -244,7 +309,7 @@ fn other_reading(
     refined: &[(Similarity, f64)],
     chosen: &Similarity,
 ) -> Option<Similarity> {
-    let best = refined.iter().map(|r| r.1).fold(f64::INFINITY, f64::min);
+    let best = best_of(refined);
     let (other, _) = refined
         .iter()
         .filter(|r| r.1 <= best * (1.0 + NEAR_TIE) && r.0.turned_from(chosen) >= SAME_ANGLE)

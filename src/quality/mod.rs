@@ -14,6 +14,7 @@
 //! | [`Quality::flipped_share`] | share of template faces whose fitted normal points against the template normal carried by the local rotation of the face's 2-ring (template → fit, Kabsch) |
 //! | [`Quality::collapsed_share`] | share of template faces whose area fell below `τ_S` (0.02, [`crate::metrics::DEFAULT_TAU_S`]) of the template's |
 //! | [`Quality::edge_distortion`] | 95th percentile over the template's edges of `max(ℓ̂/ℓ, ℓ/ℓ̂)`, fitted over template length, after dividing out the fit's median edge ratio (so a uniform scale, e.g. millimetres against metres, is not a distortion) |
+//! | [`Quality::pose_gap`] | the trimmed two-sided distance to the scan of the rigid placement of the template that trimmed ICP reaches from the fit's rigid pose (Kabsch, template → fit, at the fit's median edge ratio), over that of the best rigid placement the pre-alignment's search finds, ≥ 1 (`pose`) |
 //!
 //! **Support.** A template vertex `v` has scan support when its nearest scan point `x` lies
 //! within the support radius `r` of the fitted vertex and `x`'s own nearest fitted vertex `u`
@@ -29,6 +30,7 @@
 #![warn(missing_docs)]
 
 mod geometry;
+mod pose;
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -40,12 +42,16 @@ use crate::metrics::{bbox_diagonal, cross_of, percentile_linear, EdgeLengths, DE
 use crate::rings::{adjacency, n_rings_of, Neighborhoods};
 
 pub use geometry::{closest_barycentric, point_triangle_distance};
+pub use pose::{fit_pose, pose_gap};
 
 /// The support radius in units of `max(scan spacing, fitted median edge)`.
 pub const SUPPORT_RADIUS_FACTOR: f64 = 2.0;
 /// How far (in median template edges) the scan point's nearest fitted vertex may lie from the
 /// vertex on the template for the vertex to count as supported.
 pub const SUPPORT_NEIGHBOUR_EDGES: f64 = 3.0;
+/// A fit's pre-alignment's best rigid distance serves as the pose gap's reference while the
+/// fit's median edge ratio lies within this of 1 (the search ran on the template's own size).
+const REFERENCE_SCALE_TOLERANCE: f64 = 0.1;
 /// Scan points sampled (evenly by index) for the scan spacing.
 const SPACING_SAMPLE: usize = 4096;
 
@@ -69,22 +75,26 @@ pub struct VerdictThresholds {
     pub collapsed_share: f64,
     /// Most [`Quality::edge_distortion`].
     pub edge_distortion: f64,
+    /// Most [`Quality::pose_gap`].
+    pub pose_gap: f64,
 }
 
 impl Default for VerdictThresholds {
     /// `bench/verdict.py --calibrate` on its tuning half (real and small harness cases under
     /// placed, turned, z-up, stopped-early, front-half and other-garment fits): each figure's
-    /// largest value among the right fits × 1.25, at least 0.5 % collapsed and 1.5 % flipped
-    /// faces, rounded (docs/method.md "Quality verdict").
+    /// largest value among the right fits × 1.25 (the pose gap: 1 + 1.25 × its excess over 1),
+    /// at least 0.5 % collapsed and 1.5 % flipped faces, at most 40 % unsupported vertices,
+    /// rounded (docs/method.md "Quality verdict").
     fn default() -> Self {
         Self {
-            fit_to_scan: 0.035,
-            scan_to_fit: 0.16,
-            asymmetry: 0.8,
+            fit_to_scan: 0.027,
+            scan_to_fit: 0.17,
+            asymmetry: 0.83,
             unsupported_share: 0.4,
-            flipped_share: 0.015,
+            flipped_share: 0.022,
             collapsed_share: 0.005,
-            edge_distortion: 3.1,
+            edge_distortion: 1.77,
+            pose_gap: 1.38,
         }
     }
 }
@@ -104,7 +114,7 @@ impl VerdictThresholds {
         Ok(())
     }
 
-    fn named(&self) -> [(&'static str, f64); 7] {
+    fn named(&self) -> [(&'static str, f64); 8] {
         [
             ("fit_to_scan", self.fit_to_scan),
             ("scan_to_fit", self.scan_to_fit),
@@ -113,6 +123,7 @@ impl VerdictThresholds {
             ("flipped_share", self.flipped_share),
             ("collapsed_share", self.collapsed_share),
             ("edge_distortion", self.edge_distortion),
+            ("pose_gap", self.pose_gap),
         ]
     }
 }
@@ -159,6 +170,12 @@ pub struct Quality {
     /// 95th percentile of the edge-length distortion `max(ℓ̂/ℓ, ℓ/ℓ̂)` (median ratio divided
     /// out); 1 for a similarity of the template.
     pub edge_distortion: f64,
+    /// The trimmed two-sided distance to the scan of the best rigid placement of the template
+    /// near the fit's rigid pose (its ICP basin) over that of the best rigid placement found
+    /// anywhere (≥ 1; 1 when none is better): large when the fit kept a wrong orientation and
+    /// wrapped the scan regardless.
+    #[serde(default = "one")]
+    pub pose_gap: f64,
     /// The support radius used, in the scan's units.
     pub support_radius: f64,
     /// The scan's bounding-box diagonal (the distances' normalizer), in the scan's units.
@@ -214,6 +231,9 @@ pub(crate) struct KnownMesh<'a> {
     pub edges: &'a EdgeLengths,
     /// Each scan point's nearest fitted vertex, when the fit found them already.
     pub scan_nearest: Option<&'a [u32]>,
+    /// The best rigid placement's distance to the assessed points, when the fit's own
+    /// pre-alignment measured it ([`pose_gap`]'s `reference`).
+    pub pose_reference: Option<f64>,
 }
 
 /// [`assess`], with the mesh figures a fit already holds.
@@ -306,6 +326,16 @@ pub(crate) fn assess_with(
     let ratios = edges.ratios(fit);
     let rest_edge = median_edge(edges, y);
     let edge_distortion = distortion_p95(&ratios);
+    let fit_scale = if ratios.is_empty() {
+        1.0
+    } else {
+        percentile_linear(&ratios, 50.0)
+    };
+    // A reference measured on the template at its own size holds for a fit near that size.
+    let reference = known
+        .and_then(|k| k.pose_reference)
+        .filter(|_| (fit_scale - 1.0).abs() <= REFERENCE_SCALE_TOLERANCE);
+    let pose_gap = pose_gap(y, fit, scan, fit_scale, reference);
 
     let neighbour = SUPPORT_NEIGHBOUR_EDGES * rest_edge;
     let support: Vec<bool> = (0..y.len())
@@ -331,6 +361,7 @@ pub(crate) fn assess_with(
         flipped_share: faces_figures.flipped,
         collapsed_share: faces_figures.collapsed,
         edge_distortion,
+        pose_gap,
         support_radius,
         scan_diagonal: diagonal,
         thresholds: *thresholds,
@@ -401,6 +432,11 @@ pub fn judged(mut quality: Quality, thresholds: &VerdictThresholds) -> Quality {
         ("share of flipped faces", q.flipped_share, ""),
         ("share of collapsed faces", q.collapsed_share, ""),
         ("edge-length distortion (95th pct)", q.edge_distortion, ""),
+        (
+            "pose gap (a rigid placement elsewhere lies closer to the scan)",
+            q.pose_gap,
+            "",
+        ),
     ];
     let reasons: Vec<String> = figures
         .iter()
@@ -445,6 +481,10 @@ fn vertex_faces(faces: &[[u32; 3]], m: usize) -> Neighborhoods {
                 .map(move |v| (v, f as u32))
         })
     })
+}
+
+fn one() -> f64 {
+    1.0
 }
 
 /// Arithmetic mean in index order (0 when empty).
