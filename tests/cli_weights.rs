@@ -426,9 +426,10 @@ error: short.npy (the weights of dressed.ply): parameter target_weights = 499 we
 "#]]);
 }
 
-/// `fit --garment-mask FILE.npy` writes the points the fit took for the garment as a bool
-/// mask in the scan's order: on a scan with a "body" (a far plane, so the scan is a scene) the
-/// sheet's points and not the body's; on the sheet alone every point. The mask reads back as
+/// `fit --garment-mask FILE.npy` (and `batch` / `sequence --garment-masks`) writes the points
+/// the fit took for the garment as a bool mask in the scan's order: on a scan with a "body" (a
+/// far plane, so the scan is a scene) the sheet's points and not the body's; on the sheet alone
+/// every point. The mask reads back as
 /// `--scan-weights`; a name without `.npy` is refused before fitting.
 #[test]
 fn the_garment_mask_is_written_and_reads_back_as_weights() {
@@ -483,6 +484,37 @@ fn the_garment_mask_is_written_and_reads_back_as_weights() {
         "again.ply",
         &["--scan-weights", "scene_mask.npy"],
     );
+    // `batch --garment-masks` writes each file's next to its output; `sequence` each frame's.
+    std::fs::create_dir_all(d.join("scans")).unwrap();
+    std::fs::copy(d.join("scene.ply"), d.join("scans/scene.ply")).unwrap();
+    std::fs::copy(d.join("scan.ply"), d.join("scans/plain.ply")).unwrap();
+    for (command, out) in [("batch", "masks"), ("sequence", "frames")] {
+        foldmatch(d)
+            .args(["-q", command, "template.ply", "scans", "-o", out])
+            .args(["--iterations", "8", "--garment-masks"])
+            .assert()
+            .code(0)
+            .stderr_eq(str![""]);
+        let report = json(&d.join(out).join("report.json"));
+        for f in report["files"].as_array().unwrap() {
+            let name = f["name"].as_str().unwrap().trim_end_matches(".ply");
+            let mask_file = format!("{out}/{name}.garment.npy");
+            assert_eq!(
+                f["garment_mask"].as_str().map(|m| m.ends_with(&mask_file)),
+                Some(true),
+                "{f}"
+            );
+            let mask = read_mask(&mask_file);
+            let expected = if name == "scene" { points.len() } else { 400 };
+            assert_eq!(mask.len(), expected, "{mask_file}");
+        }
+        if command == "batch" {
+            assert_eq!(
+                read_mask("masks/scene.garment.npy"),
+                read_mask("scene_mask.npy")
+            );
+        }
+    }
     foldmatch(d)
         .args(["fit", "template.ply", "scan.ply", "-o", "o.ply"])
         .args(["--garment-mask", "mask.txt"])

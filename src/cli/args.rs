@@ -200,6 +200,11 @@ pub struct BatchCmd {
     /// Also draw each fit into a PNG next to its output (`NAME.png`), as `fit --preview`.
     #[arg(long, conflicts_with = "scheduler")]
     pub preview: bool,
+    /// Also write which scan points each fit took for the garment next to its output
+    /// (`NAME.garment.npy`), as `fit --garment-mask`: on dressed-body scans the fit's own
+    /// segmentation (docs/dressed.md).
+    #[arg(long, conflicts_with = "scheduler")]
+    pub garment_masks: bool,
     #[command(flatten)]
     #[allow(missing_docs)]
     pub params: ParamArgs,
@@ -248,6 +253,10 @@ pub struct SequenceCmd {
     /// better fit (docs/method.md "Tracking").
     #[arg(long)]
     pub reanchor: bool,
+    /// Also write which scan points each frame's fit took for the garment next to its output
+    /// (`NAME.garment.npy`), as `fit --garment-mask` (docs/dressed.md).
+    #[arg(long, conflicts_with = "scheduler")]
+    pub garment_masks: bool,
     #[command(flatten)]
     #[allow(missing_docs)]
     pub params: ParamArgs,

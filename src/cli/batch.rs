@@ -19,7 +19,9 @@
 use super::args::{BatchCmd, ParamArgs, SequenceCmd};
 use super::files::{find_scans, named_files, output_paths, Found};
 use super::interrupt;
-use super::job::{preview_path, read_named, stage_path, Job, Runner, ScanWeights, Template};
+use super::job::{
+    garment_mask_path, preview_path, read_named, stage_path, Job, Runner, ScanWeights, Template,
+};
 use super::lock::OutputLock;
 use super::report::{write_json, FileReport, RunReport, RunState, Status, Summary};
 use super::ui::Ui;
@@ -540,7 +542,9 @@ pub fn batch(cmd: &BatchCmd, ctx: &Context) -> i32 {
                     landmarks: None,
                     stage: Some(stage_path(&setup.outputs[i])),
                     preview: cmd.preview.then(|| preview_path(&setup.outputs[i])),
-                    garment_mask: None,
+                    garment_mask: cmd
+                        .garment_masks
+                        .then(|| garment_mask_path(&setup.outputs[i])),
                 };
                 let outcome = runner.run(&job);
                 let finished = done.fetch_add(1, Ordering::SeqCst) + 1;
@@ -695,7 +699,9 @@ pub fn sequence(cmd: &SequenceCmd, ctx: &Context) -> i32 {
             landmarks: None,
             stage: Some(stage_path(&setup.outputs[i])),
             preview: None,
-            garment_mask: None,
+            garment_mask: cmd
+                .garment_masks
+                .then(|| garment_mask_path(&setup.outputs[i])),
         };
         let before = tracker.lock().map_or(i, |t| t.frames());
         let mut outcome = runner.run(&job);

@@ -206,6 +206,12 @@ pub fn preview_path(output: &Path) -> PathBuf {
     output.with_extension("png")
 }
 
+/// Where `batch --garment-masks` and `sequence --garment-masks` write a fit's garment mask:
+/// `NAME.garment.npy` next to its output.
+pub fn garment_mask_path(output: &Path) -> PathBuf {
+    output.with_extension("garment.npy")
+}
+
 /// Where `batch` and `sequence` write an output before it is recorded: `.NAME.staged.EXT`
 /// next to it (same folder, so the rename that commits it is atomic).
 pub fn stage_path(output: &Path) -> PathBuf {
