@@ -468,7 +468,8 @@ def track(
     preset : str, optional
         The preset of every frame's fit (default ``"tracking"``, see :func:`fit`).
     iterations : int, optional
-        ξ per frame (the preset's, 60).
+        ξ per frame (the preset's, 60); a frame whose start lies more than two mean template
+        edges from its scan gets proportionally more, at most three times as many.
     params : FitParams or dict, optional
         Other fit settings, as for :func:`fit`.
     prediction : float

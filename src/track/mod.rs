@@ -20,10 +20,13 @@
 
 use crate::error::{FoldMatchError, Result};
 use crate::fit::{fit_anchored, FitParams, FitResult, Progress};
+use crate::knn::PointIndex;
 use crate::math::vec3;
 use crate::mesh::{validate_faces, validate_points};
+use crate::metrics::{percentile_linear, EdgeLengths};
 use crate::quality::Verdict;
 use crate::rotation::{kabsch, ring_centroids, transform_vertex};
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 /// The settings of a [`Tracker`]: the fit of every frame and the tracking rules.
@@ -58,6 +61,12 @@ pub const DEFAULT_PREDICTION: f64 = 0.0;
 pub const DEFAULT_DISTORTION_JUMP: f64 = 0.15;
 /// See [`TrackParams::distance_jump`].
 pub const DEFAULT_DISTANCE_JUMP: f64 = 2.0;
+/// A warm-started frame whose start lies farther from its scan than this many mean template
+/// edges (the 95th percentile of the start's vertex → scan distances) moved far since the last
+/// one: its fit gets proportionally more schedule iterations (docs/method.md "Tracking").
+pub const FAR_FRAME_EDGES: f64 = 2.0;
+/// The most a far frame multiplies the schedule's iterations by.
+pub const MAX_ITERATION_FACTOR: f64 = 3.0;
 
 impl Default for TrackParams {
     fn default() -> Self {
@@ -161,6 +170,8 @@ pub struct TrackerState {
 pub struct Tracker {
     template: Vec<[f64; 3]>,
     faces: Vec<[u32; 3]>,
+    /// The template's mean edge length ([`FAR_FRAME_EDGES`]' unit).
+    mean_edge: f64,
     params: TrackParams,
     /// The last two fits, latest first.
     previous: Vec<Vec<[f64; 3]>>,
@@ -176,9 +187,17 @@ impl Tracker {
         validate_points("template_vertices", template)?;
         validate_faces("template_faces", faces, template.len())?;
         params.validate()?;
+        let edges = EdgeLengths::new(template, faces);
+        let lengths: Vec<f64> = edges
+            .edges()
+            .iter()
+            .map(|&(a, b)| (vec3(&template[a as usize]) - vec3(&template[b as usize])).norm())
+            .collect();
+        let mean_edge = lengths.iter().sum::<f64>() / lengths.len().max(1) as f64;
         Ok(Self {
             template: template.to_vec(),
             faces: faces.to_vec(),
+            mean_edge,
             params,
             previous: Vec::new(),
             first: None,
@@ -263,6 +282,21 @@ impl Tracker {
             first_params = p;
             &first_params
         };
+        // A frame that moved far from the last fit gets more schedule iterations.
+        let far_params;
+        let factor = if warm_started {
+            Self::far_frame_factor(&start, target, target_weights, self.mean_edge)
+        } else {
+            1.0
+        };
+        let params = if factor > 1.0 {
+            let mut p = params.clone();
+            p.iterations = (p.iterations as f64 * factor).round() as usize;
+            far_params = p;
+            &far_params
+        } else {
+            params
+        };
         let fit = |start: &[[f64; 3]], observer: &mut (dyn FnMut(&Progress) -> bool + Send)| {
             fit_anchored(
                 start,
@@ -306,6 +340,36 @@ impl Tracker {
         self.push(result.vertices.clone());
         self.frames += 1;
         Ok(TrackedFrame { result, figures })
+    }
+
+    /// How many times the schedule's iterations a warm-started frame gets: the 95th percentile of
+    /// its start's vertex → scan distances (scan points of positive weight) in units of
+    /// [`FAR_FRAME_EDGES`] mean template edges `mean_edge`, clamped to `[1, MAX_ITERATION_FACTOR]`.
+    fn far_frame_factor(
+        start: &[[f64; 3]],
+        target: &[[f64; 3]],
+        weights: Option<&[f64]>,
+        mean_edge: f64,
+    ) -> f64 {
+        let live: Vec<[f64; 3]> = match weights {
+            Some(w) => target
+                .iter()
+                .zip(w)
+                .filter(|(_, &w)| w > 0.0)
+                .map(|(p, _)| *p)
+                .collect(),
+            None => target.to_vec(),
+        };
+        if live.is_empty() || start.is_empty() || mean_edge.is_nan() || mean_edge <= 0.0 {
+            return 1.0;
+        }
+        let index = PointIndex::new(&live);
+        let distances: Vec<f64> = start
+            .par_iter()
+            .map(|p| index.nearest_one(p).1.sqrt())
+            .collect();
+        let reach = percentile_linear(&distances, 95.0) / mean_edge;
+        (reach / FAR_FRAME_EDGES).clamp(1.0, MAX_ITERATION_FACTOR)
     }
 
     /// The next frame's start: the template first, then the previous fit moved on by

@@ -283,3 +283,54 @@ fn the_first_frame_keeps_a_template_that_is_its_scan() {
     };
     assert!(Tracker::new(&template, &faces, bad).is_err());
 }
+
+#[test]
+fn a_frame_that_moved_far_gets_more_iterations() {
+    let (template, faces, _) = moving_copies(1);
+    let edges = EdgeLengths::new(&template, &faces);
+    let lengths: Vec<f64> = edges
+        .edges()
+        .iter()
+        .map(|&(a, b)| (vec3(&template[a as usize]) - vec3(&template[b as usize])).norm())
+        .collect();
+    let edge = lengths.iter().sum::<f64>() / lengths.len() as f64;
+    let shifted = |k: f64| -> Frame {
+        template
+            .iter()
+            .map(|p| [p[0] + k * edge, p[1], p[2]])
+            .collect()
+    };
+    // On its scan, or within the threshold: the schedule as set.
+    assert_eq!(
+        Tracker::far_frame_factor(&template, &template, None, edge),
+        1.0
+    );
+    assert_eq!(
+        Tracker::far_frame_factor(&template, &shifted(1.0), None, edge),
+        1.0
+    );
+    // 4 edges away (every vertex): twice the iterations; far beyond, at most the cap.
+    let four = Tracker::far_frame_factor(&template, &shifted(4.0), None, edge);
+    assert!((four - 4.0 / FAR_FRAME_EDGES).abs() < 0.05, "{four}");
+    let far = Tracker::far_frame_factor(&template, &shifted(40.0), None, edge);
+    assert_eq!(far, MAX_ITERATION_FACTOR);
+    // Points of weight 0 do not count: the scan's near copy is masked out.
+    let mut both = template.clone();
+    both.extend(shifted(4.0));
+    let mask: Vec<f64> = (0..both.len())
+        .map(|j| if j < template.len() { 0.0 } else { 1.0 })
+        .collect();
+    let masked = Tracker::far_frame_factor(&template, &both, Some(&mask), edge);
+    assert!((masked - four).abs() < 1e-12);
+
+    // In a sequence: the second frame, 4 edges from the first, is fitted with twice the
+    // first frame's iterations.
+    let mut tracker = Tracker::new(&template, &faces, quick()).unwrap();
+    let first = tracker.step(&template, None, None, &mut |_| true).unwrap();
+    let second = tracker
+        .step(&shifted(4.0), None, None, &mut |_| true)
+        .unwrap();
+    assert_eq!(first.result.iterations, 30);
+    let expected = (30.0 * four).round() as usize;
+    assert_eq!(second.result.iterations, expected);
+}
