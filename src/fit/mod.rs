@@ -56,6 +56,7 @@ pub use schedule::{keeps_start, select_schedule};
 use crate::error::{FoldMatchError, Result};
 use crate::landmarks::Landmarks;
 use crate::math::vec3;
+use crate::quality::PoseGapSource;
 use rayon::prelude::*;
 use schedule::{drive, median_scan_distance, selection_distance, weighted_median, ScheduleRun};
 use setup::Prepared;
@@ -491,12 +492,17 @@ fn fit_from(
         .map(|n| &n.vertex[..]);
     let two_rings =
         (params.method == Method::FoldMatch && params.model.rings == 2).then_some(&prepared.rings);
-    // The pre-alignment's best rigid placement, when it scored the same template on the same
-    // points: the verdict's pose gap then needs no search of its own.
-    let pose_reference = prealign
+    // The verdict's pose gap: from the pre-alignment's best rigid placement when it scored the
+    // same template on the same points (no search of its own); left for later in a fit that
+    // goes on to its garment passes, and in those passes (the driver sets the last one's).
+    let pose = match prealign
         .filter(|_| params.prealign == Prealign::Rigid && rest.is_none())
         .filter(|_| prepared.garment.is_none())
-        .map(|p| p.best_score);
+    {
+        _ if refit || role.garment || role.several => PoseGapSource::Deferred,
+        Some(p) => PoseGapSource::Reference(p.best_score),
+        None => PoseGapSource::Search,
+    };
     let assessment = crate::quality::assess_points_with(
         &crate::quality::AssessInput {
             template_vertices: rest_shape,
@@ -510,7 +516,7 @@ fn fit_from(
             two_rings,
             edges: &rest_edges,
             scan_nearest,
-            pose_reference,
+            pose,
         }),
     )?;
     // Only the chosen run is finished (its wrinkle fields are a whole Eq. 4–8 pass).
@@ -543,8 +549,23 @@ fn fit_from(
     chosen.diagnostics.kept_start = kept_start;
     let finish = clock.elapsed().as_secs_f64() - setup - iterations;
     chosen.diagnostics.wall_seconds = [setup, iterations, finish];
+    // A first fit that is final after all: its deferred pose gap, on the points it was judged on
+    // (a garment of several is judged whole by its driver).
+    let settled = |mut r: FitResult| {
+        if refit && !role.several {
+            r.quality = crate::quality::with_pose_gap(
+                r.quality,
+                rest_shape,
+                &rest_edges,
+                &r.vertices,
+                target,
+                assessed,
+            );
+        }
+        r
+    };
     if !refit || kept_start || chosen.diagnostics.stopped_by_callback {
-        return Ok(with_prealign(chosen));
+        return Ok(with_prealign(settled(chosen)));
     }
     let weights = garment_refit::garment_weights(
         target,
@@ -558,7 +579,7 @@ fn fit_from(
     let usable = |points: usize| points >= template_vertices.len() / 4 && points < live;
     if !usable(garment_refit::garment_points(&weights)) {
         // The first fit stands.
-        return Ok(with_prealign(chosen));
+        return Ok(with_prealign(settled(chosen)));
     }
     let mut inner = params.clone();
     inner.schedule.garment_refit = 0.0;
@@ -626,6 +647,18 @@ fn fit_from(
         }
         last = fit_onto(&cut, 2 + round)?;
         previous = Some(cut);
+    }
+    // The last pass's verdict, with the pose gap its passes left out, on its garment's points.
+    if !role.several {
+        let points: Vec<usize> = last.garment_points.iter().map(|&j| j as usize).collect();
+        last.quality = crate::quality::with_pose_gap(
+            last.quality,
+            rest_shape,
+            &rest_edges,
+            &last.vertices,
+            target,
+            Some(&points),
+        );
     }
     Ok(with_prealign(last))
 }

@@ -231,9 +231,21 @@ pub(crate) struct KnownMesh<'a> {
     pub edges: &'a EdgeLengths,
     /// Each scan point's nearest fitted vertex, when the fit found them already.
     pub scan_nearest: Option<&'a [u32]>,
-    /// The best rigid placement's distance to the assessed points, when the fit's own
-    /// pre-alignment measured it ([`pose_gap`]'s `reference`).
-    pub pose_reference: Option<f64>,
+    /// How the pose gap is found ([`PoseGapSource`]).
+    pub pose: PoseGapSource,
+}
+
+/// Where [`assess_with`]'s pose gap comes from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum PoseGapSource {
+    /// A search of its own ([`pose_gap`] without a reference).
+    Search,
+    /// The best rigid placement's distance to the assessed points, known from the fit's own
+    /// pre-alignment ([`pose_gap`]'s `reference`).
+    Reference(f64),
+    /// Not now: 1 until the caller sets it (a pass of a fit that goes on, whose verdict is
+    /// replaced by the last pass's).
+    Deferred,
 }
 
 /// [`assess`], with the mesh figures a fit already holds.
@@ -331,11 +343,15 @@ pub(crate) fn assess_with(
     } else {
         percentile_linear(&ratios, 50.0)
     };
-    // A reference measured on the template at its own size holds for a fit near that size.
-    let reference = known
-        .and_then(|k| k.pose_reference)
-        .filter(|_| (fit_scale - 1.0).abs() <= REFERENCE_SCALE_TOLERANCE);
-    let pose_gap = pose_gap(y, fit, scan, fit_scale, reference);
+    let source = known.map_or(PoseGapSource::Search, |k| k.pose);
+    let pose_gap = match source {
+        PoseGapSource::Deferred => 1.0,
+        // A reference measured on the template at its own size holds for a fit near that size.
+        PoseGapSource::Reference(r) if (fit_scale - 1.0).abs() <= REFERENCE_SCALE_TOLERANCE => {
+            pose_gap(y, fit, scan, fit_scale, Some(r))
+        }
+        _ => pose_gap(y, fit, scan, fit_scale, None),
+    };
 
     let neighbour = SUPPORT_NEIGHBOUR_EDGES * rest_edge;
     let support: Vec<bool> = (0..y.len())
@@ -419,6 +435,41 @@ pub(crate) fn assess_points_with(
         }
     }
     Ok(a)
+}
+
+/// `quality` with the pose gap of `fitted` (the template `template`'s fit) against the scan
+/// points `points` of `scan` (`None`: every point) found by a search, and its verdict again:
+/// a pose gap that [`PoseGapSource::Deferred`] left out, once the fit is final.
+pub(crate) fn with_pose_gap(
+    quality: Quality,
+    template: &[[f64; 3]],
+    edges: &EdgeLengths,
+    fitted: &[[f64; 3]],
+    scan: &[[f64; 3]],
+    points: Option<&[usize]>,
+) -> Quality {
+    let chosen: Vec<[f64; 3]>;
+    let scan = match points {
+        Some(p) => {
+            chosen = p.iter().map(|&j| scan[j]).collect();
+            &chosen[..]
+        }
+        None => scan,
+    };
+    let ratios = edges.ratios(fitted);
+    let scale = if ratios.is_empty() {
+        1.0
+    } else {
+        percentile_linear(&ratios, 50.0)
+    };
+    let thresholds = quality.thresholds;
+    judged(
+        Quality {
+            pose_gap: pose_gap(template, fitted, scan, scale, None),
+            ..quality
+        },
+        &thresholds,
+    )
 }
 
 /// `quality` with its verdict and reasons under `thresholds`.

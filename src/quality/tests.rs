@@ -292,3 +292,29 @@ fn a_known_reference_replaces_the_search() {
     assert!(pose_gap(&y, &fit, &scan, 1.0, Some(2.0 * best)) < searched);
     assert_eq!(pose_gap(&y, &fit, &scan, 1.0, Some(1e9)), 1.0);
 }
+
+#[test]
+fn a_dressed_scan_fit_from_a_turned_start_gets_its_pose_gap_after_its_garment_passes() {
+    let (y, f, scan) = asymmetric_sheet();
+    // The sheet turned a quarter beside a large "body" plane (the scan is a scene, so the fit
+    // runs its garment passes, whose verdicts leave the pose gap to the last one).
+    let mut scene = turned_about_z(&scan, 90.0, [1.0, 0.5, 0.0]);
+    for i in 0..40 {
+        for j in 0..40 {
+            scene.push([-2.0 + 0.125 * i as f64, -2.0 + 0.125 * j as f64, -1.5]);
+        }
+    }
+    let params = crate::fit::FitParams {
+        prealign: crate::fit::Prealign::Centroid,
+        ..Default::default()
+    };
+    let fit = crate::fit::fit_simple(&y, &f, &scene, None, &params).unwrap();
+    assert!(!fit.garment_points.is_empty(), "the garment passes ran");
+    let q = &fit.quality;
+    assert!(q.pose_gap > 1.6, "{q:?}");
+    assert!(
+        q.reasons.iter().any(|r| r.contains("pose gap")),
+        "{:?}",
+        q.reasons
+    );
+}
