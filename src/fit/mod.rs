@@ -251,32 +251,24 @@ fn fit_from(
     // fit from it says by how much its cloth had to stretch (docs/method.md "Global
     // pre-alignment"). After such a probe the fits that follow report the second half of the
     // progress.
+    let placed_fit = PlacedFit {
+        rest,
+        template_faces,
+        target,
+        target_faces,
+        target_weights,
+        role,
+        params,
+    };
     let (placed, other, probed) = match (placed, params.prealign) {
         (Some(p), Prealign::Similarity) => {
-            let mut inner = params.clone();
-            inner.prealign = Prealign::None;
-            let mut first = |q: &Progress| observer(&q.of_parts(0, 2, params.iterations));
-            let probe = fit_from(
-                &p,
-                rest,
-                template_faces,
-                target,
-                target_faces,
-                target_weights,
-                None,
-                role,
-                &inner,
-                &mut first,
-            )?;
+            let probe = placed_fit.run(&p, 0, prealign, observer)?;
             let stretch = crate::prealign::fitted_stretch(&p, &probe.vertices, template_faces);
             let off = (stretch - 1.0).abs();
             let settled =
                 off <= crate::prealign::SCALE_SETTLED || off > crate::prealign::SCALE_TRUSTED;
             if probe.diagnostics.stopped_by_callback || (other.is_none() && settled) {
-                let mut result = probe;
-                result.params = params.clone();
-                result.diagnostics.prealign = prealign;
-                return Ok(result);
+                return Ok(probe);
             }
             if settled {
                 (Some(p), other, true)
@@ -302,18 +294,7 @@ fn fit_from(
     if let (Some(placed), Some(other)) = (&placed, &other) {
         // Two readings of other shapes that rigid scores cannot tell apart (a garment turned
         // back to front): each fitted, the one closer to the scan kept.
-        return fit_readings(
-            [placed, other],
-            rest,
-            template_faces,
-            target,
-            target_faces,
-            target_weights,
-            role,
-            params,
-            prealign,
-            observer,
-        );
+        return fit_readings([placed, other], &placed_fit, prealign, observer);
     }
     // The pre-alignment's figures go into the result's diagnostics, whichever fit returns.
     let with_prealign = |mut result: FitResult| {
@@ -667,40 +648,16 @@ fn fit_from(
 /// scan's frame), without a pre-alignment of their own; the second replaces the first when its
 /// fit lies closer to the scan by [`READING_MARGIN`] (the sum of its verdict's two directed
 /// distances), returned with `prealign`'s figures. Each reports its half of the progress.
-#[allow(clippy::too_many_arguments)]
 fn fit_readings(
     placements: [&[[f64; 3]]; 2],
-    rest: Option<&[[f64; 3]]>,
-    template_faces: &[[u32; 3]],
-    target: &[[f64; 3]],
-    target_faces: Option<&[[u32; 3]]>,
-    target_weights: Option<&[f64]>,
-    role: FitRole,
-    params: &FitParams,
+    placed_fit: &PlacedFit<'_>,
     prealign: Option<PrealignFigures>,
     observer: &mut (dyn FnMut(&Progress) -> bool + Send),
 ) -> Result<FitResult> {
-    let mut inner = params.clone();
-    inner.prealign = Prealign::None;
-    let total = params.iterations;
     let closeness = |r: &FitResult| r.quality.fit_to_scan + r.quality.scan_to_fit;
     let mut best: Option<FitResult> = None;
     for (part, placement) in placements.into_iter().enumerate() {
-        let mut halves = |p: &Progress| observer(&p.of_parts(part, 2, total));
-        let mut fitted = fit_from(
-            placement,
-            rest,
-            template_faces,
-            target,
-            target_faces,
-            target_weights,
-            None,
-            role,
-            &inner,
-            &mut halves,
-        )?;
-        fitted.params = params.clone();
-        fitted.diagnostics.prealign = prealign;
+        let fitted = placed_fit.run(placement, part, prealign, observer)?;
         let stopped = fitted.diagnostics.stopped_by_callback;
         if best
             .as_ref()
@@ -713,6 +670,51 @@ fn fit_readings(
         }
     }
     Ok(best.expect("two placements"))
+}
+
+/// A fit of the template from a placement the pre-alignment found (the similarity's probe, a
+/// reading): `fit_from` without a pre-alignment of its own, one half of the progress, its
+/// result with the caller's parameters and the pre-alignment's figures.
+struct PlacedFit<'a> {
+    rest: Option<&'a [[f64; 3]]>,
+    template_faces: &'a [[u32; 3]],
+    target: &'a [[f64; 3]],
+    target_faces: Option<&'a [[u32; 3]]>,
+    target_weights: Option<&'a [f64]>,
+    role: FitRole,
+    params: &'a FitParams,
+}
+
+impl PlacedFit<'_> {
+    /// The fit from `placement`, reporting half `part` (0 or 1) of the progress, with
+    /// `prealign`'s figures.
+    fn run(
+        &self,
+        placement: &[[f64; 3]],
+        part: usize,
+        prealign: Option<PrealignFigures>,
+        observer: &mut (dyn FnMut(&Progress) -> bool + Send),
+    ) -> Result<FitResult> {
+        let mut inner = self.params.clone();
+        inner.prealign = Prealign::None;
+        let total = self.params.iterations;
+        let mut half = |p: &Progress| observer(&p.of_parts(part, 2, total));
+        let mut fitted = fit_from(
+            placement,
+            self.rest,
+            self.template_faces,
+            self.target,
+            self.target_faces,
+            self.target_weights,
+            None,
+            self.role,
+            &inner,
+            &mut half,
+        )?;
+        fitted.params = self.params.clone();
+        fitted.diagnostics.prealign = prealign;
+        Ok(fitted)
+    }
 }
 
 /// Schedule selection's comparison of the candidates' fits (in the user's frame).

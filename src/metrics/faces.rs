@@ -51,6 +51,11 @@ impl EdgeLengths {
         &self.edges
     }
 
+    /// The mean template length of the edges (0 without edges).
+    pub fn mean_length(&self) -> f64 {
+        self.rest.iter().sum::<f64>() / self.rest.len().max(1) as f64
+    }
+
     /// Every edge's length on `fitted` over its template length, in [`EdgeLengths::edges`]
     /// order (0 for an edge collapsed to a point).
     pub fn ratios(&self, fitted: &[[f64; 3]]) -> Vec<f64> {

@@ -34,6 +34,7 @@ mod pose;
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use std::borrow::Cow;
 
 use crate::error::{FoldMatchError, Result};
 use crate::knn::PointIndex;
@@ -338,11 +339,7 @@ pub(crate) fn assess_with(
     let ratios = edges.ratios(fit);
     let rest_edge = median_edge(edges, y);
     let edge_distortion = distortion_p95(&ratios);
-    let fit_scale = if ratios.is_empty() {
-        1.0
-    } else {
-        percentile_linear(&ratios, 50.0)
-    };
+    let fit_scale = fit_scale(&ratios);
     let source = known.map_or(PoseGapSource::Search, |k| k.pose);
     let pose_gap = match source {
         PoseGapSource::Deferred => 1.0,
@@ -416,16 +413,9 @@ pub(crate) fn assess_points_with(
     thresholds: &VerdictThresholds,
     known: Option<KnownMesh<'_>>,
 ) -> Result<Assessment> {
-    let chosen: Vec<[f64; 3]>;
-    let scan_points = match points {
-        Some(p) => {
-            chosen = p.iter().map(|&j| whole.scan[j]).collect();
-            &chosen[..]
-        }
-        None => whole.scan,
-    };
+    let scan_points = chosen_points(whole.scan, points);
     let input = AssessInput {
-        scan: scan_points,
+        scan: &scan_points,
         ..*whole
     };
     let mut a = assess_with(&input, thresholds, known)?;
@@ -448,28 +438,33 @@ pub(crate) fn with_pose_gap(
     scan: &[[f64; 3]],
     points: Option<&[usize]>,
 ) -> Quality {
-    let chosen: Vec<[f64; 3]>;
-    let scan = match points {
-        Some(p) => {
-            chosen = p.iter().map(|&j| scan[j]).collect();
-            &chosen[..]
-        }
-        None => scan,
-    };
-    let ratios = edges.ratios(fitted);
-    let scale = if ratios.is_empty() {
-        1.0
-    } else {
-        percentile_linear(&ratios, 50.0)
-    };
+    let scan = chosen_points(scan, points);
+    let scale = fit_scale(&edges.ratios(fitted));
     let thresholds = quality.thresholds;
     judged(
         Quality {
-            pose_gap: pose_gap(template, fitted, scan, scale, None),
+            pose_gap: pose_gap(template, fitted, &scan, scale, None),
             ..quality
         },
         &thresholds,
     )
+}
+
+/// The points `points` of `scan` (`None`: all of them, borrowed).
+fn chosen_points<'a>(scan: &'a [[f64; 3]], points: Option<&[usize]>) -> Cow<'a, [[f64; 3]]> {
+    match points {
+        Some(p) => Cow::Owned(p.iter().map(|&j| scan[j]).collect()),
+        None => Cow::Borrowed(scan),
+    }
+}
+
+/// A fit's scale: the median of its edge ratios to the template (1 without edges).
+fn fit_scale(ratios: &[f64]) -> f64 {
+    if ratios.is_empty() {
+        1.0
+    } else {
+        percentile_linear(ratios, 50.0)
+    }
 }
 
 /// `quality` with its verdict and reasons under `thresholds`.

@@ -23,11 +23,12 @@ use crate::fit::{fit_anchored, FitParams, FitResult, Progress};
 use crate::knn::PointIndex;
 use crate::math::vec3;
 use crate::mesh::{validate_faces, validate_points};
-use crate::metrics::{percentile_linear, EdgeLengths};
+use crate::metrics::{percentile_linear, positive_points, EdgeLengths};
 use crate::quality::Verdict;
 use crate::rotation::{kabsch, ring_centroids, transform_vertex};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use std::borrow::Cow;
 
 /// The settings of a [`Tracker`]: the fit of every frame and the tracking rules.
 #[derive(Clone, Debug, PartialEq)]
@@ -170,7 +171,7 @@ pub struct TrackerState {
 pub struct Tracker {
     template: Vec<[f64; 3]>,
     faces: Vec<[u32; 3]>,
-    /// The template's mean edge length ([`FAR_FRAME_EDGES`]' unit).
+    /// The template's mean edge length (each edge once; [`FAR_FRAME_EDGES`]' unit).
     mean_edge: f64,
     params: TrackParams,
     /// The last two fits, latest first.
@@ -187,13 +188,7 @@ impl Tracker {
         validate_points("template_vertices", template)?;
         validate_faces("template_faces", faces, template.len())?;
         params.validate()?;
-        let edges = EdgeLengths::new(template, faces);
-        let lengths: Vec<f64> = edges
-            .edges()
-            .iter()
-            .map(|&(a, b)| (vec3(&template[a as usize]) - vec3(&template[b as usize])).norm())
-            .collect();
-        let mean_edge = lengths.iter().sum::<f64>() / lengths.len().max(1) as f64;
+        let mean_edge = EdgeLengths::new(template, faces).mean_length();
         Ok(Self {
             template: template.to_vec(),
             faces: faces.to_vec(),
@@ -351,14 +346,9 @@ impl Tracker {
         weights: Option<&[f64]>,
         mean_edge: f64,
     ) -> f64 {
-        let live: Vec<[f64; 3]> = match weights {
-            Some(w) => target
-                .iter()
-                .zip(w)
-                .filter(|(_, &w)| w > 0.0)
-                .map(|(p, _)| *p)
-                .collect(),
-            None => target.to_vec(),
+        let live = match weights {
+            Some(w) => Cow::Owned(positive_points(target, w)),
+            None => Cow::Borrowed(target),
         };
         if live.is_empty() || start.is_empty() || mean_edge.is_nan() || mean_edge <= 0.0 {
             return 1.0;

@@ -287,13 +287,7 @@ fn the_first_frame_keeps_a_template_that_is_its_scan() {
 #[test]
 fn a_frame_that_moved_far_gets_more_iterations() {
     let (template, faces, _) = moving_copies(1);
-    let edges = EdgeLengths::new(&template, &faces);
-    let lengths: Vec<f64> = edges
-        .edges()
-        .iter()
-        .map(|&(a, b)| (vec3(&template[a as usize]) - vec3(&template[b as usize])).norm())
-        .collect();
-    let edge = lengths.iter().sum::<f64>() / lengths.len() as f64;
+    let edge = EdgeLengths::new(&template, &faces).mean_length();
     let shifted = |k: f64| -> Frame {
         template
             .iter()
