@@ -671,6 +671,43 @@ def test_rest_rigidity_keeps_edge_lengths_over_a_scan_hole(case):
         fm.fit(v, f, holed, params=dict(rest_rigidity=1.5))
 
 
+def _tube(radius, around=64, rows=25):
+    """An open tube along y (height 0.8), ``radius(y)`` its radius: vertices and faces."""
+    y = np.repeat(np.linspace(0.0, 0.8, rows), around)
+    t = np.tile(np.arange(around) * 2 * np.pi / around, rows)
+    v = np.stack([radius(y) * np.cos(t), y, radius(y) * np.sin(t)], axis=1)
+    j, i = np.meshgrid(np.arange(rows - 1), np.arange(around), indexing="ij")
+    a = (j * around + i).ravel()
+    b = (j * around + (i + 1) % around).ravel()
+    f = np.concatenate([np.stack([a, b, b + around], 1), np.stack([a, b + around, a + around], 1)])
+    return v, f.astype(np.int64)
+
+
+def test_carry_unsupported_keeps_the_back_of_a_one_sided_scan():
+    """A tube scanned from its front (x > 0) only: with ``carry_unsupported`` (the setting for
+    one-sided scans) the unscanned back keeps its place behind the front, closer to the truth
+    than the default's, which pulls it onto the front; the result reports it unsupported."""
+    v, f = _tube(lambda y: 0.3 + 0 * y)
+    truth, _ = _tube(lambda y: 0.3 * (1 + 0.25 * y))
+    rng = np.random.default_rng(3)
+    tri = truth[f]
+    idx = rng.integers(0, len(f), 12000)
+    u, w = rng.random((2, 12000, 1))
+    flip = (u + w) > 1
+    u, w = np.where(flip, 1 - u, u), np.where(flip, 1 - w, w)
+    scan = tri[idx, 0] + u * (tri[idx, 1] - tri[idx, 0]) + w * (tri[idx, 2] - tri[idx, 0])
+    scan = scan[scan[:, 0] > 0]
+    back = v[:, 0] < -0.15
+    attracted = fm.fit(v, f, scan)
+    carried = fm.fit(v, f, scan, params={"carry_unsupported": 2.0})
+    assert carried.params["carry_unsupported"] == 2.0 and attracted.params["carry_unsupported"] == 0.0
+    assert rmse(carried.vertices[back], truth[back]) < 0.65 * rmse(attracted.vertices[back], truth[back])
+    assert carried.vertices[back, 0].mean() < -0.15
+    assert np.mean(~np.asarray(carried.support)[back]) > 0.9
+    with pytest.raises(fm.InvalidParameterError, match="carry_unsupported"):
+        fm.fit(v, f, scan, params={"carry_unsupported": -1.0})
+
+
 def test_fast_preset_is_one_schedule_between_the_default_s_two(case):
     """preset="fast" runs one schedule: the default's parameters with the sharp candidate's
     phases and constant softening and a two-way weight of 3 (between the candidates' 1 and

@@ -209,6 +209,19 @@ class FitParams(Mapping[str, Any]):
         0.15 in the `"tracking"` preset, whose isometric refinement holds the metric.
         """
     @property
+    def carry_unsupported(self) -> float:
+        """Carrying the template where the scan has nothing for it (docs/method.md "Partial
+        scans"): once the rigid phase has placed the template, a vertex farther than
+        `carry_unsupported ×` the larger of the median vertex → scan distance and the mean edge
+        from every scan point, whose nearest scan point another part of the template (more
+        than `CARRY_FAR_EDGES` mean edges away on the template) already explains without a
+        surplus of points, has no scan support: in a one-sided scan, the garment's back. Such
+        vertices, in regions of at least `CARRY_MIN_SHARE` of the template, are not attracted
+        in the coarse and fine phases and follow their template rings (full rest-shape
+        rigidity) instead of collapsing onto the scanned side. 0: off (every vertex attracted,
+        the paper's reading).
+        """
+    @property
     def anneal(self) -> float:
         """Softening annealing: ε starts at `anneal × ε` and decreases linearly to ε over the
         first `anneal_fraction` of the ξ iterations (1: constant ε, the paper's reading).

@@ -71,6 +71,26 @@ pub enum Selection {
     ScanDistanceWide,
 }
 
+/// The default [`carry_unsupported`](crate::fit::Schedule::carry_unsupported) (docs/method.md
+/// "Partial scans").
+pub const DEFAULT_CARRY_UNSUPPORTED: f64 = 0.0;
+/// The [`carry_unsupported`](crate::fit::Schedule::carry_unsupported) for a scan that saw the
+/// garment from one side (docs/guide.md "One-sided scans").
+pub const ONE_SIDED_CARRY: f64 = 2.0;
+/// [`carry_unsupported`](crate::fit::Schedule::carry_unsupported): the nearest scan point of an
+/// unsupported vertex is explained by a vertex farther than this many mean edges from it on
+/// the template.
+pub const CARRY_FAR_EDGES: f64 = 3.0;
+/// [`carry_unsupported`](crate::fit::Schedule::carry_unsupported): a vertex explains its scan
+/// points without a surplus while its one-ring's mean count of scan points (those whose
+/// nearest vertex it is) stays within this multiple of the typical (median) count; a surplus
+/// means another layer of the template belongs there (a garment folded flat).
+pub const CARRY_SURPLUS: f64 = 1.5;
+/// [`carry_unsupported`](crate::fit::Schedule::carry_unsupported): unsupported regions
+/// (connected through the vertices' rings) smaller than this share of the template are
+/// attracted as usual: a sleeve still far from its scan, not a side the scan never saw.
+pub const CARRY_MIN_SHARE: f64 = 0.05;
+
 /// The default [`strain_limit`](crate::fit::Schedule::strain_limit) (docs/method.md "Strain
 /// limiting").
 pub const DEFAULT_STRAIN_LIMIT: f64 = 0.15;
@@ -375,6 +395,17 @@ pub struct Schedule {
     /// alone. FoldMatch only (docs/method.md, "Beyond the paper: the default configuration");
     /// 0.15 in the `"tracking"` preset, whose isometric refinement holds the metric.
     pub rest_rigidity: f64,
+    /// Carrying the template where the scan has nothing for it (docs/method.md "Partial
+    /// scans"): once the rigid phase has placed the template, a vertex farther than
+    /// `carry_unsupported ×` the larger of the median vertex → scan distance and the mean edge
+    /// from every scan point, whose nearest scan point another part of the template (more
+    /// than [`CARRY_FAR_EDGES`] mean edges away on the template) already explains without a
+    /// surplus of points, has no scan support: in a one-sided scan, the garment's back. Such
+    /// vertices, in regions of at least [`CARRY_MIN_SHARE`] of the template, are not attracted
+    /// in the coarse and fine phases and follow their template rings (full rest-shape
+    /// rigidity) instead of collapsing onto the scanned side. 0: off (every vertex attracted,
+    /// the paper's reading).
+    pub carry_unsupported: f64,
     /// Softening annealing: ε starts at `anneal × ε` and decreases linearly to ε over the
     /// first `anneal_fraction` of the ξ iterations (1: constant ε, the paper's reading).
     pub anneal: f64,
@@ -580,6 +611,7 @@ impl Default for Schedule {
             coarse_rings: 0,
             coarse_levels: 1,
             rest_rigidity: 0.65,
+            carry_unsupported: DEFAULT_CARRY_UNSUPPORTED,
             anneal: 3.0,
             anneal_fraction: 0.6,
             selection: Selection::ScanDistance,
@@ -659,6 +691,12 @@ impl FitParams {
         }
         let scaled = AUTO_COARSE_RINGS as f64 * (m as f64 / COARSE_RINGS_REFERENCE_VERTICES).sqrt();
         (scaled.round() as usize).clamp(AUTO_COARSE_RINGS, AUTO_COARSE_RINGS_MAX)
+    }
+
+    /// Whether the schedule carries the vertices without scan support
+    /// ([`carry_unsupported`](crate::fit::Schedule::carry_unsupported)): FoldMatch only.
+    pub fn carries(&self) -> bool {
+        self.method == Method::FoldMatch && self.schedule.carry_unsupported > 0.0
     }
 
     /// Iterations of the rigid and coarse phases: `(rigid, coarse)`, both 0 for NRGa.

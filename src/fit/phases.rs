@@ -180,14 +180,23 @@ pub(super) fn coarse(
     0
 }
 
-/// The fine phase's update in its `j`-th of `J` iterations (`fine = (j, J)`): FoldMatch moves every
+/// Where a fine-phase iteration stands: its `j`-th of `J` iterations, and the vertices the
+/// schedule carries ([`carry_unsupported`](crate::fit::Schedule::carry_unsupported); empty:
+/// none), which take the rest-shape placement alone (β = 1).
+pub(super) struct FineStep<'a> {
+    pub(super) j: usize,
+    pub(super) total: usize,
+    pub(super) carried: &'a [bool],
+}
+
+/// The fine phase's update in its `j`-th of `J` iterations (`step`): FoldMatch moves every
 /// vertex by its Eq. 8 rotation of its n-ring's motion `old → new`, blended with the rest-shape
 /// placement of that ring ([`rest_rigidity`](crate::fit::Schedule::rest_rigidity)); NRGa by the
 /// Kabsch fit of its k-NN neighborhood. Returns the number of rank-deficient gradients.
 pub(super) fn fine(
     prepared: &Prepared,
     params: &FitParams,
-    fine: (usize, usize),
+    step: FineStep<'_>,
     old: &[[f64; 3]],
     new: &[[f64; 3]],
     ws: &mut Workspace,
@@ -202,12 +211,18 @@ pub(super) fn fine(
     let d = deformation_rotations(old, new, &prepared.topology(), params, ws);
     ws.times.update -= ws.times.model() - before; // counted in their own stages
     let rot = &ws.rotation;
-    let beta = rest_rigidity_at(params, fine.0, fine.1);
+    let beta = rest_rigidity_at(params, step.j, step.total);
+    let carried = step.carried;
     let rest = &prepared.rest;
     next.par_iter_mut().enumerate().for_each(|(v, out)| {
         let ring = prepared.rings.of(v);
         let (c_old, c_new) = ring_centroids(ring, old, new);
         let moved = transform_vertex(&rot[v], &vec3(&old[v]), &c_old, &c_new);
+        let beta = if carried.get(v).copied().unwrap_or(false) {
+            1.0
+        } else {
+            beta
+        };
         *out = if beta > 0.0 {
             let c_rest = &prepared.rest_centroids[v];
             let placed = rest_ring_placement(ring, v, rest, c_rest, new, &c_new, fast);

@@ -8,6 +8,7 @@ use super::phases::{self, Phase, PhaseSample};
 use super::result::{Diagnostics, FitResult, IterationRecord, Progress};
 use super::setup::Prepared;
 use super::strain_limit::StrainLimit;
+use super::support;
 use crate::error::{FoldMatchError, Result};
 use crate::math::vec3;
 use crate::rings::n_rings;
@@ -208,6 +209,10 @@ pub(super) struct ScheduleRun {
     /// The fine phase's strain limiting ([`strain_limit`](crate::fit::Schedule::strain_limit);
     /// `None` when off).
     pub(super) strain: Option<StrainLimit>,
+    /// The vertices without scan support once the rigid phase has placed the template,
+    /// carried by their rest rings instead of attracted in the coarse and fine phases
+    /// ([`carry_unsupported`](crate::fit::Schedule::carry_unsupported); empty: none).
+    pub(super) carried: Vec<bool>,
 }
 
 impl ScheduleRun {
@@ -270,6 +275,7 @@ impl ScheduleRun {
                         .map_or(&[][..], |l| &l.vertices[..]);
                     StrainLimit::new(&prepared.rest, &prepared.faces, pinned)
                 }),
+            carried: Vec::new(),
             params,
         }
     }
@@ -317,6 +323,28 @@ impl ScheduleRun {
         }
         let update_start = std::time::Instant::now();
         // The landmarks' spring on the proposal: the rings holding them see it (Eq. 4, 8).
+        // The unsupported vertices, once the rigid phase has placed the template.
+        if it == self.rigid_iterations + 1 && params.carries() {
+            self.carried = support::carried_vertices(prepared, &self.pos, params);
+        }
+        if phase != Phase::Rigid && !self.carried.is_empty() {
+            match sampled.map(|i| &mut self.samples[i]) {
+                Some(sample) => {
+                    for (i, &v) in sample.vertices.iter().enumerate() {
+                        if self.carried[v as usize] {
+                            sample.attraction.proposed[i] = sample.pos[i];
+                        }
+                    }
+                }
+                None => {
+                    for (v, &c) in self.carried.iter().enumerate() {
+                        if c {
+                            self.attraction.proposed[v] = self.pos[v];
+                        }
+                    }
+                }
+            }
+        }
         if let (Phase::Fine, Some(l)) = (phase, prepared.landmarks.as_ref()) {
             l.pull(params.landmark_weight, &mut self.attraction.proposed);
         }
@@ -332,8 +360,12 @@ impl ScheduleRun {
             }
             Phase::Fine => {
                 let before = self.rigid_iterations + self.coarse_iterations;
-                let fine = (it - before, params.iterations - before);
-                phases::fine(prepared, params, fine, old, new, ws, next)
+                let step = phases::FineStep {
+                    j: it - before,
+                    total: params.iterations - before,
+                    carried: &self.carried,
+                };
+                phases::fine(prepared, params, step, old, new, ws, next)
             }
         };
         if let (Phase::Fine, Some(strain)) = (phase, self.strain.as_mut()) {

@@ -35,7 +35,9 @@ pub(super) struct Prepared {
     /// Γᵏ_Y: n-rings (FoldMatch) or k-NN neighborhoods (NRGa).
     pub(super) rings: Neighborhoods,
     /// The centroid of every vertex's ring of `rest`, for
-    /// [`rest_rigidity`](crate::fit::Schedule::rest_rigidity); empty when no schedule uses it.
+    /// [`rest_rigidity`](crate::fit::Schedule::rest_rigidity) and the carried vertices of
+    /// [`carry_unsupported`](crate::fit::Schedule::carry_unsupported); empty when no schedule
+    /// uses them.
     pub(super) rest_centroids: Vec<Vec3>,
     /// The coarse phase's neighborhoods, one per level (empty when no schedule has one).
     pub(super) coarse_levels: Vec<Neighborhoods>,
@@ -261,7 +263,7 @@ impl Prepared {
         };
         let rest_centroids = if schedules
             .iter()
-            .any(|p| p.method == Method::FoldMatch && p.schedule.rest_rigidity > 0.0)
+            .any(|p| p.method == Method::FoldMatch && p.schedule.rest_rigidity > 0.0 || p.carries())
         {
             (0..m)
                 .into_par_iter()

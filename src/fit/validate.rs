@@ -156,6 +156,11 @@ impl FitParams {
                 NON_NEGATIVE,
             ),
             ("isometric_hold", self.schedule.isometric_hold, NON_NEGATIVE),
+            (
+                "carry_unsupported",
+                self.schedule.carry_unsupported,
+                NON_NEGATIVE,
+            ),
             ("two_way", self.schedule.two_way, NON_NEGATIVE),
             ("two_way_trust", self.schedule.two_way_trust, NON_NEGATIVE),
             ("two_way_rim", self.schedule.two_way_rim, NON_NEGATIVE),

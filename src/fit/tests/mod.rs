@@ -9,6 +9,7 @@ use crate::rings::n_rings;
 use crate::rotation::ring_centroids;
 
 mod selection;
+mod support;
 
 #[test]
 fn softening_anneals_linearly_over_its_fraction_of_the_iterations() {
