@@ -11,7 +11,7 @@ point). The cases are split by a hash of their name into a tuning half and a hel
 
     .venv/bin/python -m bench.partial                      # real,small
     .venv/bin/python -m bench.partial --groups real --variant '{"rest_rigidity": 0.8}'
-    .venv/bin/python -m bench.partial --half '{"params": {"carry_unsupported": 2.0}}'  # one-sided setting on the halves
+    .venv/bin/python -m bench.partial --half '{"params": {"carry_unsupported": 2.0}}'  # one-sided halves
 """
 
 from __future__ import annotations
