@@ -395,16 +395,17 @@ pub struct Schedule {
     /// alone. FoldMatch only (docs/method.md, "Beyond the paper: the default configuration");
     /// 0.15 in the `"tracking"` preset, whose isometric refinement holds the metric.
     pub rest_rigidity: f64,
-    /// Carrying the template where the scan has nothing for it (docs/method.md "Partial
-    /// scans"): once the rigid phase has placed the template, a vertex farther than
-    /// `carry_unsupported ×` the larger of the median vertex → scan distance and the mean edge
-    /// from every scan point, whose nearest scan point another part of the template (more
-    /// than [`CARRY_FAR_EDGES`] mean edges away on the template) already explains without a
-    /// surplus of points, has no scan support: in a one-sided scan, the garment's back. Such
-    /// vertices, in regions of at least [`CARRY_MIN_SHARE`] of the template, are not attracted
-    /// in the coarse and fine phases and follow their template rings (full rest-shape
-    /// rigidity) instead of collapsing onto the scanned side. 0: off (every vertex attracted,
-    /// the paper's reading).
+    /// Carrying the template where the scan has nothing for it, for a scan that saw the garment
+    /// from one side (docs/method.md "Partial scans: carrying the unsupported"; 2 there,
+    /// [`ONE_SIDED_CARRY`]): once the rigid phase has placed the template, a vertex farther
+    /// than `carry_unsupported ×` the larger of the median vertex → scan distance and the mean
+    /// edge from every scan point, whose nearest scan point another part of the template
+    /// (more than 3 mean edges away on the template, [`CARRY_FAR_EDGES`]) already explains
+    /// without a surplus of points, has no scan support: the garment's back. Such vertices, in
+    /// regions of at least 5 % of the template ([`CARRY_MIN_SHARE`]), are not attracted in the
+    /// coarse and fine phases and follow their template rings (full rest-shape rigidity)
+    /// instead of collapsing onto the scanned side; `FitResult.support` reports them. 0 (the
+    /// default): off, every vertex attracted, as the paper.
     pub carry_unsupported: f64,
     /// Softening annealing: ε starts at `anneal × ε` and decreases linearly to ε over the
     /// first `anneal_fraction` of the ξ iterations (1: constant ε, the paper's reading).
