@@ -217,7 +217,7 @@ class FitParams(Mapping[str, Any]):
         edge from every scan point, whose nearest scan point another part of the template
         (more than 3 mean edges away on the template, `CARRY_FAR_EDGES`) already explains
         without a surplus of points, has no scan support: the garment's back. Such vertices, in
-        regions of at least 5 % of the template (`CARRY_MIN_SHARE`), are not attracted in the
+        regions of at least 12 % of the template (`CARRY_MIN_SHARE`), are not attracted in the
         coarse and fine phases and follow their template rings (full rest-shape rigidity)
         instead of collapsing onto the scanned side; `FitResult.support` reports them. 0 (the
         default): off, every vertex attracted, as the paper.

@@ -89,7 +89,7 @@ pub const CARRY_SURPLUS: f64 = 1.5;
 /// [`carry_unsupported`](crate::fit::Schedule::carry_unsupported): unsupported regions
 /// (connected through the vertices' rings) smaller than this share of the template are
 /// attracted as usual: a sleeve still far from its scan, not a side the scan never saw.
-pub const CARRY_MIN_SHARE: f64 = 0.05;
+pub const CARRY_MIN_SHARE: f64 = 0.12;
 
 /// The default [`strain_limit`](crate::fit::Schedule::strain_limit) (docs/method.md "Strain
 /// limiting").
@@ -402,7 +402,7 @@ pub struct Schedule {
     /// edge from every scan point, whose nearest scan point another part of the template
     /// (more than 3 mean edges away on the template, [`CARRY_FAR_EDGES`]) already explains
     /// without a surplus of points, has no scan support: the garment's back. Such vertices, in
-    /// regions of at least 5 % of the template ([`CARRY_MIN_SHARE`]), are not attracted in the
+    /// regions of at least 12 % of the template ([`CARRY_MIN_SHARE`]), are not attracted in the
     /// coarse and fine phases and follow their template rings (full rest-shape rigidity)
     /// instead of collapsing onto the scanned side; `FitResult.support` reports them. 0 (the
     /// default): off, every vertex attracted, as the paper.
