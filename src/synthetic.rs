@@ -227,6 +227,35 @@ pub fn folded_sheet(spec: &SheetSpec) -> Case {
     }
 }
 
+/// An open tube about the y axis: `rows` rings of `around` vertices from `y.0` to `y.1`, of
+/// radius `radius(y)`; two triangles per quad.
+pub fn tube(
+    around: usize,
+    rows: usize,
+    y: (f64, f64),
+    radius: impl Fn(f64) -> f64,
+) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
+    let mut v = Vec::with_capacity(around * rows);
+    for j in 0..rows {
+        let h = y.0 + (y.1 - y.0) * j as f64 / (rows - 1) as f64;
+        for i in 0..around {
+            let t = std::f64::consts::TAU * i as f64 / around as f64;
+            v.push([radius(h) * t.cos(), h, radius(h) * t.sin()]);
+        }
+    }
+    let mut f = Vec::with_capacity(2 * around * (rows - 1));
+    for j in 0..rows - 1 {
+        for i in 0..around {
+            let a = (j * around + i) as u32;
+            let b = (j * around + (i + 1) % around) as u32;
+            let (c, d) = (a + around as u32, b + around as u32);
+            f.push([a, b, d]);
+            f.push([a, d, c]);
+        }
+    }
+    (v, f)
+}
+
 /// `count` points uniformly distributed over the surface of a triangle mesh (area-weighted face
 /// choice, uniform barycentric coordinates).
 pub fn sample_surface(

@@ -687,7 +687,7 @@ def test_carry_unsupported_keeps_the_back_of_a_one_sided_scan():
     """A tube scanned from its front (x > 0) only: with ``carry_unsupported`` (the setting for
     one-sided scans) the unscanned back keeps its place behind the front, closer to the truth
     than the default's, which pulls it onto the front; the result reports it unsupported."""
-    v, f = _tube(lambda y: 0.3 + 0 * y)
+    v, f = _tube(lambda y: np.full_like(y, 0.3))
     truth, _ = _tube(lambda y: 0.3 * (1 + 0.25 * y))
     rng = np.random.default_rng(3)
     tri = truth[f]

@@ -82,8 +82,9 @@ pub const ONE_SIDED_CARRY: f64 = 2.0;
 /// the template.
 pub const CARRY_FAR_EDGES: f64 = 3.0;
 /// [`carry_unsupported`](crate::fit::Schedule::carry_unsupported): a vertex explains its scan
-/// points without a surplus while its one-ring's mean count of scan points (those whose
-/// nearest vertex it is) stays within this multiple of the typical (median) count; a surplus
+/// points without a surplus while the mean count of scan points whose nearest vertex is it or
+/// one of its ring (the model's n-ring) stays within this multiple of the typical (median)
+/// count; a surplus
 /// means another layer of the template belongs there (a garment folded flat).
 pub const CARRY_SURPLUS: f64 = 1.5;
 /// [`carry_unsupported`](crate::fit::Schedule::carry_unsupported): unsupported regions

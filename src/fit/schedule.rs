@@ -48,7 +48,7 @@ pub(super) fn selection_distance(
 /// The nearest vertex of `fitted` to each scan point (those of `garment`, else all), in that
 /// order, and the distance to it: the fit's own k-d tree
 /// ([`PointIndex`](crate::knn::PointIndex)), parallel queries.
-fn nearest_vertices(
+pub(super) fn nearest_vertices(
     target: &[[f64; 3]],
     garment: Option<&[usize]>,
     fitted: &[[f64; 3]],

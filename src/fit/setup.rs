@@ -261,10 +261,9 @@ impl Prepared {
             Some(r) => frame.forward(r),
             None => start.clone(),
         };
-        let rest_centroids = if schedules
-            .iter()
-            .any(|p| p.method == Method::FoldMatch && p.schedule.rest_rigidity > 0.0 || p.carries())
-        {
+        let rest_centroids = if schedules.iter().any(|p| {
+            (p.method == Method::FoldMatch && p.schedule.rest_rigidity > 0.0) || p.carries()
+        }) {
             (0..m)
                 .into_par_iter()
                 .map(|v| ring_centroids(rings.of(v), &rest, &rest).0)

@@ -4,8 +4,8 @@
 //! them onto the scanned side.
 
 use super::params::{FitParams, CARRY_FAR_EDGES, CARRY_MIN_SHARE, CARRY_SURPLUS};
+use super::schedule::nearest_vertices;
 use super::setup::Prepared;
-use crate::knn::PointIndex;
 use crate::math::dist2;
 use crate::metrics::upper_median;
 use crate::rings::Neighborhoods;
@@ -16,9 +16,9 @@ use rayon::prelude::*;
 /// radius `r = carry_unsupported × max(median vertex → scan distance, mean edge)` from the
 /// scan, and its nearest scan point `x` is explained by another part of the template — `x`'s
 /// nearest vertex `u` lies within `r` of it and more than [`CARRY_FAR_EDGES`] mean edges from
-/// the vertex in the rest shape — without a surplus (`u`'s one-ring holds at most
-/// [`CARRY_SURPLUS`] × the typical count of scan points whose nearest vertex it is; more means
-/// a second layer belongs there). Regions smaller than [`CARRY_MIN_SHARE`] of the template are
+/// the vertex in the rest shape — without a surplus (the mean over `u` and its ring, the
+/// model's n-ring, of the count of scan points whose nearest vertex each is, at most
+/// [`CARRY_SURPLUS`] × the typical one; more means a second layer belongs there). Regions smaller than [`CARRY_MIN_SHARE`] of the template are
 /// left attracted.
 pub(super) fn carried_vertices(
     prepared: &Prepared,
@@ -38,16 +38,11 @@ pub(super) fn carried_vertices(
         .max(prepared.edge_length);
     let r = params.schedule.carry_unsupported * unit;
     let far = CARRY_FAR_EDGES * prepared.edge_length;
-    let vertex_index = PointIndex::new(pos);
-    let claimant: Vec<(u32, f64)> = scan
-        .points
-        .par_iter()
-        .map(|x| vertex_index.nearest_one(x))
-        .collect();
+    let claimant = nearest_vertices(&scan.points, None, pos);
     let mut claims = vec![0.0f64; m];
-    for (j, c) in claimant.iter().enumerate() {
+    for (j, &u) in claimant.vertex.iter().enumerate() {
         if live(j as u32) {
-            claims[c.0 as usize] += 1.0;
+            claims[u as usize] += 1.0;
         }
     }
     let rings = &prepared.rings;
@@ -69,8 +64,8 @@ pub(super) fn carried_vertices(
             if d2.sqrt() <= r || !live(j) {
                 return false;
             }
-            let (u, du2) = claimant[j as usize];
-            du2.sqrt() <= r
+            let u = claimant.vertex[j as usize];
+            claimant.distance[j as usize] <= r
                 && ring_claims[u as usize] <= CARRY_SURPLUS * typical
                 && dist2(&rest[u as usize], &rest[v]).sqrt() > far
         })

@@ -125,28 +125,7 @@ fn a_half_scanned_template_has_half_support() {
 
 /// A closed tube around the y axis (radius 0.3, length 1), `n` around × `k` along.
 fn tube(n: usize, k: usize) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
-    let mut v = Vec::new();
-    for j in 0..k {
-        for i in 0..n {
-            let t = std::f64::consts::TAU * i as f64 / n as f64;
-            v.push([
-                0.3 * t.cos(),
-                j as f64 / (k - 1) as f64 - 0.5,
-                0.3 * t.sin(),
-            ]);
-        }
-    }
-    let mut f = Vec::new();
-    for j in 0..k - 1 {
-        for i in 0..n {
-            let a = (j * n + i) as u32;
-            let b = (j * n + (i + 1) % n) as u32;
-            let (c, d) = (a + n as u32, b + n as u32);
-            f.push([a, b, d]);
-            f.push([a, d, c]);
-        }
-    }
-    (v, f)
+    crate::synthetic::tube(n, k, (-0.5, 0.5), |_| 0.3)
 }
 
 #[test]

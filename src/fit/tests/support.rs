@@ -2,32 +2,7 @@
 
 use super::*;
 use crate::math::dist2;
-use crate::synthetic::{sample_surface, SplitMix64};
-
-/// An open tube of radius `r` and height 0.8 along y, `around` × `rows` vertices.
-fn tube(r: impl Fn(f64) -> f64, around: usize, rows: usize) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
-    let mut v = Vec::new();
-    for j in 0..rows {
-        let y = 0.8 * j as f64 / (rows - 1) as f64;
-        for i in 0..around {
-            let t = std::f64::consts::TAU * i as f64 / around as f64;
-            v.push([r(y) * t.cos(), y, r(y) * t.sin()]);
-        }
-    }
-    let mut f = Vec::new();
-    for j in 0..rows - 1 {
-        for i in 0..around {
-            let (a, b) = (
-                (j * around + i) as u32,
-                (j * around + (i + 1) % around) as u32,
-            );
-            let (c, d) = (a + around as u32, b + around as u32);
-            f.push([a, b, d]);
-            f.push([a, d, c]);
-        }
-    }
-    (v, f)
-}
+use crate::synthetic::{sample_surface, tube, SplitMix64};
 
 /// A tube template, its flared truth and a scan of the truth's front half (x > 0), as one
 /// camera side sees it.
@@ -35,8 +10,8 @@ fn tube(r: impl Fn(f64) -> f64, around: usize, rows: usize) -> (Vec<[f64; 3]>, V
 type HalfTube = (Vec<[f64; 3]>, Vec<[u32; 3]>, Vec<[f64; 3]>, Vec<[f64; 3]>);
 
 fn half_tube_case() -> HalfTube {
-    let (template, faces) = tube(|_| 0.3, 64, 25);
-    let (truth, _) = tube(|y| 0.3 * (1.0 + 0.25 * y), 64, 25);
+    let (template, faces) = tube(64, 25, (0.0, 0.8), |_| 0.3);
+    let (truth, _) = tube(64, 25, (0.0, 0.8), |y| 0.3 * (1.0 + 0.25 * y));
     let mut rng = SplitMix64::new(7);
     let scan: Vec<[f64; 3]> = sample_surface(&truth, &faces, 12000, &mut rng)
         .into_iter()
