@@ -110,13 +110,9 @@ def fit_rows(
                 seconds = time.perf_counter() - t0
                 e = fm.evaluate(case.template_vertices, case.faces, r.vertices, scan, truth)
                 f_r = e["f_R"] * cases_mod.bbox_diagonal(scan) / cases_mod.bbox_diagonal(case.target)
-                # On a dressed-body scan the fit's own verdict, of the garment's points (the
-                # whole scan's body points are far from any fit).
-                q = (
-                    r.quality
-                    if group == "dressed"
-                    else fm.assess(case.template_vertices, case.faces, r.vertices, scan)["quality"]
-                )
+                # The fit's own verdict, as the user gets it (on a dressed-body scan, of the
+                # garment's points; on a one-sided scan, without the vertices it carried).
+                q = r.quality
                 ratio = f_r / best[case.name]["f_R"]
                 rows.append(
                     {

@@ -3,6 +3,7 @@ bad-input errors (issue: FoldMatch core)."""
 
 from __future__ import annotations
 
+import math
 import re
 
 import foldmatch_rs as fm
@@ -686,7 +687,9 @@ def _tube(radius, around=64, rows=25):
 def test_carry_unsupported_keeps_the_back_of_a_one_sided_scan():
     """A tube scanned from its front (x > 0) only: with ``carry_unsupported`` (the setting for
     one-sided scans) the unscanned back keeps its place behind the front, closer to the truth
-    than the default's, which pulls it onto the front; the result reports it unsupported."""
+    than the default's, which pulls it onto the front; the result reports it unsupported, and
+    the verdict, which leaves the carried vertices out of its fit → scan distance, finds the
+    fit ok."""
     v, f = _tube(lambda y: np.full_like(y, 0.3))
     truth, _ = _tube(lambda y: 0.3 * (1 + 0.25 * y))
     rng = np.random.default_rng(3)
@@ -704,6 +707,13 @@ def test_carry_unsupported_keeps_the_back_of_a_one_sided_scan():
     assert rmse(carried.vertices[back], truth[back]) < 0.65 * rmse(attracted.vertices[back], truth[back])
     assert carried.vertices[back, 0].mean() < -0.15
     assert np.mean(~np.asarray(carried.support)[back]) > 0.9
+    q = carried.quality
+    everyone = float(np.mean(carried.residuals)) / q["scan_diagonal"]
+    assert q["verdict"] == "ok", q
+    assert q["fit_to_scan"] < 0.7 * everyone, (q["fit_to_scan"], everyone)
+    # fm.assess knows nothing of what the fit carried: all vertices count.
+    again = fm.assess(v, f, carried.vertices, scan)["quality"]
+    assert math.isclose(again["fit_to_scan"], everyone, rel_tol=1e-9)
     with pytest.raises(fm.InvalidParameterError, match="carry_unsupported"):
         fm.fit(v, f, scan, params={"carry_unsupported": -1.0})
 

@@ -106,14 +106,16 @@ class FitResult:
         Facts about the run: K, ring size, removed faces, (ω₀Δt)², curvature source, frame.
     quality : dict
         Does the fit look right: ``verdict`` (``"ok"`` or ``"suspicious"``), ``reasons`` and
-        the figures behind them, none of which needs ground truth (see :func:`assess`).
+        the figures behind them, none of which needs ground truth (see :func:`assess`; the
+        fit's own ``fit_to_scan`` leaves out the vertices it carried without support).
     correspondences : (M,) uint32
         Per template vertex, the index of the scan point it ends nearest to.
     residuals : (M,) float
         Per template vertex, the distance to that scan point (the scan's units).
     support : (M,) bool
         Per template vertex, whether it has scan support: its nearest scan point lies within
-        the support radius and is claimed back by the vertex or a template neighbour.
+        the support radius and is claimed back by the vertex or a template neighbour, and the
+        fit did not carry it as unseen (a one-sided scan's back, docs/guide.md).
     garment_points : (P,) uint32
         On a scan that holds more than the garment (a dressed body), the fit's own
         segmentation: the indices, into the scan as given and increasing, of the points it took

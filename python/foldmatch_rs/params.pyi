@@ -210,17 +210,21 @@ class FitParams(Mapping[str, Any]):
         """
     @property
     def carry_unsupported(self) -> float:
-        """Carrying the template where the scan has nothing for it, for a scan that saw the garment
-        from one side (docs/method.md "Partial scans: carrying the unsupported"; 2 there,
-        `ONE_SIDED_CARRY`): once the rigid phase has placed the template, a vertex farther
-        than `carry_unsupported ×` the larger of the median vertex → scan distance and the mean
-        edge from every scan point, whose nearest scan point another part of the template
-        (more than 3 mean edges away on the template, `CARRY_FAR_EDGES`) already explains
-        without a surplus of points, has no scan support: the garment's back. Such vertices, in
-        regions of at least 12 % of the template (`CARRY_MIN_SHARE`), are not attracted in the
-        coarse and fine phases and follow their template rings (full rest-shape rigidity)
-        instead of collapsing onto the scanned side; `FitResult.support` reports them. 0 (the
-        default): off, every vertex attracted, as the paper.
+        """Carrying the template where the scan has nothing for it, as when a rig saw the garment
+        from one side (docs/method.md "Partial scans: carrying the unsupported"): once the
+        rigid phase has placed the template, a vertex farther than `carry_unsupported ×` the
+        larger of the median vertex → scan distance and the mean edge from every scan point,
+        whose nearest scan point another part of the template (more than 3 mean edges away on
+        the template, `CARRY_FAR_EDGES`) already explains without a surplus of points, and
+        which lies behind the scan (inside its footprint along its thinnest axis), not beside
+        it, has no scan support: the garment's back. Such vertices, in regions of at least 12 %
+        of the template (`CARRY_MIN_SHARE`), are not attracted in the coarse and fine phases
+        and follow their template rings (full rest-shape rigidity) instead of collapsing onto
+        the scanned side; `FitResult.support` reports them, and the verdict leaves them out of
+        its fit → scan distance. 0 (the default): off, every vertex attracted, as the paper;
+        2 for one-sided scans (`ONE_SIDED_CARRY`). Only for scans that saw one side: on a
+        whole scan with the template placed off its size it can carry a part that belongs on
+        the scan (docs/guide.md "One-sided scans").
         """
     @property
     def anneal(self) -> float:

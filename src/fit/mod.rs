@@ -499,6 +499,7 @@ fn fit_from(
             edges: &rest_edges,
             scan_nearest,
             pose,
+            carried: (!kept_start && !winner.carried.is_empty()).then_some(&winner.carried[..]),
         }),
     )?;
     // Only the chosen run is finished (its wrinkle fields are a whole Eq. 4–8 pass).
@@ -647,15 +648,21 @@ fn fit_from(
 
 /// The fits from two placements of the template (the pre-alignment's readings, in the
 /// scan's frame), without a pre-alignment of their own; the second replaces the first when its
-/// fit lies closer to the scan by [`READING_MARGIN`] (the sum of its verdict's two directed
-/// distances), returned with `prealign`'s figures. Each reports its half of the progress.
+/// fit lies closer to the scan by [`READING_MARGIN`] (the sum of the two directed distances,
+/// every vertex counted), returned with `prealign`'s figures. Each reports its half of the
+/// progress.
 fn fit_readings(
     placements: [&[[f64; 3]]; 2],
     placed_fit: &PlacedFit<'_>,
     prealign: Option<PrealignFigures>,
     observer: &mut (dyn FnMut(&Progress) -> bool + Send),
 ) -> Result<FitResult> {
-    let closeness = |r: &FitResult| r.quality.fit_to_scan + r.quality.scan_to_fit;
+    // Over every vertex: a reading must not win by the vertices it carried (the verdict's
+    // own fit → scan distance leaves those out).
+    let closeness = |r: &FitResult| {
+        let fit_to_scan = r.residuals.iter().sum::<f64>() / r.residuals.len().max(1) as f64;
+        fit_to_scan / r.quality.scan_diagonal + r.quality.scan_to_fit
+    };
     let mut best: Option<FitResult> = None;
     for (part, placement) in placements.into_iter().enumerate() {
         let fitted = placed_fit.run(placement, part, prealign, observer)?;

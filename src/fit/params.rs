@@ -396,17 +396,21 @@ pub struct Schedule {
     /// alone. FoldMatch only (docs/method.md, "Beyond the paper: the default configuration");
     /// 0.15 in the `"tracking"` preset, whose isometric refinement holds the metric.
     pub rest_rigidity: f64,
-    /// Carrying the template where the scan has nothing for it, for a scan that saw the garment
-    /// from one side (docs/method.md "Partial scans: carrying the unsupported"; 2 there,
-    /// [`ONE_SIDED_CARRY`]): once the rigid phase has placed the template, a vertex farther
-    /// than `carry_unsupported ×` the larger of the median vertex → scan distance and the mean
-    /// edge from every scan point, whose nearest scan point another part of the template
-    /// (more than 3 mean edges away on the template, [`CARRY_FAR_EDGES`]) already explains
-    /// without a surplus of points, has no scan support: the garment's back. Such vertices, in
-    /// regions of at least 12 % of the template ([`CARRY_MIN_SHARE`]), are not attracted in the
-    /// coarse and fine phases and follow their template rings (full rest-shape rigidity)
-    /// instead of collapsing onto the scanned side; `FitResult.support` reports them. 0 (the
-    /// default): off, every vertex attracted, as the paper.
+    /// Carrying the template where the scan has nothing for it, as when a rig saw the garment
+    /// from one side (docs/method.md "Partial scans: carrying the unsupported"): once the
+    /// rigid phase has placed the template, a vertex farther than `carry_unsupported ×` the
+    /// larger of the median vertex → scan distance and the mean edge from every scan point,
+    /// whose nearest scan point another part of the template (more than 3 mean edges away on
+    /// the template, [`CARRY_FAR_EDGES`]) already explains without a surplus of points, and
+    /// which lies behind the scan (inside its footprint along its thinnest axis), not beside
+    /// it, has no scan support: the garment's back. Such vertices, in regions of at least 12 %
+    /// of the template ([`CARRY_MIN_SHARE`]), are not attracted in the coarse and fine phases
+    /// and follow their template rings (full rest-shape rigidity) instead of collapsing onto
+    /// the scanned side; `FitResult.support` reports them, and the verdict leaves them out of
+    /// its fit → scan distance. 0 (the default): off, every vertex attracted, as the paper;
+    /// 2 for one-sided scans ([`ONE_SIDED_CARRY`]). Only for scans that saw one side: on a
+    /// whole scan with the template placed off its size it can carry a part that belongs on
+    /// the scan (docs/guide.md "One-sided scans").
     pub carry_unsupported: f64,
     /// Softening annealing: ε starts at `anneal × ε` and decreases linearly to ε over the
     /// first `anneal_fraction` of the ξ iterations (1: constant ε, the paper's reading).

@@ -32,6 +32,7 @@ impl FitParams {
         p.schedule.keep_margin = 0.0;
         p.schedule.garment_refit = 0.0;
         p.schedule.strain_limit = 0.0;
+        p.schedule.carry_unsupported = 0.0;
         p.readings.regularization = Regularization::AffineInvariant;
         p.prealign = Prealign::None;
         p

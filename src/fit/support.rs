@@ -6,7 +6,7 @@
 use super::params::{FitParams, CARRY_FAR_EDGES, CARRY_MIN_SHARE, CARRY_SURPLUS};
 use super::schedule::nearest_vertices;
 use super::setup::Prepared;
-use crate::math::dist2;
+use crate::math::{dist2, sym_eigen3, vec3, Mat3, Vec3};
 use crate::metrics::upper_median;
 use crate::rings::Neighborhoods;
 use rayon::prelude::*;
@@ -37,6 +37,12 @@ pub(super) fn carried_vertices(
         .sqrt()
         .max(prepared.edge_length);
     let r = params.schedule.carry_unsupported * unit;
+    // Only vertices farther than `r` can be carried: too few of them for one region of
+    // CARRY_MIN_SHARE, and nothing is (a whole scan, decided without the scan's claims).
+    let least = min_region(m, CARRY_MIN_SHARE);
+    if nearest.iter().filter(|n| n.1.sqrt() > r).count() < least {
+        return vec![false; m];
+    }
     let far = CARRY_FAR_EDGES * prepared.edge_length;
     let claimant = nearest_vertices(&scan.points, None, pos);
     let mut claims = vec![0.0f64; m];
@@ -70,7 +76,55 @@ pub(super) fn carried_vertices(
                 && dist2(&rest[u as usize], &rest[v]).sqrt() > far
         })
         .collect();
+    let carried = within_footprint(&scan.points, pos, carried, 2.0 * unit);
     large_regions(rings, carried, CARRY_MIN_SHARE)
+}
+
+/// `mask` cleared where the vertex of `pos` lies outside the scan's footprint: the scan and
+/// the vertices projected along the scan's thinnest principal axis (the direction a one-sided
+/// rig looked from) onto a grid of `cell`, the scan's cells grown by one. The unseen back of a
+/// one-sided scan lies behind its front, inside it; a flap of a folded sheet that the rigid
+/// phase left spread out lies beside the scan.
+fn within_footprint(
+    scan: &[[f64; 3]],
+    pos: &[[f64; 3]],
+    mut mask: Vec<bool>,
+    cell: f64,
+) -> Vec<bool> {
+    use std::collections::HashSet;
+    if !mask.iter().any(|&c| c) || cell <= 0.0 {
+        return mask;
+    }
+    let centre = scan.iter().fold(Vec3::zeros(), |a, p| a + vec3(p)) / scan.len() as f64;
+    let mut cov = Mat3::zeros();
+    for p in scan {
+        let d = vec3(p) - centre;
+        cov += d * d.transpose();
+    }
+    let frame = sym_eigen3(&cov);
+    let (a, b) = (frame.vectors.column(0), frame.vectors.column(1));
+    let key = |p: &[f64; 3]| {
+        let d = vec3(p) - centre;
+        (
+            (a.dot(&d) / cell).floor() as i64,
+            (b.dot(&d) / cell).floor() as i64,
+        )
+    };
+    let mut cells: HashSet<(i64, i64)> = HashSet::new();
+    for p in scan {
+        let (i, j) = key(p);
+        for di in -1..=1 {
+            for dj in -1..=1 {
+                cells.insert((i + di, j + dj));
+            }
+        }
+    }
+    for (v, c) in mask.iter_mut().enumerate() {
+        if *c && !cells.contains(&key(&pos[v])) {
+            *c = false;
+        }
+    }
+    mask
 }
 
 /// `mask` with its connected regions (through `rings`) of fewer than `min_share` of the
@@ -81,7 +135,7 @@ pub(super) fn large_regions(
     min_share: f64,
 ) -> Vec<bool> {
     let m = mask.len();
-    let least = (min_share * m as f64).ceil() as usize;
+    let least = min_region(m, min_share);
     let mut seen = vec![false; m];
     let mut stack = Vec::new();
     let mut members = Vec::new();
@@ -109,4 +163,9 @@ pub(super) fn large_regions(
         }
     }
     mask
+}
+
+/// The fewest vertices of a region that [`large_regions`] keeps.
+fn min_region(m: usize, min_share: f64) -> usize {
+    (min_share * m as f64).ceil() as usize
 }

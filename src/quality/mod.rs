@@ -7,7 +7,7 @@
 //!
 //! | figure | definition |
 //! |---|---|
-//! | [`Quality::fit_to_scan`] | mean over fitted vertices of the distance to the nearest scan point, ÷ the scan's bounding-box diagonal |
+//! | [`Quality::fit_to_scan`] | mean over fitted vertices of the distance to the nearest scan point, ÷ the scan's bounding-box diagonal (a fit's own verdict leaves out the vertices it carried without support: docs/method.md "Partial scans") |
 //! | [`Quality::scan_to_fit`] | mean over scan points of the distance to the fitted surface (the faces around the nearest fitted vertex), ÷ the same diagonal |
 //! | [`Quality::asymmetry`] | `(fit_to_scan − scan_to_fit) / (fit_to_scan + scan_to_fit + r/D)`, in `(−1, 1)`, `r` the support radius and `D` the diagonal (distances below the support radius are sampling, not disagreement): positive when template parts hang off the scan, negative when scan parts are left uncovered |
 //! | [`Quality::unsupported_share`] | share of template vertices without scan support (below) |
@@ -21,7 +21,8 @@
 //! is `v` or one of its template neighbours (`‖Y_u − Y_v‖ ≤ 3` median template edges): the
 //! scan point is there and is explained by this part of the template, not by a layer that
 //! was pulled onto it. `r = 2 · max(s, ℓ̂)`, `s` the scan spacing (median distance from a
-//! scan point to its nearest other scan point) and `ℓ̂` the fit's median edge length.
+//! scan point to its nearest other scan point) and `ℓ̂` the fit's median edge length. A
+//! vertex the fit carried without support (docs/method.md "Partial scans") has none.
 //!
 //! The faces are the template's, degenerate ones (zero template area) left out of the face
 //! shares. The verdict is `suspicious` when any figure passes its threshold
@@ -220,7 +221,7 @@ pub struct AssessInput<'a> {
 /// [`FoldMatchError::NonFinite`], [`FoldMatchError::FaceIndex`], and
 /// [`FoldMatchError::Parameter`] for invalid thresholds.
 pub fn assess(input: &AssessInput<'_>, thresholds: &VerdictThresholds) -> Result<Assessment> {
-    assess_with(input, thresholds, None)
+    assess_with(input, thresholds, None, None)
 }
 
 /// What a fit already holds of the template's mesh figures, so that its verdict does not build
@@ -234,6 +235,10 @@ pub(crate) struct KnownMesh<'a> {
     pub scan_nearest: Option<&'a [u32]>,
     /// How the pose gap is found ([`PoseGapSource`]).
     pub pose: PoseGapSource,
+    /// The vertices the fit carried without scan support (docs/method.md "Partial scans"),
+    /// when it carried any: unsupported by the fit's own account, and left out of
+    /// [`Quality::fit_to_scan`] (they were never pulled towards the scan).
+    pub carried: Option<&'a [bool]>,
 }
 
 /// Where [`assess_with`]'s pose gap comes from.
@@ -250,10 +255,13 @@ pub(crate) enum PoseGapSource {
 }
 
 /// [`assess`], with the mesh figures a fit already holds.
+/// `diagonal`: the unit of the relative figures when the scan assessed is part of a larger
+/// one (the whole scan's bounding-box diagonal); `None`: the assessed scan's own.
 pub(crate) fn assess_with(
     input: &AssessInput<'_>,
     thresholds: &VerdictThresholds,
     known: Option<KnownMesh<'_>>,
+    diagonal: Option<f64>,
 ) -> Result<Assessment> {
     thresholds.validate()?;
     let AssessInput {
@@ -317,9 +325,15 @@ pub(crate) fn assess_with(
         })
         .collect();
 
-    let diagonal = bbox_diagonal(scan);
+    let diagonal = diagonal.unwrap_or_else(|| bbox_diagonal(scan));
     let relative = |d: f64| if diagonal > 0.0 { d / diagonal } else { d };
-    let fit_to_scan = relative(mean(&residuals));
+    let carried = known
+        .and_then(|k| k.carried)
+        .filter(|c| c.len() == y.len() && c.iter().any(|&b| !b));
+    let fit_to_scan = relative(match carried {
+        Some(c) => mean_where_not(&residuals, c),
+        None => mean(&residuals),
+    });
     let scan_to_fit = relative(mean(&scan_distances));
     let spacing = scan_spacing(scan, &scan_index);
     let built_edges;
@@ -354,7 +368,7 @@ pub(crate) fn assess_with(
     let support: Vec<bool> = (0..y.len())
         .into_par_iter()
         .map(|v| {
-            if residuals[v] > support_radius {
+            if residuals[v] > support_radius || carried.is_some_and(|c| c[v]) {
                 return false;
             }
             let u = scan_nearest[correspondences[v] as usize] as usize;
@@ -418,7 +432,9 @@ pub(crate) fn assess_points_with(
         scan: &scan_points,
         ..*whole
     };
-    let mut a = assess_with(&input, thresholds, known)?;
+    // Figures relative to the diagonal of the scan as given, not of the points chosen.
+    let diagonal = points.map(|_| bbox_diagonal(whole.scan));
+    let mut a = assess_with(&input, thresholds, known, diagonal)?;
     if let Some(p) = points {
         for c in &mut a.correspondences {
             *c = p[*c as usize] as u32;
@@ -534,6 +550,16 @@ fn one() -> f64 {
 }
 
 /// Arithmetic mean in index order (0 when empty).
+/// The mean of `v` over the entries whose `skip` is false (at least one is).
+fn mean_where_not(v: &[f64], skip: &[bool]) -> f64 {
+    let (sum, n) = v
+        .iter()
+        .zip(skip)
+        .filter(|(_, &s)| !s)
+        .fold((0.0, 0usize), |(sum, n), (&x, _)| (sum + x, n + 1));
+    sum / n as f64
+}
+
 fn mean(v: &[f64]) -> f64 {
     if v.is_empty() {
         0.0

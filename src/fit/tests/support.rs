@@ -2,7 +2,7 @@
 
 use super::*;
 use crate::math::dist2;
-use crate::synthetic::{sample_surface, tube, SplitMix64};
+use crate::synthetic::{grid_sheet, sample_surface, tube, SplitMix64};
 
 /// A tube template, its flared truth and a scan of the truth's front half (x > 0), as one
 /// camera side sees it.
@@ -56,6 +56,23 @@ fn the_unscanned_back_of_a_half_scan_is_carried_not_collapsed() {
         mean_x(&carried),
         mean_x(&attracted)
     );
+    // The verdict leaves the carried back out of its fit → scan distance and reports it
+    // unsupported: the fit is not suspicious for its back alone.
+    let q = &carried.quality;
+    let everyone = carried.residuals.iter().sum::<f64>() / carried.residuals.len() as f64;
+    assert_eq!(q.verdict, crate::quality::Verdict::Ok, "{q:?}");
+    assert!(
+        q.fit_to_scan < 0.7 * everyone / q.scan_diagonal,
+        "fit_to_scan {} against {} over every vertex",
+        q.fit_to_scan,
+        everyone / q.scan_diagonal
+    );
+    let unsupported = back.iter().filter(|&&v| !carried.support[v]).count();
+    assert!(
+        unsupported * 10 > back.len() * 9,
+        "{unsupported} of {}",
+        back.len()
+    );
     // The scanned front fits as well either way.
     let front: Vec<usize> = (0..template.len())
         .filter(|&v| template[v][0] > 0.15)
@@ -75,6 +92,31 @@ fn a_whole_scan_has_nothing_to_carry() {
     let (template, faces, truth, _) = half_tube_case();
     let mut rng = SplitMix64::new(8);
     let scan = sample_surface(&truth, &faces, 12000, &mut rng);
+    let fitted = |carry: f64| {
+        let mut p = FitParams::default();
+        p.schedule.carry_unsupported = carry;
+        fit_simple(&template, &faces, &scan, None, &p)
+            .unwrap()
+            .vertices
+    };
+    assert_eq!(fitted(0.0), fitted(ONE_SIDED_CARRY));
+}
+
+#[test]
+fn a_flap_beside_the_scan_is_not_carried() {
+    // A sheet whose scan holds its left half only, gently waved: the right half lies beside
+    // the scan (outside its footprint along the thinnest axis), not behind it, so it is
+    // attracted as with the setting off, not carried.
+    let (template, faces) = grid_sheet(41, 21, 2.0, 1.0);
+    let truth: Vec<[f64; 3]> = template
+        .iter()
+        .map(|p| [p[0], p[1], 0.05 * (3.0 * p[0]).sin()])
+        .collect();
+    let mut rng = SplitMix64::new(9);
+    let scan: Vec<[f64; 3]> = sample_surface(&truth, &faces, 8000, &mut rng)
+        .into_iter()
+        .filter(|p| p[0] < 0.0)
+        .collect();
     let fitted = |carry: f64| {
         let mut p = FitParams::default();
         p.schedule.carry_unsupported = carry;
