@@ -221,10 +221,10 @@ class FitParams(Mapping[str, Any]):
         of the template (`CARRY_MIN_SHARE`), are not attracted in the coarse and fine phases
         and follow their template rings (full rest-shape rigidity) instead of collapsing onto
         the scanned side; `FitResult.support` reports them, and the verdict leaves them out of
-        its fit → scan distance. 0 (the default): off, every vertex attracted, as the paper;
-        2 for one-sided scans (`ONE_SIDED_CARRY`). Only for scans that saw one side: on a
-        whole scan with the template placed off its size it can carry a part that belongs on
-        the scan (docs/guide.md "One-sided scans").
+        its fit → scan distance. Nothing is carried on a flat scan (`CARRY_MIN_DEPTH`): a
+        garment lying flat hides a lower layer that lies under the scanned one. 0 (the
+        default): off, every vertex attracted, as the paper; 2 for one-sided scans
+        (`ONE_SIDED_CARRY`, docs/guide.md "One-sided scans").
         """
     @property
     def anneal(self) -> float:

@@ -91,6 +91,11 @@ pub const CARRY_SURPLUS: f64 = 1.5;
 /// (connected through the vertices' rings) smaller than this share of the template are
 /// attracted as usual: a sleeve still far from its scan, not a side the scan never saw.
 pub const CARRY_MIN_SHARE: f64 = 0.12;
+/// [`carry_unsupported`](crate::fit::Schedule::carry_unsupported): nothing is carried when the
+/// scan's extent along its thinnest principal axis is below this share of its extent along
+/// the middle one (standard deviations): a garment lying flat, whose hidden lower layer lies
+/// under the scanned one.
+pub const CARRY_MIN_DEPTH: f64 = 0.2;
 
 /// The default [`strain_limit`](crate::fit::Schedule::strain_limit) (docs/method.md "Strain
 /// limiting").
@@ -407,10 +412,10 @@ pub struct Schedule {
     /// of the template ([`CARRY_MIN_SHARE`]), are not attracted in the coarse and fine phases
     /// and follow their template rings (full rest-shape rigidity) instead of collapsing onto
     /// the scanned side; `FitResult.support` reports them, and the verdict leaves them out of
-    /// its fit → scan distance. 0 (the default): off, every vertex attracted, as the paper;
-    /// 2 for one-sided scans ([`ONE_SIDED_CARRY`]). Only for scans that saw one side: on a
-    /// whole scan with the template placed off its size it can carry a part that belongs on
-    /// the scan (docs/guide.md "One-sided scans").
+    /// its fit → scan distance. Nothing is carried on a flat scan ([`CARRY_MIN_DEPTH`]): a
+    /// garment lying flat hides a lower layer that lies under the scanned one. 0 (the
+    /// default): off, every vertex attracted, as the paper; 2 for one-sided scans
+    /// ([`ONE_SIDED_CARRY`], docs/guide.md "One-sided scans").
     pub carry_unsupported: f64,
     /// Softening annealing: ε starts at `anneal × ε` and decreases linearly to ε over the
     /// first `anneal_fraction` of the ξ iterations (1: constant ε, the paper's reading).

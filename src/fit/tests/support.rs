@@ -128,6 +128,31 @@ fn a_flap_beside_the_scan_is_not_carried() {
 }
 
 #[test]
+fn a_garment_lying_flat_keeps_its_lower_layer_attracted() {
+    // A garment lying flat on a table (a tube flattened to 2 % of its width), scanned from
+    // above: its top layer only. The template's upper half is still arched (a D-shaped tube)
+    // and lies far above the scan, over points that its flat lower half explains. The layer
+    // missing from the scan lies under the scanned one; the scan is flat, so nothing is
+    // carried and the fit is the one with the setting off.
+    let (round, faces) = tube(64, 25, (0.0, 0.8), |_| 0.3);
+    let template: Vec<[f64; 3]> = round.iter().map(|p| [p[0], p[1], p[2].max(0.0)]).collect();
+    let truth: Vec<[f64; 3]> = round.iter().map(|p| [p[0], p[1], 0.02 * p[2]]).collect();
+    let mut rng = SplitMix64::new(10);
+    let scan: Vec<[f64; 3]> = sample_surface(&truth, &faces, 12000, &mut rng)
+        .into_iter()
+        .filter(|p| p[2] > 0.0)
+        .collect();
+    let fitted = |carry: f64| {
+        let mut p = FitParams::default();
+        p.schedule.carry_unsupported = carry;
+        fit_simple(&template, &faces, &scan, None, &p)
+            .unwrap()
+            .vertices
+    };
+    assert_eq!(fitted(0.0), fitted(ONE_SIDED_CARRY));
+}
+
+#[test]
 fn carry_unsupported_is_refused_when_negative() {
     for bad in [-1.0, f64::NAN] {
         let mut p = FitParams::default();
