@@ -6,8 +6,9 @@
 use super::params::{FitParams, CARRY_FAR_EDGES, CARRY_MIN_DEPTH, CARRY_MIN_SHARE, CARRY_SURPLUS};
 use super::schedule::nearest_vertices;
 use super::setup::Prepared;
-use crate::math::{dist2, sym_eigen3, vec3, Mat3, Vec3};
+use crate::math::{dist2, vec3};
 use crate::metrics::upper_median;
+use crate::prealign::{principal_axes, Axes};
 use crate::rings::Neighborhoods;
 use rayon::prelude::*;
 
@@ -45,8 +46,8 @@ pub(super) fn carried_vertices(
     }
     // A garment lying flat (a scan thinner than CARRY_MIN_DEPTH of its width) hides a lower
     // layer that lies under the scanned one: attracted, not carried.
-    let frame = principal_frame(&scan.points);
-    if frame.values[2].max(0.0).sqrt() < CARRY_MIN_DEPTH * frame.values[1].max(0.0).sqrt() {
+    let axes = principal_axes(&scan.points);
+    if axes.variances[2].max(0.0).sqrt() < CARRY_MIN_DEPTH * axes.variances[1].max(0.0).sqrt() {
         return vec![false; m];
     }
     let far = CARRY_FAR_EDGES * prepared.edge_length;
@@ -82,42 +83,18 @@ pub(super) fn carried_vertices(
                 && dist2(&rest[u as usize], &rest[v]).sqrt() > far
         })
         .collect();
-    let carried = within_footprint(&scan.points, &frame, pos, carried, 2.0 * unit);
+    let carried = within_footprint(&scan.points, &axes, pos, carried, 2.0 * unit);
     large_regions(rings, carried, CARRY_MIN_SHARE)
 }
 
-/// The principal frame of `points` about their centroid: the eigen-decomposition of their
-/// scatter matrix ÷ their count (variances along the axes, largest first), and the centroid.
-struct PrincipalFrame {
-    centre: Vec3,
-    values: Vec3,
-    vectors: Mat3,
-}
-
-fn principal_frame(points: &[[f64; 3]]) -> PrincipalFrame {
-    let n = points.len().max(1) as f64;
-    let centre = points.iter().fold(Vec3::zeros(), |a, p| a + vec3(p)) / n;
-    let mut cov = Mat3::zeros();
-    for p in points {
-        let d = vec3(p) - centre;
-        cov += d * d.transpose();
-    }
-    let eigen = sym_eigen3(&(cov / n));
-    PrincipalFrame {
-        centre,
-        values: eigen.values,
-        vectors: eigen.vectors,
-    }
-}
-
 /// `mask` cleared where the vertex of `pos` lies outside the scan's footprint: the scan and
-/// the vertices projected along the scan's thinnest principal axis (`frame`, the direction a
+/// the vertices projected along the scan's thinnest principal axis (`axes`, the direction a
 /// one-sided rig looked from) onto a grid of `cell`, the scan's cells grown by one. The unseen
 /// back of a one-sided scan lies behind its front, inside it; a flap of a folded sheet that
 /// the rigid phase left spread out lies beside the scan.
 fn within_footprint(
     scan: &[[f64; 3]],
-    frame: &PrincipalFrame,
+    axes: &Axes,
     pos: &[[f64; 3]],
     mut mask: Vec<bool>,
     cell: f64,
@@ -126,8 +103,8 @@ fn within_footprint(
     if !mask.iter().any(|&c| c) || cell <= 0.0 {
         return mask;
     }
-    let centre = frame.centre;
-    let (a, b) = (frame.vectors.column(0), frame.vectors.column(1));
+    let centre = axes.centroid;
+    let (a, b) = (axes.frame.column(0), axes.frame.column(1));
     let key = |p: &[f64; 3]| {
         let d = vec3(p) - centre;
         (

@@ -17,6 +17,9 @@ pub struct Axes {
     pub frame: Mat3,
     /// `sqrt(mean ‖p − centroid‖²)`.
     pub rms_radius: f64,
+    /// The variances along the axes (the covariance's eigenvalues), the order of `frame`'s
+    /// columns: decreasing.
+    pub variances: Vec3,
 }
 
 /// The [`Axes`] of `points` (non-empty).
@@ -29,7 +32,8 @@ pub fn principal_axes(points: &[[f64; 3]]) -> Axes {
         cov += d * d.transpose();
     }
     cov /= n;
-    let mut frame = sym_eigen3(&cov).vectors;
+    let eigen = sym_eigen3(&cov);
+    let mut frame = eigen.vectors;
     if frame.determinant() < 0.0 {
         frame.set_column(2, &(-frame.column(2)));
     }
@@ -37,6 +41,7 @@ pub fn principal_axes(points: &[[f64; 3]]) -> Axes {
         centroid,
         frame,
         rms_radius: cov.trace().max(0.0).sqrt(),
+        variances: eigen.values,
     }
 }
 

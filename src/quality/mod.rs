@@ -549,7 +549,6 @@ fn one() -> f64 {
     1.0
 }
 
-/// Arithmetic mean in index order (0 when empty).
 /// The mean of `v` over the entries whose `skip` is false (at least one is).
 fn mean_where_not(v: &[f64], skip: &[bool]) -> f64 {
     let (sum, n) = v
@@ -560,6 +559,7 @@ fn mean_where_not(v: &[f64], skip: &[bool]) -> f64 {
     sum / n as f64
 }
 
+/// Arithmetic mean in index order (0 when empty).
 fn mean(v: &[f64]) -> f64 {
     if v.is_empty() {
         0.0

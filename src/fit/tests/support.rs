@@ -20,6 +20,13 @@ fn half_tube_case() -> HalfTube {
     (template, faces, truth, scan)
 }
 
+/// The default fit with `carry_unsupported = carry`.
+fn fitted(template: &[[f64; 3]], faces: &[[u32; 3]], scan: &[[f64; 3]], carry: f64) -> FitResult {
+    let mut p = FitParams::default();
+    p.schedule.carry_unsupported = carry;
+    fit_simple(template, faces, scan, None, &p).unwrap()
+}
+
 fn rms(a: &[[f64; 3]], b: &[[f64; 3]], which: &[usize]) -> f64 {
     let s: f64 = which.iter().map(|&v| dist2(&a[v], &b[v])).sum();
     (s / which.len() as f64).sqrt()
@@ -31,13 +38,8 @@ fn the_unscanned_back_of_a_half_scan_is_carried_not_collapsed() {
     let back: Vec<usize> = (0..template.len())
         .filter(|&v| template[v][0] < -0.15)
         .collect();
-    let fitted = |carry: f64| {
-        let mut p = FitParams::default();
-        p.schedule.carry_unsupported = carry;
-        fit_simple(&template, &faces, &scan, None, &p).unwrap()
-    };
-    let attracted = fitted(0.0);
-    let carried = fitted(ONE_SIDED_CARRY);
+    let attracted = fitted(&template, &faces, &scan, 0.0);
+    let carried = fitted(&template, &faces, &scan, ONE_SIDED_CARRY);
     let (e_attracted, e_carried) = (
         rms(&attracted.vertices, &truth, &back),
         rms(&carried.vertices, &truth, &back),
@@ -92,14 +94,10 @@ fn a_whole_scan_has_nothing_to_carry() {
     let (template, faces, truth, _) = half_tube_case();
     let mut rng = SplitMix64::new(8);
     let scan = sample_surface(&truth, &faces, 12000, &mut rng);
-    let fitted = |carry: f64| {
-        let mut p = FitParams::default();
-        p.schedule.carry_unsupported = carry;
-        fit_simple(&template, &faces, &scan, None, &p)
-            .unwrap()
-            .vertices
-    };
-    assert_eq!(fitted(0.0), fitted(ONE_SIDED_CARRY));
+    assert_eq!(
+        fitted(&template, &faces, &scan, 0.0).vertices,
+        fitted(&template, &faces, &scan, ONE_SIDED_CARRY).vertices
+    );
 }
 
 #[test]
@@ -117,14 +115,10 @@ fn a_flap_beside_the_scan_is_not_carried() {
         .into_iter()
         .filter(|p| p[0] < 0.0)
         .collect();
-    let fitted = |carry: f64| {
-        let mut p = FitParams::default();
-        p.schedule.carry_unsupported = carry;
-        fit_simple(&template, &faces, &scan, None, &p)
-            .unwrap()
-            .vertices
-    };
-    assert_eq!(fitted(0.0), fitted(ONE_SIDED_CARRY));
+    assert_eq!(
+        fitted(&template, &faces, &scan, 0.0).vertices,
+        fitted(&template, &faces, &scan, ONE_SIDED_CARRY).vertices
+    );
 }
 
 #[test]
@@ -142,14 +136,10 @@ fn a_garment_lying_flat_keeps_its_lower_layer_attracted() {
         .into_iter()
         .filter(|p| p[2] > 0.0)
         .collect();
-    let fitted = |carry: f64| {
-        let mut p = FitParams::default();
-        p.schedule.carry_unsupported = carry;
-        fit_simple(&template, &faces, &scan, None, &p)
-            .unwrap()
-            .vertices
-    };
-    assert_eq!(fitted(0.0), fitted(ONE_SIDED_CARRY));
+    assert_eq!(
+        fitted(&template, &faces, &scan, 0.0).vertices,
+        fitted(&template, &faces, &scan, ONE_SIDED_CARRY).vertices
+    );
 }
 
 #[test]
