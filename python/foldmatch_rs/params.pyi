@@ -315,8 +315,9 @@ class FitParams(Mapping[str, Any]):
         fit → scan (point-to-plane) and scan → fit distances (docs/method.md "Isometric
         refinement"). It undoes sliding along the scan, which the schedule's pulls cannot see:
         a tracked sequence (whose rest shape is the first frame's own mesh) no longer drifts.
-        30 by default (a single fit; on a scan larger than the garment, in the garment refit's
-        fits only), 60 in the `"tracking"` preset; 0: off (the `"paper"` and `"fast"` presets).
+        30 by default (a single fit; on a scan larger than the garment, in every pass: the first
+        onto the points the template explains, the garment refit's onto the garment's points),
+        60 in the `"tracking"` preset; 0: off (the `"paper"` and `"fast"` presets).
         """
     @property
     def isometric_weight(self) -> float:

@@ -436,9 +436,10 @@ fn fit_from(
     // The verdict against the points the fit was drawn to: those of positive weight, or on a
     // scan that holds more than the garment, those the template explains.
     let assessed = prepared.garment.as_deref().or(kept.as_deref());
-    // On a scan that holds more than the garment the refinement waits for the garment's own
-    // points (the refit's); the whole scan's would draw the fit onto the skin.
-    let refine = !kept_start && !refit && params.schedule.isometric_iterations > 0;
+    // On a scan that holds more than the garment the first fit's refinement sees the points the
+    // template explains (`assessed`), which seed the garment's segmentation: a fit whose slides
+    // are undone explains less skin (docs/method.md "Scans of dressed people").
+    let refine = !kept_start && params.schedule.isometric_iterations > 0;
     let vertices = if kept_start {
         winner.pos.clone_from(&prepared.start);
         start_vertices
