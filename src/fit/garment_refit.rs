@@ -252,8 +252,8 @@ mod tests {
     }
 
     /// The driver's first fit (the refit off, and the strain limit, docs/method.md "Strain
-    /// limiting") and its second fit (the refit and the do-no-harm comparison off: the first
-    /// fit made it).
+    /// limiting"; the isometric refinement as given) and its second fit (the refit and the
+    /// do-no-harm comparison off: the first fit made it).
     fn first_and_second(params: &FitParams) -> (FitParams, FitParams) {
         let mut second = params.clone();
         second.schedule.garment_refit = 0.0;
@@ -261,9 +261,33 @@ mod tests {
         let mut first = params.clone();
         first.schedule.garment_refit = 0.0;
         first.schedule.strain_limit = 0.0;
-        // The refinement waits for the garment's own points.
-        first.schedule.isometric_iterations = 0;
         (first, second)
+    }
+
+    #[test]
+    fn the_first_fit_of_a_dressed_scan_ends_with_the_refinement() {
+        let (template, faces, scan) = dressed_sheet();
+        let mut params = FitParams {
+            iterations: 40,
+            prealign: crate::fit::Prealign::None,
+            ..FitParams::default()
+        };
+        params.schedule.garment_cut = 0.0;
+        assert!(params.schedule.isometric_iterations > 0);
+        let (once, _) = first_and_second(&params);
+        let refit = fit_simple(&template, &faces, &scan, None, &params).unwrap();
+        let explained = |first: &FitParams| {
+            let fitted = fit_simple(&template, &faces, &scan, None, first).unwrap();
+            garment_points(&garment_weights(&scan, None, &fitted.vertices, &faces, 1.0))
+        };
+        // The refit's points are those the refined first fit explains, not the unrefined one's.
+        assert_eq!(refit.diagnostics.garment_refit_points, explained(&once));
+        let mut unrefined = once.clone();
+        unrefined.schedule.isometric_iterations = 0;
+        assert_ne!(
+            refit.diagnostics.garment_refit_points,
+            explained(&unrefined)
+        );
     }
 
     #[test]
