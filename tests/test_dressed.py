@@ -18,14 +18,19 @@ REPO = pathlib.Path(__file__).resolve().parent.parent
 SIGMA = dressed_scans.SCANNER["noise"]  # metres; the ARCSim source is in metres
 
 
-@pytest.fixture(scope="module")
-def tshirt(request):
+def built_source(name: str, seed: int = 0) -> dict:
+    """bench/dressed_scans.py's source ``name`` built afresh for scanner seed ``seed``; the test
+    is skipped when ../shared/data is missing."""
     why = cases.real_data_missing()
     if why:
         pytest.skip(why)
-    src = dressed_scans.load_source("tshirt-0000")
-    built = dressed_scans.build_source("tshirt-0000", seed=0, cache=False)
-    return src, built
+    return dressed_scans.build_source(name, seed=seed, cache=False)
+
+
+@pytest.fixture(scope="module")
+def tshirt(request):
+    built = built_source("tshirt-0000")
+    return dressed_scans.load_source("tshirt-0000"), built
 
 
 def boundary_vertices(f: np.ndarray) -> np.ndarray:
@@ -159,10 +164,7 @@ def test_a_roughly_placed_garment_in_a_dressed_scan_is_not_moved_elsewhere():
     least twice as close there."""
     import foldmatch_rs as fm
 
-    why = cases.real_data_missing()
-    if why:
-        pytest.skip(why)
-    built = dressed_scans.build_source("tshirt-0000", seed=1, cache=False)
+    built = built_source("tshirt-0000", seed=1)
     got = fm.prealign(built["unplaced"], built["scan"], motion="rigid")
     assert got["searched"]
     assert np.allclose(got["rotation"], np.eye(3)) and np.allclose(got["translation"], 0.0)
@@ -176,10 +178,7 @@ def test_each_garment_of_two_ends_near_its_fit_alone():
     than as placed."""
     import foldmatch_rs as fm
 
-    why = cases.real_data_missing()
-    if why:
-        pytest.skip(why)
-    built = dressed_scans.build_source("two-garment", seed=0, cache=False)
+    built = built_source("two-garment")
     tpl, faces, scan, labels, truth, parts = (
         built[k] for k in ("placed", "faces", "scan", "labels", "truth", "template_labels")
     )
@@ -207,12 +206,9 @@ def test_eight_landmarks_halve_the_bent_over_frames_error():
     bench.landmarks`): with 8 landmarks (farthest-point template vertices, targets the truth plus
     the scanner's noise) the default's f_R on the whole dressed scan falls below half its f_R
     without them, and the landmark vertices end within the scan's noise of their targets."""
-    why = cases.real_data_missing()
-    if why:
-        pytest.skip(why)
     from bench import landmarks
 
-    built = dressed_scans.build_source("tshirt-0200", seed=0, cache=False)
+    built = built_source("tshirt-0200")
     row = landmarks.fit_case("tshirt-0200", built, "placed", 8, None, {}, 0, lambda _: None)
     assert row["ratio"] < 0.5, row["ratio"]
     assert row["landmark_gap_with"]["max"] <= row["noise_rms_length"], row["landmark_gap_with"]
@@ -226,10 +222,7 @@ def test_the_penetrating_skirt_of_a_dressed_scan_fits_as_without_the_body():
     without it the whole-scan fit ended 1.22× (docs/method.md "Scans of dressed people")."""
     import foldmatch_rs as fm
 
-    why = cases.real_data_missing()
-    if why:
-        pytest.skip(why)
-    built = dressed_scans.build_source("skirt-penetrate", seed=0, cache=False)
+    built = built_source("skirt-penetrate")
     tpl, faces, scan, labels, truth = (built[k] for k in ("placed", "faces", "scan", "labels", "truth"))
     whole = fm.fit(tpl, faces, scan)
     free = fm.fit(tpl, faces, scan[labels > 0])

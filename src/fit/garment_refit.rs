@@ -251,6 +251,16 @@ mod tests {
         (template, faces, scan)
     }
 
+    /// The fits of [`dressed_sheet`]: 40 iterations, the sheet as placed (the search would
+    /// turn it onto the bend).
+    fn sheet_params() -> FitParams {
+        FitParams {
+            iterations: 40,
+            prealign: crate::fit::Prealign::None,
+            ..FitParams::default()
+        }
+    }
+
     /// The driver's first fit (the refit off, and the strain limit, docs/method.md "Strain
     /// limiting"; the isometric refinement as given) and its second fit (the refit and the
     /// do-no-harm comparison off: the first fit made it).
@@ -267,11 +277,7 @@ mod tests {
     #[test]
     fn the_first_fit_of_a_dressed_scan_ends_with_the_refinement() {
         let (template, faces, scan) = dressed_sheet();
-        let mut params = FitParams {
-            iterations: 40,
-            prealign: crate::fit::Prealign::None,
-            ..FitParams::default()
-        };
+        let mut params = sheet_params();
         params.schedule.garment_cut = 0.0;
         assert!(params.schedule.isometric_iterations > 0);
         let (once, _) = first_and_second(&params);
@@ -293,12 +299,7 @@ mod tests {
     #[test]
     fn a_dressed_scan_is_fitted_again_onto_the_points_the_first_fit_explains() {
         let (template, faces, scan) = dressed_sheet();
-        let mut params = FitParams {
-            iterations: 40,
-            // The sheet as placed (the search would turn it onto the bend).
-            prealign: crate::fit::Prealign::None,
-            ..FitParams::default()
-        };
+        let mut params = sheet_params();
         // The refit alone (the garment cut's third fit: garment_cut.rs).
         params.schedule.garment_cut = 0.0;
         // The passes without the refinement, whose garment passes differ from a plain fit
@@ -357,8 +358,7 @@ mod tests {
         let (template, faces, scan) = dressed_sheet();
         let mut params = FitParams {
             iterations: 30,
-            prealign: crate::fit::Prealign::None,
-            ..FitParams::default()
+            ..sheet_params()
         };
         params.schedule.garment_cut = 0.0;
         // Without the refinement (see above).
@@ -394,11 +394,7 @@ mod tests {
     #[test]
     fn the_garment_cut_fits_a_third_time_onto_the_cut_of_the_refit() {
         let (template, faces, scan) = dressed_sheet();
-        let mut params = FitParams {
-            iterations: 40,
-            prealign: crate::fit::Prealign::None,
-            ..FitParams::default()
-        };
+        let mut params = sheet_params();
         // Without the refinement (see above).
         params.schedule.isometric_iterations = 0;
         let mut refit_only = params.clone();

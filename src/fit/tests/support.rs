@@ -4,19 +4,15 @@ use super::*;
 use crate::math::dist2;
 use crate::synthetic::{grid_sheet, sample_surface, tube, SplitMix64};
 
-/// A tube template, its flared truth and a scan of the truth's front half (x > 0), as one
-/// camera side sees it.
 /// Template, faces, truth and scan.
 type HalfTube = (Vec<[f64; 3]>, Vec<[u32; 3]>, Vec<[f64; 3]>, Vec<[f64; 3]>);
 
+/// A tube template, its flared truth and a scan of the truth's front half (x > 0), as one
+/// camera side sees it.
 fn half_tube_case() -> HalfTube {
     let (template, faces) = tube(64, 25, (0.0, 0.8), |_| 0.3);
     let (truth, _) = tube(64, 25, (0.0, 0.8), |y| 0.3 * (1.0 + 0.25 * y));
-    let mut rng = SplitMix64::new(7);
-    let scan: Vec<[f64; 3]> = sample_surface(&truth, &faces, 12000, &mut rng)
-        .into_iter()
-        .filter(|p| p[0] > 0.0)
-        .collect();
+    let scan = scan_where(&truth, &faces, 12000, 7, |p| p[0] > 0.0);
     (template, faces, truth, scan)
 }
 
@@ -25,6 +21,30 @@ fn fitted(template: &[[f64; 3]], faces: &[[u32; 3]], scan: &[[f64; 3]], carry: f
     let mut p = FitParams::default();
     p.schedule.carry_unsupported = carry;
     fit_simple(template, faces, scan, None, &p).unwrap()
+}
+
+/// `count` points sampled on `(truth, faces)` by seed `seed`, those that `keep` (a one-sided
+/// scan's view).
+fn scan_where(
+    truth: &[[f64; 3]],
+    faces: &[[u32; 3]],
+    count: usize,
+    seed: u64,
+    keep: impl Fn(&[f64; 3]) -> bool,
+) -> Vec<[f64; 3]> {
+    let mut rng = SplitMix64::new(seed);
+    sample_surface(truth, faces, count, &mut rng)
+        .into_iter()
+        .filter(|p| keep(p))
+        .collect()
+}
+
+/// The fit with the one-sided setting is the fit without it: nothing was carried.
+fn assert_nothing_carried(template: &[[f64; 3]], faces: &[[u32; 3]], scan: &[[f64; 3]]) {
+    assert_eq!(
+        fitted(template, faces, scan, 0.0).vertices,
+        fitted(template, faces, scan, ONE_SIDED_CARRY).vertices
+    );
 }
 
 fn rms(a: &[[f64; 3]], b: &[[f64; 3]], which: &[usize]) -> f64 {
@@ -92,12 +112,8 @@ fn the_unscanned_back_of_a_half_scan_is_carried_not_collapsed() {
 fn a_whole_scan_has_nothing_to_carry() {
     // Every vertex has its scan: the fit is the same with and without the setting.
     let (template, faces, truth, _) = half_tube_case();
-    let mut rng = SplitMix64::new(8);
-    let scan = sample_surface(&truth, &faces, 12000, &mut rng);
-    assert_eq!(
-        fitted(&template, &faces, &scan, 0.0).vertices,
-        fitted(&template, &faces, &scan, ONE_SIDED_CARRY).vertices
-    );
+    let scan = scan_where(&truth, &faces, 12000, 8, |_| true);
+    assert_nothing_carried(&template, &faces, &scan);
 }
 
 #[test]
@@ -110,15 +126,8 @@ fn a_flap_beside_the_scan_is_not_carried() {
         .iter()
         .map(|p| [p[0], p[1], 0.05 * (3.0 * p[0]).sin()])
         .collect();
-    let mut rng = SplitMix64::new(9);
-    let scan: Vec<[f64; 3]> = sample_surface(&truth, &faces, 8000, &mut rng)
-        .into_iter()
-        .filter(|p| p[0] < 0.0)
-        .collect();
-    assert_eq!(
-        fitted(&template, &faces, &scan, 0.0).vertices,
-        fitted(&template, &faces, &scan, ONE_SIDED_CARRY).vertices
-    );
+    let scan = scan_where(&truth, &faces, 8000, 9, |p| p[0] < 0.0);
+    assert_nothing_carried(&template, &faces, &scan);
 }
 
 #[test]
@@ -131,15 +140,8 @@ fn a_garment_lying_flat_keeps_its_lower_layer_attracted() {
     let (round, faces) = tube(64, 25, (0.0, 0.8), |_| 0.3);
     let template: Vec<[f64; 3]> = round.iter().map(|p| [p[0], p[1], p[2].max(0.0)]).collect();
     let truth: Vec<[f64; 3]> = round.iter().map(|p| [p[0], p[1], 0.02 * p[2]]).collect();
-    let mut rng = SplitMix64::new(10);
-    let scan: Vec<[f64; 3]> = sample_surface(&truth, &faces, 12000, &mut rng)
-        .into_iter()
-        .filter(|p| p[2] > 0.0)
-        .collect();
-    assert_eq!(
-        fitted(&template, &faces, &scan, 0.0).vertices,
-        fitted(&template, &faces, &scan, ONE_SIDED_CARRY).vertices
-    );
+    let scan = scan_where(&truth, &faces, 12000, 10, |p| p[2] > 0.0);
+    assert_nothing_carried(&template, &faces, &scan);
 }
 
 #[test]
