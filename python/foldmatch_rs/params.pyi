@@ -330,7 +330,7 @@ class FitParams(Mapping[str, Any]):
         """The weight of holding each edge of `isometric_iterations`
         at its vector in the schedule's result (against a vertex's fit → scan weight of 1): it
         keeps the refinement from crumpling the mesh after the noise of a noisy scan (flipped
-        faces), and holds back the slides the refinement corrects. 1 by default; 0 (off) in
+        faces), and holds back the slides the refinement corrects. 0.6 by default; 0 (off) in
         the `"tracking"` preset, whose springs hold the sequence's own metric.
         """
 

@@ -113,7 +113,7 @@ pub const DEFAULT_ISOMETRIC_ITERATIONS: usize = 30;
 /// The default [`isometric_hold`](crate::fit::Schedule::isometric_hold): a single fit's
 /// refinement keeps each edge near the schedule's result, so that it corrects slides without
 /// crumpling the mesh after the scan's noise.
-pub const DEFAULT_ISOMETRIC_HOLD: f64 = 1.0;
+pub const DEFAULT_ISOMETRIC_HOLD: f64 = 0.6;
 
 /// The default [`iterations`](crate::fit::FitParams::iterations) ξ: 80, and the isometric
 /// refinement after them, fit closer to the truth than 100 without it at about the same time
@@ -495,7 +495,7 @@ pub struct Schedule {
     /// The weight of holding each edge of [`isometric_iterations`](Self::isometric_iterations)
     /// at its vector in the schedule's result (against a vertex's fit → scan weight of 1): it
     /// keeps the refinement from crumpling the mesh after the noise of a noisy scan (flipped
-    /// faces), and holds back the slides the refinement corrects. 1 by default; 0 (off) in
+    /// faces), and holds back the slides the refinement corrects. 0.6 by default; 0 (off) in
     /// the `"tracking"` preset, whose springs hold the sequence's own metric.
     pub isometric_hold: f64,
 }

@@ -290,7 +290,7 @@ fn a_dressed_scan_fit_from_a_turned_start_gets_its_pose_gap_after_its_garment_pa
     let fit = crate::fit::fit_simple(&y, &f, &scene, None, &params).unwrap();
     assert!(!fit.garment_points.is_empty(), "the garment passes ran");
     let q = &fit.quality;
-    assert!(q.pose_gap > 1.6, "{q:?}");
+    assert!(q.pose_gap > q.thresholds.pose_gap, "{q:?}");
     assert!(
         q.reasons.iter().any(|r| r.contains("pose gap")),
         "{:?}",
