@@ -106,7 +106,7 @@ def fit_rows(
                 continue
             if group == "real" and case.name.endswith("-pts"):
                 real.append(case)
-            readings = symmetry.symmetries(case.template_vertices)
+            readings: list[np.ndarray] | None = None  # the template's symmetries, once needed
             for name, scan, truth, kw in conditions(case):
                 if only is not None and name not in only:
                     continue
@@ -119,6 +119,8 @@ def fit_rows(
                 # garment's points; on a one-sided scan, without the vertices it carried).
                 q = r.quality
                 ratio = f_r / best[case.name]["f_R"]
+                if readings is None:
+                    readings = symmetry.symmetries(case.template_vertices)
                 f_r_readings = symmetry.f_r_up_to(
                     r.vertices, truth, cases_mod.bbox_diagonal(case.target), readings
                 )
