@@ -1,5 +1,5 @@
 """The isometric refinement in a single fit (docs/method.md "Isometric refinement"): its hold
-term against crumpling on a noisy scan, and its settings' domains."""
+term against crumpling on a noisy scan, its plane normal, and its settings' domains."""
 
 from __future__ import annotations
 
@@ -30,3 +30,18 @@ def test_the_hold_keeps_a_noisy_paper_sized_fit_from_flipping_faces():
 def test_a_negative_hold_is_refused_by_name():
     with pytest.raises(fm.InvalidParameterError, match="isometric_hold"):
         fm.FitParams(isometric_hold=-1.0)
+
+
+def test_the_plane_normal_is_the_scan_s_in_a_fit_and_the_fit_s_when_tracking():
+    # The tracking preset pulls each vertex along its own normal (docs/method.md "Tracking");
+    # the choice reaches the fit (a different result) and a bad value is refused by name.
+    case = next(c for c in cases.generated_cases("small", ("noisy",)) if c.name.startswith("sheet"))
+    v, f, x = case.template_vertices, case.faces, case.target
+    assert fm.FitParams()["isometric_plane"] == "scan"
+    assert fm.FitParams("tracking")["isometric_plane"] == "fit"
+    single = {"selection": "single"}
+    scan_plane = fm.fit(v, f, x, iterations=20, params=single).vertices
+    fit_plane = fm.fit(v, f, x, iterations=20, params={**single, "isometric_plane": "fit"}).vertices
+    assert abs(scan_plane - fit_plane).max() > 1e-6
+    with pytest.raises(fm.InvalidParameterError, match="isometric_plane"):
+        fm.FitParams(isometric_plane="mesh")

@@ -333,6 +333,16 @@ class FitParams(Mapping[str, Any]):
         faces), and holds back the slides the refinement corrects. 0.6 by default; 0 (off) in
         the `"tracking"` preset, whose springs hold the sequence's own metric.
         """
+    @property
+    def isometric_plane(self) -> Literal['scan', 'fit']:
+        """The normal of the plane each vertex of `isometric_iterations`
+        is pulled onto, through its nearest scan point: `"scan"` (the scan's own plane there,
+        of its 12 nearest points; default) or `"fit"` (the fit's vertex normal: the vertex moves
+        across its surface only). A scan's plane tilted against the fit, at a fold or by the
+        noise, also pushes the fit along itself: in a single fit that moves a slid fit back, in
+        a tracked sequence it adds a slide to every frame, which piles up (`"fit"` in the
+        `"tracking"` preset; docs/method.md "Tracking").
+        """
 
     # ---- Acceleration
     @property

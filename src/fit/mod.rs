@@ -34,7 +34,7 @@ mod validate;
 
 pub use attraction::{DRESSED_TRUST_FACTOR, GARMENT_FRAME_RATIO};
 pub use garments::GARMENT_MIN_SHARE;
-pub use isometric::{IsometricRefine, SpringScale, Springs};
+pub use isometric::{IsometricRefine, PlaneNormal, SpringScale, Springs};
 pub use model::{deformation_model, TemplateTopology, Workspace};
 pub use params::{
     Acceleration, FitParams, Method, ModelConstants, Prealign, Readings, RotationSource, Schedule,
@@ -790,7 +790,8 @@ fn isometric_refinement(
     }
     let (faces, incidence) = (&prepared.faces, &prepared.incidence);
     let mut refine =
-        IsometricRefine::new(rest, faces, incidence, &points, point_weights.as_deref());
+        IsometricRefine::new(rest, faces, incidence, &points, point_weights.as_deref())
+            .with_plane_normal(params.schedule.isometric_plane);
     if let Some(l) = landmarks {
         let weight = LANDMARK_ANCHOR * params.landmark_weight;
         refine = refine.with_anchors(&l.vertices, &l.positions, weight);

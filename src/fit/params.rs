@@ -1,6 +1,7 @@
 //! Every setting of a fit ([`FitParams`]), its enums and named constants, and the values derived
 //! from them (the phases' lengths, samples and radii).
 
+use super::isometric::PlaneNormal;
 use crate::nbody::{NBodyParams, TwoWayPull};
 use crate::regularize::Regularization;
 use schemars::JsonSchema;
@@ -498,6 +499,14 @@ pub struct Schedule {
     /// faces), and holds back the slides the refinement corrects. 0.6 by default; 0 (off) in
     /// the `"tracking"` preset, whose springs hold the sequence's own metric.
     pub isometric_hold: f64,
+    /// The normal of the plane each vertex of [`isometric_iterations`](Self::isometric_iterations)
+    /// is pulled onto, through its nearest scan point: `"scan"` (the scan's own plane there,
+    /// of its 12 nearest points; default) or `"fit"` (the fit's vertex normal: the vertex moves
+    /// across its surface only). A scan's plane tilted against the fit, at a fold or by the
+    /// noise, also pushes the fit along itself: in a single fit that moves a slid fit back, in
+    /// a tracked sequence it adds a slide to every frame, which piles up (`"fit"` in the
+    /// `"tracking"` preset; docs/method.md "Tracking").
+    pub isometric_plane: PlaneNormal,
 }
 
 /// Acceleration: samples and approximate neighborhoods that make a fit faster and change its
@@ -638,6 +647,7 @@ impl Default for Schedule {
             isometric_iterations: DEFAULT_ISOMETRIC_ITERATIONS,
             isometric_weight: DEFAULT_ISOMETRIC_WEIGHT,
             isometric_hold: DEFAULT_ISOMETRIC_HOLD,
+            isometric_plane: PlaneNormal::Scan,
         }
     }
 }

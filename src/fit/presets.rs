@@ -1,5 +1,6 @@
 //! The named presets and the candidate schedules of schedule selection.
 
+use super::isometric::PlaneNormal;
 use super::params::{
     FitParams, Method, Prealign, Selection, ACCURATE_ITERATIONS, FAST_ITERATIONS, FAST_TWO_WAY,
     PAPER_ITERATIONS, PAPER_K_MAX, PAPER_RHO, TRACKING_ISOMETRIC_ITERATIONS, TRACKING_ITERATIONS,
@@ -61,6 +62,7 @@ impl FitParams {
         p.schedule.compression_limit = TRACKING_STRAIN_LIMIT;
         p.schedule.isometric_iterations = TRACKING_ISOMETRIC_ITERATIONS;
         p.schedule.isometric_hold = 0.0;
+        p.schedule.isometric_plane = PlaneNormal::Fit;
         // The isometric refinement holds the template's metric; the rest-shape rigidity, which
         // also holds its bends, only steadies the motion (docs/method.md "Tracking").
         p.schedule.rest_rigidity = TRACKING_REST_RIGIDITY;

@@ -5,8 +5,9 @@
 //! E(Y) = w Σ_edges ‖(Y_i − Y_k) − d_ik‖²        edge springs, d_ik = s ℓ⁰_ik (Y_i − Y_k) / ‖Y_i − Y_k‖
 //!      + h Σ_edges ‖(Y_i − Y_k) − (Y⁰_i − Y⁰_k)‖²  hold: the edge vectors of the fit Y⁰ as the
 //!                                                 refinement starts
-//!      + Σ_i t_i (n_i · (Y_i − x_i))²             fit → scan: the tangent plane of Y_i's nearest
-//!                                                 scan point x_i (normal n_i)
+//!      + Σ_i t_i (n_i · (Y_i − x_i))²             fit → scan: the plane through Y_i's nearest
+//!                                                 scan point x_i, its normal n_i the scan's
+//!                                                 there or the fit's own at Y_i ([`PlaneNormal`])
 //!      + c Σ_j ω_j (e_j · (Σ_l b_jl Y_{f_j,l} − x_j))²
 //!                                                 scan → fit: x_j's closest point on the faces
 //!                                                 around its nearest vertex (face f_j,
@@ -41,6 +42,8 @@ use crate::metrics::upper_median;
 use crate::quality::closest_barycentric;
 use crate::rings::{adjacency, ring_lengths, Neighborhoods};
 use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::sync::OnceLock;
 
 /// Matches beyond this multiple of their median distance (and beyond [`REACH`]) are dropped
 /// (fit → scan and scan → fit alike).
@@ -77,7 +80,10 @@ pub struct IsometricRefine<'a> {
     scan: &'a [[f64; 3]],
     weights: Option<&'a [f64]>,
     scan_index: PointIndex,
-    normals: Vec<[f64; 3]>,
+    /// The scan's normals, computed when a run first needs them ([`PlaneNormal::Scan`]).
+    normals: OnceLock<Vec<[f64; 3]>>,
+    /// Whose normal the fit → scan plane takes.
+    plane_normal: PlaneNormal,
     /// Matches within this distance are never dropped: [`REACH`] mean rest edge lengths.
     reach: f64,
     /// Anchors ([`IsometricRefine::with_anchors`]): each vertex's weight `a_i` (empty: none)
@@ -107,6 +113,24 @@ pub enum SpringScale {
     Rest,
     /// The rest lengths times the fit's own scale as the refinement starts (the median edge
     /// length ratio): a template placed at any size keeps its proportions.
+    Fit,
+}
+
+/// The normal of the plane each vertex is pulled onto (through its nearest scan point x_i).
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema,
+)]
+#[serde(rename_all = "snake_case")]
+pub enum PlaneNormal {
+    /// The scan's normal at x_i (the least-squares plane of its 12 nearest scan points): the
+    /// pull has a component along the fit's surface wherever that plane is tilted against it,
+    /// which moves a slid fit back (a single fit's default).
+    #[default]
+    Scan,
+    /// The fit's own vertex normal (area-weighted, of the faces around the vertex): the vertex
+    /// moves across its surface only, to x_i's level; the plane of a sparse or noisy scan's
+    /// points, tilted at folds and by the noise, no longer pushes the fit along itself (the
+    /// `"tracking"` preset, whose frames start on their scan; docs/method.md "Tracking").
     Fit,
 }
 
@@ -159,8 +183,8 @@ struct Buffers {
 const MIN_LEN: usize = 256;
 
 impl<'a> IsometricRefine<'a> {
-    /// The edges of `faces` at their lengths in `rest`, and the scan's normals (the plane of
-    /// each point's 12 nearest points). `vertex_faces`: the faces' incidence lists.
+    /// The edges of `faces` at their lengths in `rest`, and the scan's k-d tree.
+    /// `vertex_faces`: the faces' incidence lists.
     /// `weights`, when given, weigh the scan points (every point passed is one the fit is
     /// drawn to). `scan` must not be empty.
     pub fn new(
@@ -196,23 +220,6 @@ impl<'a> IsometricRefine<'a> {
             })
             .collect();
         let scan_index = PointIndex::new(scan);
-        let k = NORMAL_NEIGHBOURS.min(scan.len());
-        let normals = scan
-            .par_iter()
-            .map_init(
-                || (vec![0u32; k], vec![0.0; k]),
-                |(idx, d2), x| {
-                    scan_index.nearest_into(x, idx, d2);
-                    // The normal of their best-fitting plane.
-                    let normal = neighbourhood_frame(scan, idx)
-                        .1
-                        .vectors
-                        .column(2)
-                        .into_owned();
-                    <[f64; 3]>::from(normal)
-                },
-            )
-            .collect();
         Self {
             faces,
             ring,
@@ -222,12 +229,42 @@ impl<'a> IsometricRefine<'a> {
             scan,
             weights,
             scan_index,
-            normals,
+            normals: OnceLock::new(),
+            plane_normal: PlaneNormal::Scan,
             reach,
             anchor_weight: Vec::new(),
             anchor_at: Vec::new(),
             rim_pull: true,
         }
+    }
+
+    /// The fit → scan plane's normal ([`PlaneNormal`]; the scan's unless set).
+    pub fn with_plane_normal(mut self, plane_normal: PlaneNormal) -> Self {
+        self.plane_normal = plane_normal;
+        self
+    }
+
+    /// The scan's normals: each point's plane of its 12 nearest points (computed once).
+    fn scan_normals(&self) -> &[[f64; 3]] {
+        self.normals.get_or_init(|| {
+            let (scan, index) = (self.scan, &self.scan_index);
+            let k = NORMAL_NEIGHBOURS.min(scan.len());
+            scan.par_iter()
+                .map_init(
+                    || (vec![0u32; k], vec![0.0; k]),
+                    |(idx, d2), x| {
+                        index.nearest_into(x, idx, d2);
+                        // The normal of their best-fitting plane.
+                        let normal = neighbourhood_frame(scan, idx)
+                            .1
+                            .vectors
+                            .column(2)
+                            .into_owned();
+                        <[f64; 3]>::from(normal)
+                    },
+                )
+                .collect()
+        })
     }
 
     /// Scan points beyond the fit's rim (`RIM_ACROSS`) do not pull it: on the garment's
@@ -345,16 +382,32 @@ impl<'a> IsometricRefine<'a> {
         }
     }
 
-    /// `t_i`, `p_i`: each vertex projected onto its nearest scan point's tangent plane.
+    /// The unit normal of `y` at vertex `i`: the area-weighted sum of its faces' normals
+    /// (`None` where they cancel or no face uses the vertex).
+    fn vertex_normal(&self, y: &[[f64; 3]], i: usize) -> Option<Vec3> {
+        let mut sum = Vec3::zeros();
+        for &f in self.vertex_faces.of(i) {
+            let c = self.faces[f as usize].map(|u| vec3(&y[u as usize]));
+            sum += (c[1] - c[0]).cross(&(c[2] - c[0]));
+        }
+        sum.try_normalize(0.0)
+    }
+
+    /// `t_i`, `p_i`: each vertex projected onto the plane through its nearest scan point
+    /// ([`PlaneNormal`]).
     fn fit_to_scan(&self, y: &[[f64; 3]], b: &mut Buffers) {
         let m = y.len();
+        let scan_normals = match self.plane_normal {
+            PlaneNormal::Scan => Some(self.scan_normals()),
+            PlaneNormal::Fit => None,
+        };
         b.p.par_iter_mut()
             .zip(b.normal.par_iter_mut())
             .zip(b.nearest.par_iter_mut())
             .zip(b.distance[..m].par_iter_mut())
-            .zip(y.par_iter())
+            .zip(y.par_iter().enumerate())
             .with_min_len(MIN_LEN)
-            .for_each(|((((p, normal), near), d), v)| {
+            .for_each(|((((p, normal), near), d), (i, v))| {
                 // From the last iteration's nearest point (the scan does not move).
                 let known = match near.0 {
                     u32::MAX => (u32::MAX, f64::INFINITY),
@@ -362,7 +415,15 @@ impl<'a> IsometricRefine<'a> {
                 };
                 *near = self.scan_index.nearest_from(v, known);
                 let j = near.0 as usize;
-                let (x, n) = (vec3(&self.scan[j]), vec3(&self.normals[j]));
+                let x = vec3(&self.scan[j]);
+                let n = match scan_normals {
+                    Some(normals) => vec3(&normals[j]),
+                    // A vertex no face uses has no normal: pulled towards x.
+                    None => self
+                        .vertex_normal(y, i)
+                        .or_else(|| (x - vec3(v)).try_normalize(0.0))
+                        .unwrap_or_else(Vec3::zeros),
+                };
                 *normal = n.into();
                 *p = (x.dot(&n) * n).into();
                 *d = near.1.sqrt();

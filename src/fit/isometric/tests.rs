@@ -1,5 +1,5 @@
 //! The isometric refinement on sheets whose answer is known: a cylinder patch slid along
-//! itself, a flat sheet stretched in its plane, a fit already at its scan.
+//! itself, a flat sheet stretched in its plane, a fit already at its scan, a tight fold.
 
 use super::*;
 use crate::fit::{DEFAULT_ISOMETRIC_WEIGHT as WEIGHT, TRACKING_ISOMETRIC_ITERATIONS as ITERATIONS};
@@ -333,5 +333,74 @@ fn without_the_rim_pull_the_scan_beyond_the_rim_does_not_move_the_fit() {
     assert!(
         held.abs() < 0.1 * pulled,
         "without the rim pull: {held:.4} (with: {pulled:.4})"
+    );
+}
+
+/// [`refine`] with the fit → scan plane's normal `plane`.
+fn refine_on(
+    plane: PlaneNormal,
+    truth: &[[f64; 3]],
+    faces: &[[u32; 3]],
+    scan: &[[f64; 3]],
+    fit: &mut [[f64; 3]],
+) {
+    let incidence = VertexFaces::new(faces, truth.len());
+    IsometricRefine::new(truth, faces, &incidence, scan, None)
+        .with_plane_normal(plane)
+        .run(fit, ITERATIONS, springs(WEIGHT, SpringScale::Rest));
+}
+
+/// A 2 × 1 grid folded into a hairpin about the y axis: a half circle of radius `r` between
+/// two parallel legs.
+fn hairpin(r: f64) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
+    let (flat, faces) = grid_sheet(41, 11, 2.0, 1.0);
+    let bend = std::f64::consts::FRAC_PI_2 * r;
+    let folded = flat
+        .iter()
+        .map(|p| {
+            let s = p[0];
+            if s.abs() <= bend {
+                let a = s / r;
+                [r * a.sin(), p[1], r * (1.0 - a.cos())]
+            } else {
+                [r * s.signum(), p[1], r + s.abs() - bend]
+            }
+        })
+        .collect();
+    (folded, faces)
+}
+
+#[test]
+fn the_fit_s_own_normals_keep_a_fit_at_a_sparse_scan_of_a_fold_in_place() {
+    // About one scan point per vertex on a tight fold: the plane of a point's 12 nearest
+    // points spans the fold and tilts against the surface, which pushes a fit lying on the
+    // truth along itself; the fit's own normals move each vertex across the surface only.
+    for r in [0.1, 0.15] {
+        let (truth, faces) = hairpin(r);
+        let scan = scan_of(&truth, &faces, truth.len());
+        let moved = |plane| {
+            let mut fit = truth.clone();
+            refine_on(plane, &truth, &faces, &scan, &mut fit);
+            rms(&fit, &truth)
+        };
+        let (by_scan, by_fit) = (moved(PlaneNormal::Scan), moved(PlaneNormal::Fit));
+        assert!(
+            by_fit < 0.7 * by_scan,
+            "moved {by_scan:.4} with the scan's planes, {by_fit:.4} with the fit's normals"
+        );
+    }
+}
+
+#[test]
+fn with_the_fit_s_own_normals_a_slid_patch_is_still_brought_back() {
+    let (truth, faces) = cylinder_patch();
+    let scan = scan_of(&truth, &faces, 4000);
+    let mut fit = turned(&truth, 8.0);
+    let before = rms(&fit, &truth);
+    refine_on(PlaneNormal::Fit, &truth, &faces, &scan, &mut fit);
+    let after = rms(&fit, &truth);
+    assert!(
+        after < 0.2 * before,
+        "slid {before:.4}, refined {after:.4} from the truth"
     );
 }
