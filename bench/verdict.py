@@ -97,6 +97,26 @@ def conditions(case: cases_mod.Case) -> list[tuple[str, np.ndarray, np.ndarray, 
     return out
 
 
+def judged(
+    case: cases_mod.Case,
+    best: dict[str, dict[str, float]],
+    f_r: float,
+    vertices: np.ndarray,
+    truth: np.ndarray,
+    readings: list[np.ndarray],
+) -> dict[str, Any]:
+    """A fit's f_R, its ratio to the case's best peer, and whether it is wrong: plainly and up
+    to the template's exact symmetries (``readings``, bench/symmetry.py)."""
+    peer = best[case.name]["f_R"]
+    up_to = symmetry.f_r_up_to(vertices, truth, cases_mod.bbox_diagonal(case.target), readings)
+    return {
+        "f_R": f_r,
+        "ratio": f_r / peer,
+        "wrong": bool(f_r / peer > WRONG_RATIO),
+        "wrong_up_to_symmetry": bool(up_to / peer > WRONG_RATIO),
+    }
+
+
 def fit_rows(
     groups: list[str], best: dict[str, dict[str, float]], only: set[str] | None = None
 ) -> list[dict[str, Any]]:
@@ -123,28 +143,22 @@ def fit_rows(
                 # The fit's own verdict, as the user gets it (on a dressed-body scan, of the
                 # garment's points; on a one-sided scan, without the vertices it carried).
                 q = r.quality
-                ratio = f_r / best[case.name]["f_R"]
                 if readings is None:
                     readings = symmetry.symmetries(case.template_vertices)
-                f_r_readings = symmetry.f_r_up_to(
-                    r.vertices, truth, cases_mod.bbox_diagonal(case.target), readings
-                )
+                scored = judged(case, best, f_r, r.vertices, truth, readings)
                 rows.append(
                     {
                         "group": group,
                         "case": case.name,
                         "condition": name,
                         "split": split_of(case.name),
-                        "f_R": f_r,
-                        "ratio": ratio,
-                        "wrong": bool(ratio > WRONG_RATIO),
-                        "wrong_up_to_symmetry": bool(f_r_readings / best[case.name]["f_R"] > WRONG_RATIO),
+                        **scored,
                         "seconds": seconds,
                         **{k: q[k] for k in FIGURES},
                     }
                 )
                 print(
-                    f"{case.name:32s} {name:15s} f_R {f_r:.4f} ×{ratio:6.2f} "
+                    f"{case.name:32s} {name:15s} f_R {f_r:.4f} ×{scored['ratio']:6.2f} "
                     + " ".join(f"{q[k]:.3f}" for k in FIGURES),
                     flush=True,
                 )
@@ -163,19 +177,10 @@ def fit_rows(
         if same_mesh:
             # The same garment placed as for another frame: this case's truth scores it.
             e = fm.evaluate(other.template_vertices, other.faces, r.vertices, case.target, case.ground_truth)
-            ratio = e["f_R"] / best[case.name]["f_R"]
-            f_r_readings = symmetry.f_r_up_to(
-                r.vertices,
-                case.ground_truth,
-                cases_mod.bbox_diagonal(case.target),
-                symmetry.symmetries(case.template_vertices),
-            )
+            readings = symmetry.symmetries(case.template_vertices)
             scored = {
                 "condition": f"other-placement ({other.name})",
-                "f_R": e["f_R"],
-                "ratio": ratio,
-                "wrong": bool(ratio > WRONG_RATIO),
-                "wrong_up_to_symmetry": bool(f_r_readings / best[case.name]["f_R"] > WRONG_RATIO),
+                **judged(case, best, e["f_R"], r.vertices, case.ground_truth, readings),
             }
         else:
             scored = {

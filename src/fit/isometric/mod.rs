@@ -37,7 +37,7 @@
 use crate::curvature::neighbourhood_frame;
 use crate::knn::{BoxTree, PointIndex};
 use crate::math::{dist2, sym_eigen3, vec3, Mat3, Vec3};
-use crate::mesh::VertexFaces;
+use crate::mesh::{vertex_normals, VertexFaces};
 use crate::metrics::upper_median;
 use crate::quality::closest_barycentric;
 use crate::rings::{adjacency, ring_lengths, Neighborhoods};
@@ -177,6 +177,8 @@ struct Buffers {
     /// Each vertex's `Σ_k (Y⁰_i − Y⁰_k)` over its ring, `Y⁰` the fit as the refinement starts
     /// (the hold term's right-hand side).
     held: Vec<[f64; 3]>,
+    /// The fit's vertex normals at the last match ([`PlaneNormal::Fit`]; empty otherwise).
+    fit_normal: Vec<[f64; 3]>,
 }
 
 /// Below this many items a parallel loop is not split further.
@@ -329,6 +331,10 @@ impl<'a> IsometricRefine<'a> {
             a_dir: vec![[0.0; 3]; m],
             partials: vec![0.0; m.div_ceil(CHUNK)],
             held: vec![[0.0; 3]; m],
+            fit_normal: match self.plane_normal {
+                PlaneNormal::Fit => vec![[0.0; 3]; m],
+                PlaneNormal::Scan => Vec::new(),
+            },
         };
         if springs.hold > 0.0 {
             let ring = &self.ring;
@@ -382,25 +388,18 @@ impl<'a> IsometricRefine<'a> {
         }
     }
 
-    /// The unit normal of `y` at vertex `i`: the area-weighted sum of its faces' normals
-    /// (`None` where they cancel or no face uses the vertex).
-    fn vertex_normal(&self, y: &[[f64; 3]], i: usize) -> Option<Vec3> {
-        let mut sum = Vec3::zeros();
-        for &f in self.vertex_faces.of(i) {
-            let c = self.faces[f as usize].map(|u| vec3(&y[u as usize]));
-            sum += (c[1] - c[0]).cross(&(c[2] - c[0]));
-        }
-        sum.try_normalize(0.0)
-    }
-
     /// `t_i`, `p_i`: each vertex projected onto the plane through its nearest scan point
     /// ([`PlaneNormal`]).
     fn fit_to_scan(&self, y: &[[f64; 3]], b: &mut Buffers) {
         let m = y.len();
         let scan_normals = match self.plane_normal {
             PlaneNormal::Scan => Some(self.scan_normals()),
-            PlaneNormal::Fit => None,
+            PlaneNormal::Fit => {
+                vertex_normals(y, self.faces, self.vertex_faces, &mut b.fit_normal);
+                None
+            }
         };
+        let fit_normal = &b.fit_normal;
         b.p.par_iter_mut()
             .zip(b.normal.par_iter_mut())
             .zip(b.nearest.par_iter_mut())
@@ -419,8 +418,8 @@ impl<'a> IsometricRefine<'a> {
                 let n = match scan_normals {
                     Some(normals) => vec3(&normals[j]),
                     // A vertex no face uses has no normal: pulled towards x.
-                    None => self
-                        .vertex_normal(y, i)
+                    None => vec3(&fit_normal[i])
+                        .try_normalize(0.0)
                         .or_else(|| (x - vec3(v)).try_normalize(0.0))
                         .unwrap_or_else(Vec3::zeros),
                 };
