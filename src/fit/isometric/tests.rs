@@ -46,20 +46,9 @@ fn worst_strain(v: &[[f64; 3]], rest: &[[f64; 3]], faces: &[[u32; 3]]) -> f64 {
         .fold(0.0, f64::max)
 }
 
-/// [`IsometricRefine`] of `fit` onto `scan`, `steps` steps at the default weight.
+/// [`IsometricRefine`] of `fit` onto `scan`, `steps` steps at the default weight, the fit → scan
+/// plane's normal `plane`.
 fn refine(
-    rest: &[[f64; 3]],
-    faces: &[[u32; 3]],
-    scan: &[[f64; 3]],
-    weights: Option<&[f64]>,
-    fit: &mut [[f64; 3]],
-    steps: usize,
-) {
-    refine_on(PlaneNormal::Scan, rest, faces, scan, weights, fit, steps);
-}
-
-/// [`refine`] with the fit → scan plane's normal `plane`.
-fn refine_on(
     plane: PlaneNormal,
     rest: &[[f64; 3]],
     faces: &[[u32; 3]],
@@ -95,7 +84,7 @@ fn a_patch_slid_along_its_own_surface_is_brought_back() {
     for plane in [PlaneNormal::Scan, PlaneNormal::Fit] {
         let mut fit = turned(&truth, 8.0);
         let before = rms(&fit, &truth);
-        refine_on(plane, &truth, &faces, &scan, None, &mut fit, ITERATIONS);
+        refine(plane, &truth, &faces, &scan, None, &mut fit, ITERATIONS);
         let after = rms(&fit, &truth);
         assert!(
             after < 0.2 * before,
@@ -111,7 +100,15 @@ fn a_stretched_sheet_gets_its_rest_lengths_back() {
     // Stretched by 15 % along x about its middle: still on the scan's plane.
     let mut fit: Vec<[f64; 3]> = rest.iter().map(|p| [1.15 * p[0], p[1], p[2]]).collect();
     let strained = worst_strain(&fit, &rest, &faces);
-    refine(&rest, &faces, &scan, None, &mut fit, ITERATIONS);
+    refine(
+        PlaneNormal::Scan,
+        &rest,
+        &faces,
+        &scan,
+        None,
+        &mut fit,
+        ITERATIONS,
+    );
     let strain = worst_strain(&fit, &rest, &faces);
     assert!(
         strained > 0.14 && strain < 0.03,
@@ -129,7 +126,15 @@ fn a_fit_at_its_scan_stays_there() {
     let (truth, faces) = cylinder_patch();
     let scan = scan_of(&truth, &faces, 6000);
     let mut fit = truth.clone();
-    refine(&truth, &faces, &scan, None, &mut fit, ITERATIONS);
+    refine(
+        PlaneNormal::Scan,
+        &truth,
+        &faces,
+        &scan,
+        None,
+        &mut fit,
+        ITERATIONS,
+    );
     let moved = rms(&fit, &truth) / bbox_diagonal(&truth);
     assert!(moved < 2e-3, "moved {moved:.5} of the diagonal");
 }
@@ -142,12 +147,28 @@ fn scaling_every_weight_changes_nothing() {
     let doubled: Vec<f64> = weights.iter().map(|w| 2.0 * w).collect();
     let start = turned(&truth, 5.0);
     let (mut a, mut b) = (start.clone(), start);
-    refine(&truth, &faces, &scan, Some(&weights), &mut a, 20);
-    refine(&truth, &faces, &scan, Some(&doubled), &mut b, 20);
+    refine(
+        PlaneNormal::Scan,
+        &truth,
+        &faces,
+        &scan,
+        Some(&weights),
+        &mut a,
+        20,
+    );
+    refine(
+        PlaneNormal::Scan,
+        &truth,
+        &faces,
+        &scan,
+        Some(&doubled),
+        &mut b,
+        20,
+    );
     assert!(rms(&a, &b) < 1e-9, "{:e}", rms(&a, &b));
     // The weights matter: uniform ones give another fit.
     let mut c = turned(&truth, 5.0);
-    refine(&truth, &faces, &scan, None, &mut c, 20);
+    refine(PlaneNormal::Scan, &truth, &faces, &scan, None, &mut c, 20);
     assert!(rms(&a, &c) > 1e-6);
 }
 
@@ -162,7 +183,7 @@ fn the_same_result_for_any_thread_count() {
             .unwrap();
         pool.install(|| {
             let mut fit = turned(&truth, 6.0);
-            refine(&truth, &faces, &scan, None, &mut fit, 15);
+            refine(PlaneNormal::Scan, &truth, &faces, &scan, None, &mut fit, 15);
             fit
         })
     };
@@ -380,7 +401,7 @@ fn the_fit_s_own_normals_keep_a_fit_at_a_sparse_scan_of_a_fold_in_place() {
         let scan = scan_of(&truth, &faces, truth.len());
         let moved = |plane| {
             let mut fit = truth.clone();
-            refine_on(plane, &truth, &faces, &scan, None, &mut fit, ITERATIONS);
+            refine(plane, &truth, &faces, &scan, None, &mut fit, ITERATIONS);
             rms(&fit, &truth)
         };
         let (by_scan, by_fit) = (moved(PlaneNormal::Scan), moved(PlaneNormal::Fit));
