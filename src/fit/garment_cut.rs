@@ -9,18 +9,15 @@
 //! hold the skin. Every scan point is a node, joined to its nearest neighbours by edges that
 //! are cheap to cut where the two points leave each other's local plane (a step) or lie far apart
 //! (a gap); the points of a refit explained by vertices three rings or more inside the rim are
-//! the garment's seeds, the points far from every vertex the body's — except past the fitted
-//! rim, where the garment's own rows can lie farther than that (cloth stretched beyond what the
-//! template's proportions cover) and only the step where it ends tells them from the skin; there
-//! a weak prior towards the body keeps the cut near the fitted rim where nothing steps. The
-//! garment is the seeds' side of the cheapest cut: past the fitted rim as far as the garment's
-//! surface runs on, and not across the step onto the skin.
+//! the garment's seeds, the points far from every vertex the body's. The garment is the
+//! seeds' side of the cheapest cut: past the fitted rim as far as the garment's surface runs on,
+//! and not across the step onto the skin.
 
-use super::garment_refit::{explain, garment_points, rim_outward, rim_rings};
+use super::garment_refit::{explain, garment_points, rim_rings};
 use crate::curvature::neighbourhood_frame;
 use crate::knn::PointIndex;
 use crate::math::{vec3, Vec3};
-use crate::metrics::{bbox_diagonal, upper_median};
+use crate::metrics::upper_median;
 use crate::min_cut::CutGraph;
 use rayon::prelude::*;
 
@@ -39,17 +36,6 @@ const SEED_RINGS: u32 = 3;
 /// The seeds of the body: points not explained, farther from every fitted vertex than this
 /// multiple of the explained points' median distance.
 const BODY_DISTANCE: f64 = 8.0;
-/// Past the fitted rim (a point whose nearest fitted vertex is on the boundary, outward of it),
-/// points within this share of the fit's bounding-box diagonal are never seeds of the body,
-/// whatever [`BODY_DISTANCE`] says: the garment's rows that a fit at the template's proportions
-/// did not reach (the bent-over T-shirt's back, stretched 1.5× past its median stretch, leaves
-/// a 5–10 cm band past the fitted hem; docs/notes/garment-cut.md) are left to the cut.
-const RIM_REACH: f64 = 0.1;
-/// Each contested point past the fitted rim is joined to the body with this capacity (a
-/// twentieth of a smooth edge's [`CAPACITY_UNITS`]): where the surface runs on without a step
-/// (skin continuing a garment sunk into the body), the cut stays near the fitted rim instead of
-/// anywhere up to the body's seeds.
-const RIM_PRIOR: i64 = 50;
 /// The least noise assumed, as a share of the scan's median nearest-neighbour distance: a scan
 /// without noise (a mesh's vertices, a synthetic scan) still has steps of that order between
 /// neighbours on its curved surface.
@@ -120,25 +106,16 @@ pub(super) fn garment_cut_weights(
         return explained();
     }
     let far = BODY_DISTANCE * median(explained_distances);
-    // Past the fitted rim: the point's nearest fitted vertex on the boundary, the point outward
-    // of it.
-    let outward = rim_outward(fitted, faces);
-    let past_rim = |p: usize| {
-        let v = e.nearest[p].0 as usize;
-        rings[v] == 0 && (vec3(&scan[p]) - vec3(&fitted[v])).dot(&vec3(&outward[v])) > 0.0
-    };
-    let reach = RIM_REACH * bbox_diagonal(fitted);
     // The seeds are contracted into the two terminals (an exact reduction: a seed is on its
     // side of every cut), so the maximum flow runs on the contested points alone.
     let (mut free, mut garment_seeds, mut body_seeds) = (0u32, 0usize, 0usize);
     let node: Vec<Node> = (0..n)
         .map(|p| {
             let (v, d2) = e.nearest[p];
-            let d = d2.sqrt();
             if e.explained[p] && rings[v as usize] >= SEED_RINGS {
                 garment_seeds += 1;
                 Node::Garment
-            } else if !e.explained[p] && d > far && !(d < reach && past_rim(p)) {
+            } else if !e.explained[p] && d2.sqrt() > far {
                 body_seeds += 1;
                 Node::Body
             } else {
@@ -184,13 +161,6 @@ pub(super) fn garment_cut_weights(
         // Between two seeds of one side: inside a terminal; of both sides: cut in every cut.
         if a.min(b) < source {
             graph.add_edge(a, b, capacity);
-        }
-    }
-    for (p, kind) in node.iter().enumerate() {
-        if let Node::Free(i) = *kind {
-            if past_rim(p) {
-                graph.add_edge(i, sink, RIM_PRIOR);
-            }
         }
     }
     let side = graph.source_side(&[source], &[sink]);
@@ -288,124 +258,5 @@ mod tests {
         let weighted = garment_cut_weights(&scan, Some(&given), &fitted, &faces, 1.0, 2.0);
         assert_eq!(weighted[0], 0.0);
         assert_eq!(weighted[1], 0.5);
-    }
-
-    /// A scan of the plane z = 0 and a fit of it.
-    struct SheetScan {
-        scan: Vec<[f64; 3]>,
-        /// Per point: 0 inside the fit, 1 the garment past the fitted rim, 2 past the
-        /// garment's edge, 3 the rest of a body.
-        kind: Vec<u8>,
-        fitted: Vec<[f64; 3]>,
-        faces: Vec<[u32; 3]>,
-    }
-
-    /// A garment over x ∈ [−0.5, 0.5] and, past x = 0.5, a surface at height `past_edge(x)`;
-    /// the fit is a dense sheet ending at x = ±`rim`.
-    fn sheet_scan(rim: f64, past_edge: impl Fn(f64) -> f64) -> SheetScan {
-        let (template, faces) = grid_sheet(41, 41, 1.0, 1.0);
-        let fitted: Vec<[f64; 3]> = template
-            .iter()
-            .map(|p| [2.0 * rim * p[0], p[1], 0.0])
-            .collect();
-        let (mut scan, mut kind) = (Vec::new(), Vec::new());
-        for i in 0..121 {
-            for j in 0..51 {
-                let (x, y) = (-0.5 + 0.01 * i as f64, -0.5 + 0.02 * j as f64);
-                let z = if x > 0.5 { past_edge(x) } else { 0.0 };
-                scan.push([x, y, z + jitter(scan.len(), 0.001)]);
-                kind.push(if x > 0.5 {
-                    2
-                } else if x.abs() > rim + 0.01 {
-                    1
-                } else {
-                    0
-                });
-            }
-        }
-        // The rest of a body, far away.
-        let (body, _) = grid_sheet(25, 25, 3.0, 3.0);
-        for p in &body {
-            scan.push([p[0], p[1], -1.5 + jitter(scan.len(), 0.001)]);
-            kind.push(3);
-        }
-        SheetScan {
-            scan,
-            kind,
-            fitted,
-            faces,
-        }
-    }
-
-    /// The share of the points of kind `k` that `w` keeps.
-    fn kept(w: &[f64], kind: &[u8], k: u8, also: impl Fn(usize) -> bool) -> f64 {
-        let of: Vec<f64> = (0..w.len())
-            .filter(|&i| kind[i] == k && also(i))
-            .map(|i| w[i])
-            .collect();
-        of.iter().filter(|&&v| v > 0.0).count() as f64 / of.len() as f64
-    }
-
-    /// A fit a tenth of the garment short of its edge, on a dense fit whose explained points
-    /// lie a few millimetres from it: the garment's rows past the fitted rim reach farther
-    /// than [`BODY_DISTANCE`] × that, which alone would seed them as the body. Within
-    /// [`RIM_REACH`] they are left to the cut, which takes them up to the step onto the skin
-    /// (three centimetres below the garment past x = 0.5).
-    #[test]
-    fn garment_rows_far_past_the_fitted_rim_reach_the_step() {
-        let SheetScan {
-            scan,
-            kind,
-            fitted,
-            faces,
-        } = sheet_scan(0.4, |_| -0.03);
-        let e = explain(&scan, None, &fitted, &faces, 1.0);
-        let distances: Vec<f64> = (0..scan.len())
-            .filter(|&p| e.explained[p])
-            .map(|p| e.nearest[p].1.sqrt())
-            .collect();
-        let far = BODY_DISTANCE * upper_median(&mut distances.clone());
-        let beyond_far = |i: usize| kind[i] == 1 && e.nearest[i].1.sqrt() > far;
-        assert!(
-            (0..scan.len()).filter(|&i| beyond_far(i)).count() > 100,
-            "the garment's rows must reach past the body's distance ({far})"
-        );
-        let cut = garment_cut_weights(&scan, None, &fitted, &faces, 1.0, 2.0);
-        assert!(kept(&cut, &kind, 0, |_| true) > 0.99);
-        assert!(
-            kept(&cut, &kind, 1, |i| scan[i][0].abs() < 0.49) > 0.95,
-            "the rows past the fitted rim: {}",
-            kept(&cut, &kind, 1, |i| scan[i][0].abs() < 0.49)
-        );
-        assert!(
-            kept(&cut, &kind, 2, |_| true) < 0.05,
-            "the skin past the step: {}",
-            kept(&cut, &kind, 2, |_| true)
-        );
-        assert_eq!(kept(&cut, &kind, 3, |_| true), 0.0);
-    }
-
-    /// The same garment with the skin continuing its plane past x = 0.5 (no step: a garment
-    /// sunk into the body): nothing tells where the garment ends, and the cut stays near the
-    /// fitted rim instead of running on to the body's seeds, [`RIM_REACH`] × the fit's
-    /// diagonal beyond it. (On this even plane every cut parallel to the rim costs the same;
-    /// [`RIM_PRIOR`] settles the near-ties of real scans, measured by `bench/dressed.py`.)
-    #[test]
-    fn without_a_step_the_cut_stays_near_the_fitted_rim() {
-        let SheetScan {
-            scan,
-            kind,
-            fitted,
-            faces,
-        } = sheet_scan(0.4, |_| 0.0);
-        let cut = garment_cut_weights(&scan, None, &fitted, &faces, 1.0, 2.0);
-        assert!(kept(&cut, &kind, 0, |i| scan[i][0].abs() < 0.3) > 0.99);
-        let taken_past = |lo: f64| kept(&cut, &kind, 2, |i| scan[i][0] > lo);
-        assert!(
-            taken_past(0.5) < 0.2,
-            "the continuation past the garment's edge: {}",
-            taken_past(0.5)
-        );
-        assert_eq!(kept(&cut, &kind, 3, |_| true), 0.0);
     }
 }
