@@ -125,13 +125,20 @@ def fit_rows(
 
     rows: list[dict[str, Any]] = []
     real: list[cases_mod.Case] = []
+    found: dict[str, list[np.ndarray]] = {}
+
+    def readings_of(case: cases_mod.Case) -> list[np.ndarray]:
+        """The case template's exact symmetries (bench/symmetry.py), searched once per case."""
+        if case.name not in found:
+            found[case.name] = symmetry.symmetries(case.template_vertices)
+        return found[case.name]
+
     for group in groups:
         for case in variants.group_cases(group):
             if case.ground_truth is None or case.name not in best:
                 continue
             if group == "real" and case.name.endswith("-pts"):
                 real.append(case)
-            readings: list[np.ndarray] | None = None  # the template's symmetries, once needed
             for name, scan, truth, kw in conditions(case):
                 if only is not None and name not in only:
                     continue
@@ -143,9 +150,7 @@ def fit_rows(
                 # The fit's own verdict, as the user gets it (on a dressed-body scan, of the
                 # garment's points; on a one-sided scan, without the vertices it carried).
                 q = r.quality
-                if readings is None:
-                    readings = symmetry.symmetries(case.template_vertices)
-                scored = judged(case, best, f_r, r.vertices, truth, readings)
+                scored = judged(case, best, f_r, r.vertices, truth, readings_of(case))
                 rows.append(
                     {
                         "group": group,
@@ -177,10 +182,9 @@ def fit_rows(
         if same_mesh:
             # The same garment placed as for another frame: this case's truth scores it.
             e = fm.evaluate(other.template_vertices, other.faces, r.vertices, case.target, case.ground_truth)
-            readings = symmetry.symmetries(case.template_vertices)
             scored = {
                 "condition": f"other-placement ({other.name})",
-                **judged(case, best, e["f_R"], r.vertices, case.ground_truth, readings),
+                **judged(case, best, e["f_R"], r.vertices, case.ground_truth, readings_of(case)),
             }
         else:
             scored = {
