@@ -127,7 +127,7 @@ pub(super) fn rim_rings(faces: &[[u32; 3]], n_vertices: usize) -> Vec<u32> {
 /// surface, normal to the boundary — the unit vector from the centroid of the vertex's
 /// one-ring to the vertex, less its component along the boundary (the direction between its
 /// two boundary neighbours); zero off the boundary.
-fn rim_outward(vertices: &[[f64; 3]], faces: &[[u32; 3]]) -> Vec<[f64; 3]> {
+pub(super) fn rim_outward(vertices: &[[f64; 3]], faces: &[[u32; 3]]) -> Vec<[f64; 3]> {
     let m = vertices.len();
     // Every edge, with its face count and its direction in its first face.
     let mut edges: HashMap<(u32, u32), (u32, (u32, u32))> = HashMap::new();

@@ -14,6 +14,7 @@
 //! All per-vertex buffers are allocated once per fit ([`Workspace`]).
 
 mod attraction;
+mod free_edges;
 mod garment_cut;
 mod garment_refit;
 mod garments;
@@ -797,7 +798,10 @@ fn isometric_refinement(
         refine = refine.with_anchors(&l.vertices, &l.positions, weight);
     }
     if garment_pass {
-        refine = refine.without_rim_pull();
+        // The scan past the rim is mostly skin the cut left in, but past a free edge it is
+        // the garment's own (docs/method.md "Free edges"): judged on the whole scan.
+        let free = free_edges::free_edge_faces(vertices, faces, target);
+        refine = refine.without_rim_pull().with_free_edges(free);
     }
     refine.run(
         vertices,

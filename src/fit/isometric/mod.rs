@@ -92,6 +92,9 @@ pub struct IsometricRefine<'a> {
     anchor_at: Vec<[f64; 3]>,
     /// Whether scan points beyond the fit's rim pull it ([`IsometricRefine::without_rim_pull`]).
     rim_pull: bool,
+    /// Per face, whether the scan beyond its rim pulls it even without the rim pull
+    /// ([`IsometricRefine::with_free_edges`]; empty: none).
+    free_edge: Vec<bool>,
 }
 
 /// The refinement's edge terms.
@@ -237,6 +240,7 @@ impl<'a> IsometricRefine<'a> {
             anchor_weight: Vec::new(),
             anchor_at: Vec::new(),
             rim_pull: true,
+            free_edge: Vec::new(),
         }
     }
 
@@ -275,6 +279,15 @@ impl<'a> IsometricRefine<'a> {
     /// dressed people"). Elsewhere they are what tells a slide along the scan.
     pub fn without_rim_pull(mut self) -> Self {
         self.rim_pull = false;
+        self
+    }
+
+    /// Without the rim pull ([`IsometricRefine::without_rim_pull`]), the scan beyond the rim
+    /// still pulls the faces flagged in `faces` (one flag per face): those on a free edge of
+    /// the garment, past which the scan points are the garment's own (docs/method.md "Free
+    /// edges", `free_edges.rs`). An empty list flags none.
+    pub fn with_free_edges(mut self, faces: Vec<bool>) -> Self {
+        self.free_edge = faces;
         self
     }
 
@@ -498,13 +511,17 @@ impl<'a> IsometricRefine<'a> {
             *d = cl.distance;
         }
         let cut = (TRIM * median(&b.distance[..n], &mut b.scratch)).max(self.reach);
-        let counts = |cl: &Closest| !(cl.distance > cut || (cl.beyond_rim && !self.rim_pull));
+        let free_edge = &self.free_edge;
+        let counts = |cl: &Closest, f: u32| {
+            let pulls_beyond = self.rim_pull || free_edge.get(f as usize).copied().unwrap_or(false);
+            !(cl.distance > cut || (cl.beyond_rim && !pulls_beyond))
+        };
         // The counting sort of the points that count by face (sequential, integers only).
         let (start, points) = (&mut b.face_start, &mut b.face_points);
         start.iter_mut().for_each(|s| *s = 0);
         let mut total = 0.0;
         for (j, (&f, cl)) in b.face_of.iter().zip(&b.closest).enumerate() {
-            if counts(cl) {
+            if counts(cl, f) {
                 start[f as usize + 1] += 1;
                 total += self.weights.map_or(1.0, |w| w[j]);
             }
@@ -514,7 +531,7 @@ impl<'a> IsometricRefine<'a> {
         }
         // Each point at its face's cursor, which ends at the next face's start; shifted back.
         for (j, (&f, cl)) in b.face_of.iter().zip(&b.closest).enumerate() {
-            if counts(cl) {
+            if counts(cl, f) {
                 points[start[f as usize] as usize] = j as u32;
                 start[f as usize] += 1;
             }

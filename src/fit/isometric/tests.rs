@@ -371,6 +371,45 @@ fn without_the_rim_pull_the_scan_beyond_the_rim_does_not_move_the_fit() {
     );
 }
 
+/// Without the rim pull, the faces on a free edge ([`IsometricRefine::with_free_edges`]) are
+/// still pulled by the scan past them: the sheet of the test above slides on towards the scan
+/// past its rim at x = max when that rim's faces are flagged, and not when the other rim's are.
+#[test]
+fn a_free_edge_keeps_its_pull_without_the_rim_pull() {
+    let (rest, faces) = grid_sheet(21, 21, 1.0, 1.0);
+    let x_max = rest.iter().map(|p| p[0]).fold(f64::MIN, f64::max);
+    let wide: Vec<[f64; 3]> = rest
+        .iter()
+        .map(|p| [p[0] + 0.3 * (p[0] - x_max + 1.0), p[1], p[2]])
+        .collect();
+    let scan = scan_of(&wide, &faces, 4000);
+    let incidence = VertexFaces::new(&faces, rest.len());
+    let on_rim = |x: f64| -> Vec<bool> {
+        faces
+            .iter()
+            .map(|f| f.iter().any(|&v| (rest[v as usize][0] - x).abs() < 1e-9))
+            .collect()
+    };
+    let shift = |free: Vec<bool>| {
+        let mut fit = rest.clone();
+        IsometricRefine::new(&rest, &faces, &incidence, &scan, None)
+            .without_rim_pull()
+            .with_free_edges(free)
+            .run(&mut fit, ITERATIONS, springs(WEIGHT, SpringScale::Rest));
+        fit.iter().zip(&rest).map(|(a, b)| a[0] - b[0]).sum::<f64>() / rest.len() as f64
+    };
+    let free = shift(on_rim(x_max));
+    let other = shift(on_rim(-x_max));
+    assert!(
+        free > 0.02,
+        "the free edge follows the scan past it: {free:.4}"
+    );
+    assert!(
+        other.abs() < 0.1 * free,
+        "the other rim's flag does not pull this one: {other:.4} (free: {free:.4})"
+    );
+}
+
 /// A 2 × 1 grid folded into a hairpin about the y axis: a half circle of radius `r` between
 /// two parallel legs.
 fn hairpin(r: f64) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
