@@ -216,10 +216,12 @@ def test_eight_landmarks_halve_the_bent_over_frames_error():
 
 def test_the_penetrating_skirt_of_a_dressed_scan_fits_as_without_the_body():
     """The Garment-Pattern-Generator skirt that penetrates its body (a tuning case of
-    bench/dressed.py, placed start): the default's whole-scan fit within 1.1× of its fit of the
-    same scan without the body points (measured 1.05). Its first fit ends with the isometric
-    refinement, so that the garment refit and cut are seeded by a fit whose slides are undone;
-    without it the whole-scan fit ended 1.22× (docs/method.md "Scans of dressed people")."""
+    bench/dressed.py, placed start): the default's whole-scan fit no farther from the truth than
+    its fit of the same scan without the body points (measured 0.94). The garment passes keep
+    the pull of the scan past the skirt's free hem, which brings the skirt down from the torso's
+    skin over its sunk waist (without it: 1.05); its first fit ends with the isometric
+    refinement, so that the garment refit and cut are seeded by a fit whose slides are undone
+    (without it: 1.22; docs/method.md "Scans of dressed people", "Free edges")."""
     import foldmatch_rs as fm
 
     built = built_source("skirt-penetrate")
@@ -228,4 +230,4 @@ def test_the_penetrating_skirt_of_a_dressed_scan_fits_as_without_the_body():
     free = fm.fit(tpl, faces, scan[labels > 0])
     assert 0 < whole.diagnostics["garment_refit_points"] < len(scan)
     ratio = dressed_scans.rms(whole.vertices, truth) / dressed_scans.rms(free.vertices, truth)
-    assert ratio <= 1.1, ratio
+    assert ratio <= 1.0, ratio
