@@ -1,7 +1,7 @@
 //! The garment's free edges on a dressed-body scan (docs/method.md "Scans of dressed people",
 //! "Free edges"): the rims of a fit beyond which the scan ends within a short reach — a skirt's
 //! hem hanging free, a loose sleeve's cuff — as against the rims the scan runs on past, onto
-//! the skin (a collar, a tight waistband, a cuff on the arm).
+//! the skin (a tight waistband, a cuff tight on the arm).
 //!
 //! A garment pass's isometric refinement is not pulled by the scan beyond its rim, which is
 //! mostly skin that the garment cut left in; but where the rim is a free edge, the scan points
