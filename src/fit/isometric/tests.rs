@@ -339,19 +339,29 @@ fn anchored_vertices_stay_at_their_anchors() {
     );
 }
 
+/// The largest x of `rest` (a sheet's rim at x = max).
+fn x_max(rest: &[[f64; 3]]) -> f64 {
+    rest.iter().map(|p| p[0]).fold(f64::MIN, f64::max)
+}
+
+/// A scan of the plane of the sheet `(rest, faces)` with 30 % more of it past its rim at
+/// x = max.
+fn scan_past_the_rim(rest: &[[f64; 3]], faces: &[[u32; 3]]) -> Vec<[f64; 3]> {
+    let x_max = x_max(rest);
+    let wide: Vec<[f64; 3]> = rest
+        .iter()
+        .map(|p| [p[0] + 0.3 * (p[0] - x_max + 1.0), p[1], p[2]])
+        .collect();
+    scan_of(&wide, faces, 4000)
+}
+
 /// Scan beyond the fit's rim pulls the rim outward (the fit slides towards it), unless
 /// [`IsometricRefine::without_rim_pull`] (a garment pass on a dressed-body scan, whose points
 /// beyond the rim are mostly skin).
 #[test]
 fn without_the_rim_pull_the_scan_beyond_the_rim_does_not_move_the_fit() {
     let (rest, faces) = grid_sheet(21, 21, 1.0, 1.0);
-    // The sheet's plane, and 30 % more of it past its rim at x = max.
-    let x_max = rest.iter().map(|p| p[0]).fold(f64::MIN, f64::max);
-    let wide: Vec<[f64; 3]> = rest
-        .iter()
-        .map(|p| [p[0] + 0.3 * (p[0] - x_max + 1.0), p[1], p[2]])
-        .collect();
-    let scan = scan_of(&wide, &faces, 4000);
+    let scan = scan_past_the_rim(&rest, &faces);
     let incidence = VertexFaces::new(&faces, rest.len());
     let shift = |refine: IsometricRefine| {
         let mut fit = rest.clone();
@@ -377,12 +387,8 @@ fn without_the_rim_pull_the_scan_beyond_the_rim_does_not_move_the_fit() {
 #[test]
 fn a_free_edge_keeps_its_pull_without_the_rim_pull() {
     let (rest, faces) = grid_sheet(21, 21, 1.0, 1.0);
-    let x_max = rest.iter().map(|p| p[0]).fold(f64::MIN, f64::max);
-    let wide: Vec<[f64; 3]> = rest
-        .iter()
-        .map(|p| [p[0] + 0.3 * (p[0] - x_max + 1.0), p[1], p[2]])
-        .collect();
-    let scan = scan_of(&wide, &faces, 4000);
+    let scan = scan_past_the_rim(&rest, &faces);
+    let x_max = x_max(&rest);
     let incidence = VertexFaces::new(&faces, rest.len());
     let on_rim = |x: f64| -> Vec<bool> {
         faces
