@@ -32,7 +32,8 @@
 //! makes a tracked sequence drift, docs/method.md "Tracking"). `c` makes the scan → fit term
 //! weigh as much as the vertices; `t_i` is 0 for a vertex whose nearest scan point is beyond
 //! [`TRIM`] × the median distance and [`REACH`] edge lengths (it has no scan under it), and
-//! likewise `ω_j` for a scan point far from the fit.
+//! likewise `ω_j` for a scan point far from the fit; past a free edge `ω_j` is
+//! [`FREE_EDGE_WEIGHT`].
 
 use crate::curvature::neighbourhood_frame;
 use crate::knn::{BoxTree, PointIndex};
@@ -61,6 +62,12 @@ pub const MATCH_EVERY: usize = 3;
 /// when its direction from there makes a cosine below this with the face's normal (it lies
 /// along the surface, past the border, rather than above or below it).
 pub const RIM_ACROSS: f64 = 0.7;
+/// The weight of a scan point past a free edge ([`IsometricRefine::with_free_edges`]) against
+/// one on the fit: the fit has not reached the garment's own points there, and their pull,
+/// on the rim's faces alone, must carry the whole garment along the scan against the hold,
+/// which keeps every edge's vector (a slide along a curved body turns the edges). At one
+/// point's weight the hold keeps most of that slide back (docs/method.md "Free edges").
+pub const FREE_EDGE_WEIGHT: f64 = 10.0;
 /// Conjugate-gradient steps per global step.
 const CG_STEPS: usize = 10;
 /// Chunk of the deterministic parallel sums (the same result for any thread count).
@@ -285,7 +292,8 @@ impl<'a> IsometricRefine<'a> {
     /// Without the rim pull ([`IsometricRefine::without_rim_pull`]), the scan beyond the rim
     /// still pulls the faces flagged in `faces` (one flag per face): those on a free edge of
     /// the garment, past which the scan points are the garment's own (docs/method.md "Free
-    /// edges", `free_edges.rs`). An empty list flags none.
+    /// edges", `free_edges.rs`), each weighing `FREE_EDGE_WEIGHT` (10) points. An empty list
+    /// flags none.
     pub fn with_free_edges(mut self, faces: Vec<bool>) -> Self {
         self.free_edge = faces;
         self
@@ -552,7 +560,11 @@ impl<'a> IsometricRefine<'a> {
                 for &j in &points[start[f] as usize..start[f + 1] as usize] {
                     let j = j as usize;
                     let cl = &closest[j];
-                    let w = weights.map_or(1.0, |w| w[j]);
+                    let mut w = weights.map_or(1.0, |w| w[j]);
+                    // Counted past the rim without the rim pull: past a free edge.
+                    if cl.beyond_rim && !self.rim_pull {
+                        w *= FREE_EDGE_WEIGHT;
+                    }
                     let (e, bc) = (cl.direction, cl.bary);
                     let eet = w * e * e.transpose();
                     let along = w * e.dot(&vec3(&scan[j])) * e;

@@ -456,3 +456,44 @@ fn the_fit_s_own_normals_keep_a_fit_at_a_sparse_scan_of_a_fold_in_place() {
         );
     }
 }
+
+/// A garment pass's refinement (no rim pull, the hold on) brings a patch slid along its own
+/// curved surface back where the scan past its free edge says it ends: the slide turns every
+/// edge, which the hold resists, and the pull of the points past the free edge
+/// ([`FREE_EDGE_WEIGHT`]) carries it back the more (at one point's weight, half of it).
+#[test]
+fn the_scan_past_a_free_edge_carries_the_garment_against_the_hold() {
+    let (truth, faces) = cylinder_patch();
+    let scan = scan_of(&truth, &faces, 4000);
+    let incidence = VertexFaces::new(&faces, truth.len());
+    let start = turned(&truth, -8.0);
+    // The rim the slide drew back from the scan's end: the largest angle about the y axis.
+    let angle = |p: &[f64; 3]| p[0].atan2(p[2]);
+    let rim_angle = start.iter().map(angle).fold(f64::MIN, f64::max);
+    let free: Vec<bool> = faces
+        .iter()
+        .map(|f| {
+            f.iter()
+                .any(|&v| angle(&start[v as usize]) > rim_angle - 1e-9)
+        })
+        .collect();
+    let mut fit = start.clone();
+    IsometricRefine::new(&truth, &faces, &incidence, &scan, None)
+        .without_rim_pull()
+        .with_free_edges(free)
+        .run(
+            &mut fit,
+            crate::fit::DEFAULT_ISOMETRIC_ITERATIONS,
+            Springs {
+                weight: WEIGHT,
+                hold: crate::fit::DEFAULT_ISOMETRIC_HOLD,
+                scale: SpringScale::Rest,
+            },
+        );
+    let (before, after) = (rms(&start, &truth), rms(&fit, &truth));
+    // 0.36 of the slide is left; at one point's weight 0.52.
+    assert!(
+        after < 0.45 * before,
+        "slid {before:.4}, refined {after:.4} from the truth"
+    );
+}
