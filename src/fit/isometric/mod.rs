@@ -66,7 +66,7 @@ pub const RIM_ACROSS: f64 = 0.7;
 /// one on the fit: the fit has not reached the garment's own points there, and their pull,
 /// on the rim's faces alone, must carry the whole garment along the scan against the hold,
 /// which keeps every edge's vector (a slide along a curved body turns the edges). At one
-/// point's weight the hold keeps most of that slide back (docs/method.md "Free edges").
+/// point's weight the hold keeps about half of that slide back (docs/method.md "Free edges").
 pub const FREE_EDGE_WEIGHT: f64 = 10.0;
 /// Conjugate-gradient steps per global step.
 const CG_STEPS: usize = 10;
