@@ -519,11 +519,21 @@ impl<'a> IsometricRefine<'a> {
             *d = cl.distance;
         }
         let cut = (TRIM * median(&b.distance[..n], &mut b.scratch)).max(self.reach);
+        // A point's pull on face f: 0 when it does not count (too far, or past a rim that is
+        // not pulled), FREE_EDGE_WEIGHT past a free edge without the rim pull, else 1.
         let free_edge = &self.free_edge;
-        let counts = |cl: &Closest, f: u32| {
-            let pulls_beyond = self.rim_pull || free_edge.get(f as usize).copied().unwrap_or(false);
-            !(cl.distance > cut || (cl.beyond_rim && !pulls_beyond))
+        let pull = |cl: &Closest, f: u32| -> f64 {
+            if cl.distance > cut {
+                0.0
+            } else if !cl.beyond_rim || self.rim_pull {
+                1.0
+            } else if free_edge.get(f as usize).copied().unwrap_or(false) {
+                FREE_EDGE_WEIGHT
+            } else {
+                0.0
+            }
         };
+        let counts = |cl: &Closest, f: u32| pull(cl, f) > 0.0;
         // The counting sort of the points that count by face (sequential, integers only).
         let (start, points) = (&mut b.face_start, &mut b.face_points);
         start.iter_mut().for_each(|s| *s = 0);
@@ -560,11 +570,7 @@ impl<'a> IsometricRefine<'a> {
                 for &j in &points[start[f] as usize..start[f + 1] as usize] {
                     let j = j as usize;
                     let cl = &closest[j];
-                    let mut w = weights.map_or(1.0, |w| w[j]);
-                    // Counted past the rim without the rim pull: past a free edge.
-                    if cl.beyond_rim && !self.rim_pull {
-                        w *= FREE_EDGE_WEIGHT;
-                    }
+                    let w = weights.map_or(1.0, |w| w[j]) * pull(cl, f as u32);
                     let (e, bc) = (cl.direction, cl.bary);
                     let eet = w * e * e.transpose();
                     let along = w * e.dot(&vec3(&scan[j])) * e;
