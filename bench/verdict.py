@@ -64,6 +64,7 @@ FIGURES = (
     "collapsed_share",
     "edge_distortion",
     "pose_gap",
+    "pose_turn",
 )
 WRONG_RATIO = 3.0
 
@@ -223,15 +224,21 @@ FLOORS = {"collapsed_share": 0.005, "flipped_share": 0.015}
 CEILINGS = {"unsupported_share": 0.4}
 #: Figures that are 1 on a perfect fit (ratios): their margin applies to the excess over 1.
 RATIOS = ("pose_gap",)
+#: Thresholds set by a rule, not calibrated: the pose turn (degrees) at half the quarter turn
+#: between the pre-alignment's principal-frame readings, so a fit flagged by it lies nearer
+#: another reading than the one the search starts from (docs/method.md "Quality verdict").
+FIXED = {"pose_turn": 45.0}
 
 
 def calibrate(rows: list[dict[str, Any]], margin: float) -> dict[str, float]:
     """Each figure's threshold: the largest value among the tuning half's right fits × margin
     (for a ratio of :data:`RATIOS`, 1 + margin × its excess over 1), at least its
-    :data:`FLOORS` and at most its :data:`CEILINGS`."""
+    :data:`FLOORS` and at most its :data:`CEILINGS`; :data:`FIXED` ones as set."""
     right = [r for r in rows if r["split"] == "tune" and r["wrong"] is False]
-    out = {}
+    out = dict(FIXED)
     for k in FIGURES:
+        if k in FIXED:
+            continue
         largest = max(abs(r[k]) if k == "asymmetry" else r[k] for r in right)
         limit = 1.0 + margin * (largest - 1.0) if k in RATIOS else margin * largest
         out[k] = min(CEILINGS.get(k, math.inf), max(FLOORS.get(k, 0.0), limit))

@@ -70,6 +70,7 @@ fn fit_warns_when_the_fit_looks_wrong_and_the_report_says_why() {
         "collapsed_share",
         "edge_distortion",
         "pose_gap",
+        "pose_turn",
     ] {
         assert!(
             report["quality"][figure].as_f64().unwrap().is_finite(),

@@ -17,6 +17,7 @@ FIGURES = [
     "collapsed_share",
     "edge_distortion",
     "pose_gap",
+    "pose_turn",
 ]
 
 
@@ -42,13 +43,15 @@ def test_a_good_fit_is_ok_and_its_correspondences_are_the_nearest_scan_points():
     diag = np.linalg.norm(scan.max(0) - scan.min(0))
     assert math.isclose(q["fit_to_scan"], r.residuals.mean() / diag, rel_tol=1e-12)
     # fm.assess of the same fit gives the same figures (up to round-off: the fit measured the
-    # template's edges where the pre-alignment placed it), but for the pose gap: the fit's
-    # reference is its pre-alignment's best rigid placement, fm.assess searches again.
+    # template's edges where the pre-alignment placed it), but for the pose figures: the fit's
+    # reference is its own pre-alignment, fm.assess searches again.
     again = fm.assess(case["template_vertices"], case["faces"], r.vertices, scan)
     assert again["quality"].keys() == q.keys()
     assert 1.0 <= q["pose_gap"] <= again["quality"]["pose_gap"] * 1.02
+    assert q["pose_turn"] < q["thresholds"]["pose_turn"]
+    assert again["quality"]["pose_turn"] < q["thresholds"]["pose_turn"]
     for key, value in q.items():
-        if key == "pose_gap":
+        if key in ("pose_gap", "pose_turn"):
             continue
         if isinstance(value, float):
             assert math.isclose(again["quality"][key], value, rel_tol=1e-12, abs_tol=1e-15), key
@@ -122,3 +125,33 @@ def test_scan_weights_leave_the_points_of_weight_zero_out_of_the_verdict():
     ]:
         with pytest.raises(InvalidParameterError, match=match):
             fm.assess(tv, faces, r.vertices, whole, target_weights=bad)
+
+
+def test_a_folded_t_shirt_fitted_back_to_front_is_flagged_by_its_pose_turn():
+    """The flattened DiffCloth T-shirt's scan turned a half turn about the vertical and fitted
+    without a rotation search: the fit wraps the scan back to front (f_R about 20× the right
+    fit's). The garment is nearly its own image under the half turn, so the pose gap stays
+    within a right fit's (about 1.13, threshold 1.38), but the pre-alignment would start the fit
+    a half turn from where it lies: the pose turn flags it. The default fit of the scan as
+    given is right and has no turn (docs/method.md "Quality verdict")."""
+    from bench import cases
+    from bench import verdict as bench_verdict
+
+    why = cases.real_data_missing()
+    if why:
+        pytest.skip(why)
+    case = next(c for c in cases.real_cases(kinds=("points",)) if c.name == "tshirt-flattened-pts")
+    up = int(case.meta.get("up", 1))
+    centre = case.target.mean(0)
+    scan = bench_verdict.turned(case.target, up, 180.0, centre)
+    truth = bench_verdict.turned(case.ground_truth, up, 180.0, centre)
+    rms = lambda v, g: float(np.sqrt(((np.asarray(v) - g) ** 2).sum(1).mean()))  # noqa: E731
+    wrong = fm.fit(case.template_vertices, case.faces, scan, prealign="centroid")
+    right = fm.fit(case.template_vertices, case.faces, case.target)
+    assert rms(wrong.vertices, truth) > 5 * rms(right.vertices, case.ground_truth)
+    q = wrong.quality
+    assert q["pose_gap"] < q["thresholds"]["pose_gap"], q
+    assert q["pose_turn"] > 150.0, q
+    assert q["verdict"] == "suspicious" and any("pose turn" in r for r in q["reasons"]), q["reasons"]
+    assert right.quality["pose_turn"] < right.quality["thresholds"]["pose_turn"], right.quality
+    assert right.quality["verdict"] == "ok", right.quality["reasons"]

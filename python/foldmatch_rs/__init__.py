@@ -773,7 +773,7 @@ def assess(
         The scan the template was fitted to.
     thresholds : dict, optional
         Replaces the verdict's thresholds (every key of ``quality`` below from ``fit_to_scan``
-        to ``pose_gap``); ``float("inf")`` turns a test off.
+        to ``pose_turn``); ``float("inf")`` turns a test off.
     target_weights : (N,) float, optional
         As in :func:`fit`; the scan points of weight 0 are left out of every figure (a
         dressed-body scan's garment mask: the body's points lie far from any garment fit and
@@ -789,7 +789,9 @@ def assess(
         ``unsupported_share``, ``flipped_share``, ``collapsed_share``, ``edge_distortion``
         (95th percentile of the edge-length ratio, scale divided out), ``pose_gap`` (the
         template in the fit's rigid pose against its best rigid placement on the scan: the
-        ratio of their distances to the scan, ≥ 1), ``support_radius``,
+        ratio of their distances to the scan, ≥ 1), ``pose_turn`` (degrees from the fit's rigid
+        pose to the placement the pre-alignment would start a fit from, when the gap is 1.02 or
+        more; else 0), ``support_radius``,
         ``scan_diagonal``. ``correspondences`` (M,) uint32: each vertex's nearest scan point;
         ``residuals`` (M,) float: the distance to it; ``support`` (M,) bool: whether the
         vertex has scan support.

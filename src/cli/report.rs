@@ -160,7 +160,7 @@ impl FileReport {
         format!(
             "quality {}: fit→scan {:.4} and scan→fit {:.4} of the scan diagonal (mean), \
              asymmetry {:+.2}, unsupported vertices {:.1} %, flipped faces {:.1} %, collapsed \
-             faces {:.1} %, edge-length distortion {:.2} (95th percentile), pose gap {:.2}",
+             faces {:.1} %, edge-length distortion {:.2} (95th percentile), pose gap {:.2}, pose turn {:.0}°",
             q.get("verdict").and_then(Value::as_str).unwrap_or("?"),
             f("fit_to_scan"),
             f("scan_to_fit"),
@@ -170,6 +170,7 @@ impl FileReport {
             100.0 * f("collapsed_share"),
             f("edge_distortion"),
             f("pose_gap"),
+            f("pose_turn"),
         )
     }
 

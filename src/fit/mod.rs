@@ -480,12 +480,16 @@ fn fit_from(
     // The verdict's pose gap: from the pre-alignment's best rigid placement when it scored the
     // same template on the same points (no search of its own); left for later in a fit that
     // goes on to its garment passes, and in those passes (the driver sets the last one's).
-    let pose = match prealign
+    let reference = prealign
         .filter(|_| params.prealign == Prealign::Rigid && rest.is_none())
         .filter(|_| prepared.garment.is_none())
-    {
+        .map(|p| crate::quality::PoseReference {
+            best_score: p.best_score,
+            readings: p.readings_placed,
+        });
+    let pose = match &reference {
         _ if refit || role.garment || role.several => PoseGapSource::Deferred,
-        Some(p) => PoseGapSource::Reference(p.best_score),
+        Some(r) => PoseGapSource::Reference(r),
         None => PoseGapSource::Search,
     };
     let assessment = crate::quality::assess_points_with(
@@ -866,6 +870,7 @@ fn prealigned(
         identity_score: alignment.identity_score,
         score: alignment.score,
         best_score: alignment.best_score,
+        readings_placed: [Some(alignment.transform), alignment.alternative],
         readings: alignment.readings,
         fitted_readings: match (alignment.searched, alignment.alternative) {
             (false, _) => 0,

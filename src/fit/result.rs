@@ -233,6 +233,10 @@ pub struct PrealignFigures {
     /// nothing was searched): the quality verdict's pose-gap reference.
     #[serde(default)]
     pub best_score: f64,
+    /// The placements a fit starts from (template → scan; the second when two readings were
+    /// fitted): the quality verdict's pose-turn reference.
+    #[serde(skip)]
+    pub(crate) readings_placed: [Option<crate::prealign::Similarity>; 2],
     /// The distinct orientations that fit the scan within 10 % of the best: above 1, the scan
     /// cannot tell the template's symmetric readings apart and the least turned was taken (a
     /// garment may be placed back to front: landmarks settle it); 0 when nothing was searched.

@@ -15,6 +15,7 @@
 //! | [`Quality::collapsed_share`] | share of template faces whose area fell below `τ_S` (0.02, [`crate::metrics::DEFAULT_TAU_S`]) of the template's |
 //! | [`Quality::edge_distortion`] | 95th percentile over the template's edges of `max(ℓ̂/ℓ, ℓ/ℓ̂)`, fitted over template length, after dividing out the fit's median edge ratio (so a uniform scale, e.g. millimetres against metres, is not a distortion) |
 //! | [`Quality::pose_gap`] | the trimmed two-sided distance to the scan of the rigid placement of the template that trimmed ICP reaches from the fit's rigid pose (Kabsch, template → fit, at the fit's median edge ratio), over that of the best rigid placement the pre-alignment's search finds, ≥ 1 (`pose`) |
+//! | [`Quality::pose_turn`] | the angle in degrees from the fit's rigid pose to the placement the pre-alignment would start a fit from (the nearer of its two readings when it fits both), when the pose gap is at least 1.02 ([`TURN_GAIN`]), else 0 (`pose`) |
 //!
 //! **Support.** A template vertex `v` has scan support when its nearest scan point `x` lies
 //! within the support radius `r` of the fitted vertex and `x`'s own nearest fitted vertex `u`
@@ -44,7 +45,7 @@ use crate::metrics::{bbox_diagonal, cross_of, percentile_linear, EdgeLengths, DE
 use crate::rings::{adjacency, n_rings_of, Neighborhoods};
 
 pub use geometry::{closest_barycentric, point_triangle_distance};
-pub use pose::{fit_pose, pose_gap};
+pub use pose::{fit_pose, pose_figures, pose_gap, PoseFigures, PoseReference, TURN_GAIN};
 
 /// The support radius in units of `max(scan spacing, fitted median edge)`.
 pub const SUPPORT_RADIUS_FACTOR: f64 = 2.0;
@@ -79,6 +80,8 @@ pub struct VerdictThresholds {
     pub edge_distortion: f64,
     /// Most [`Quality::pose_gap`].
     pub pose_gap: f64,
+    /// Most [`Quality::pose_turn`] (degrees).
+    pub pose_turn: f64,
 }
 
 impl Default for VerdictThresholds {
@@ -97,6 +100,7 @@ impl Default for VerdictThresholds {
             collapsed_share: 0.005,
             edge_distortion: 1.77,
             pose_gap: 1.38,
+            pose_turn: 45.0,
         }
     }
 }
@@ -116,7 +120,7 @@ impl VerdictThresholds {
         Ok(())
     }
 
-    fn named(&self) -> [(&'static str, f64); 8] {
+    fn named(&self) -> [(&'static str, f64); 9] {
         [
             ("fit_to_scan", self.fit_to_scan),
             ("scan_to_fit", self.scan_to_fit),
@@ -126,6 +130,7 @@ impl VerdictThresholds {
             ("collapsed_share", self.collapsed_share),
             ("edge_distortion", self.edge_distortion),
             ("pose_gap", self.pose_gap),
+            ("pose_turn", self.pose_turn),
         ]
     }
 }
@@ -178,6 +183,13 @@ pub struct Quality {
     /// wrapped the scan regardless.
     #[serde(default = "one")]
     pub pose_gap: f64,
+    /// The angle in degrees from the fit's rigid pose to the placement the pre-alignment would
+    /// start a fit from (the nearer of its two readings when it fits both), when the pose gap
+    /// is at least 1 + [`TURN_GAIN`], else 0: large when the fit kept an orientation that the
+    /// search turns (a garment wrapped back to front, whose pose gap stays small because the
+    /// garment is nearly its own image turned).
+    #[serde(default)]
+    pub pose_turn: f64,
     /// The support radius used, in the scan's units.
     pub support_radius: f64,
     /// The scan's bounding-box diagonal (the distances' normalizer), in the scan's units.
@@ -234,7 +246,7 @@ pub(crate) struct KnownMesh<'a> {
     /// Each scan point's nearest fitted vertex, when the fit found them already.
     pub scan_nearest: Option<&'a [u32]>,
     /// How the pose gap is found ([`PoseGapSource`]).
-    pub pose: PoseGapSource,
+    pub pose: PoseGapSource<'a>,
     /// The vertices the fit carried without scan support (docs/method.md "Partial scans"),
     /// when it carried any: unsupported by the fit's own account, and left out of
     /// [`Quality::fit_to_scan`] (they were never pulled towards the scan).
@@ -243,12 +255,12 @@ pub(crate) struct KnownMesh<'a> {
 
 /// Where [`assess_with`]'s pose gap comes from.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) enum PoseGapSource {
+pub(crate) enum PoseGapSource<'a> {
     /// A search of its own ([`pose_gap`] without a reference).
     Search,
-    /// The best rigid placement's distance to the assessed points, known from the fit's own
-    /// pre-alignment ([`pose_gap`]'s `reference`).
-    Reference(f64),
+    /// What the fit's own pre-alignment found on the assessed points ([`pose_figures`]'
+    /// `reference`).
+    Reference(&'a PoseReference),
     /// Not now: 1 until the caller sets it (a pass of a fit that goes on, whose verdict is
     /// replaced by the last pass's).
     Deferred,
@@ -355,13 +367,13 @@ pub(crate) fn assess_with(
     let edge_distortion = distortion_p95(&ratios);
     let fit_scale = fit_scale(&ratios);
     let source = known.map_or(PoseGapSource::Search, |k| k.pose);
-    let pose_gap = match source {
-        PoseGapSource::Deferred => 1.0,
+    let pose = match source {
+        PoseGapSource::Deferred => PoseFigures::NONE,
         // A reference measured on the template at its own size holds for a fit near that size.
         PoseGapSource::Reference(r) if (fit_scale - 1.0).abs() <= REFERENCE_SCALE_TOLERANCE => {
-            pose_gap(y, fit, scan, fit_scale, Some(r))
+            pose_figures(y, fit, scan, fit_scale, Some(r))
         }
-        _ => pose_gap(y, fit, scan, fit_scale, None),
+        _ => pose_figures(y, fit, scan, fit_scale, None),
     };
 
     let neighbour = SUPPORT_NEIGHBOUR_EDGES * rest_edge;
@@ -388,7 +400,8 @@ pub(crate) fn assess_with(
         flipped_share: faces_figures.flipped,
         collapsed_share: faces_figures.collapsed,
         edge_distortion,
-        pose_gap,
+        pose_gap: pose.gap,
+        pose_turn: pose.turn,
         support_radius,
         scan_diagonal: diagonal,
         thresholds: *thresholds,
@@ -443,9 +456,9 @@ pub(crate) fn assess_points_with(
     Ok(a)
 }
 
-/// `quality` with the pose gap of `fitted` (the template `template`'s fit) against the scan
+/// `quality` with the pose figures of `fitted` (the template `template`'s fit) against the scan
 /// points `points` of `scan` (`None`: every point) found by a search, and its verdict again:
-/// a pose gap that [`PoseGapSource::Deferred`] left out, once the fit is final.
+/// the pose figures that [`PoseGapSource::Deferred`] left out, once the fit is final.
 pub(crate) fn with_pose_gap(
     quality: Quality,
     template: &[[f64; 3]],
@@ -457,9 +470,11 @@ pub(crate) fn with_pose_gap(
     let scan = chosen_points(scan, points);
     let scale = fit_scale(&edges.ratios(fitted));
     let thresholds = quality.thresholds;
+    let pose = pose_figures(template, fitted, &scan, scale, None);
     judged(
         Quality {
-            pose_gap: pose_gap(template, fitted, &scan, scale, None),
+            pose_gap: pose.gap,
+            pose_turn: pose.turn,
             ..quality
         },
         &thresholds,
@@ -498,6 +513,11 @@ pub fn judged(mut quality: Quality, thresholds: &VerdictThresholds) -> Quality {
             "pose gap (a rigid placement elsewhere lies closer to the scan)",
             q.pose_gap,
             "",
+        ),
+        (
+            "pose turn (the pre-alignment would start the fit turned from where it lies)",
+            q.pose_turn,
+            "degrees",
         ),
     ];
     let reasons: Vec<String> = figures

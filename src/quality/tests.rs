@@ -244,16 +244,72 @@ fn a_fit_from_a_turned_start_lies_on_its_scan_in_a_wrong_pose_and_is_flagged() {
     let fit = crate::fit::fit_simple(&y, &f, &scan, None, &params).unwrap();
     let q = &fit.quality;
     assert!(q.pose_gap > 1.6, "{q:?}");
+    // The search would start the fit far from where it lies.
+    assert!(q.pose_turn > q.thresholds.pose_turn, "{q:?}");
     assert_eq!(q.verdict, Verdict::Suspicious);
-    assert!(
-        q.reasons.iter().any(|r| r.contains("pose gap")),
-        "{:?}",
-        q.reasons
-    );
-    // The same fit with the search places the template and has no gap.
+    for figure in ["pose gap", "pose turn"] {
+        assert!(
+            q.reasons.iter().any(|r| r.contains(figure)),
+            "{figure}: {:?}",
+            q.reasons
+        );
+    }
+    // The same fit with the search places the template: no gap, and no turn from the start.
     params.prealign = crate::fit::Prealign::Rigid;
     let right = crate::fit::fit_simple(&y, &f, &scan, None, &params).unwrap();
     assert!(right.quality.pose_gap < 1.2, "{:?}", right.quality);
+    assert!(right.quality.pose_turn < 10.0, "{:?}", right.quality);
+}
+
+/// The template turned by `degrees` about the vertical through the sheet's middle, as a
+/// placement (template → scan).
+fn turn_placement(degrees: f64) -> crate::prealign::Similarity {
+    let (s, c) = degrees.to_radians().sin_cos();
+    let rotation = crate::math::Mat3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0);
+    let centre = crate::math::Vec3::new(1.0, 0.5, 0.0);
+    crate::prealign::Similarity {
+        rotation,
+        scale: 1.0,
+        translation: centre - rotation * centre,
+    }
+}
+
+#[test]
+fn the_pose_turn_is_the_angle_to_the_nearest_start_of_the_search_once_a_placement_is_better() {
+    let (y, _, scan) = asymmetric_sheet();
+    // The scan is the template turned a half turn; the fit lies as the template was given (a
+    // fit that kept the wrong reading), so the half-turned placement is far closer.
+    let half = turn_placement(180.0);
+    let scan = half.apply_all(&scan);
+    let fit = y.clone();
+    let figures = |best_score: f64, readings| {
+        pose_figures(
+            &y,
+            &fit,
+            &scan,
+            1.0,
+            Some(&PoseReference {
+                best_score,
+                readings,
+            }),
+        )
+    };
+    let searched = pose_figures(&y, &fit, &scan, 1.0, None);
+    assert!(searched.gap > 1.0 + TURN_GAIN, "{searched:?}");
+    assert!((searched.turn - 180.0).abs() < 5.0, "{searched:?}");
+    // Given the search's findings: the turn is to the nearest of its starts.
+    let pose = fit_pose(&y, &fit, 1.0).unwrap();
+    let (basin, _) = crate::prealign::pose_scores(&y, &scan, &pose, false).unwrap();
+    let best = basin / 2.0;
+    let turned = figures(best, [Some(half), None]);
+    assert!((turned.turn - 180.0).abs() < 1e-6, "{turned:?}");
+    let quarter = figures(best, [Some(turn_placement(90.0)), Some(half)]);
+    assert!((quarter.turn - 90.0).abs() < 1e-6, "{quarter:?}");
+    // A start where the fit lies: no turn; no placement clearly closer (a symmetric tie): none.
+    assert!(figures(best, [Some(half), Some(turn_placement(0.0))]).turn < 1e-6);
+    let tie = figures(basin / (1.0 + 0.5 * TURN_GAIN), [Some(half), None]);
+    assert_eq!(tie.turn, 0.0, "{tie:?}");
+    assert!(tie.gap > 1.0);
 }
 
 #[test]
