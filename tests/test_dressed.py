@@ -174,8 +174,9 @@ def test_each_garment_of_two_ends_near_its_fit_alone():
     """Issue 26's two-garment figure (the held-out case of bench/dressed.py): a shirt + skirt
     template on one dressed-body scan, each garment fitted on its own (docs/method.md "Several
     garments"); the shirt ends within 1.25× of its fit alone onto its own garment's points
-    (1.70× when the garments were fitted together), and the whole template closer to the truth
-    than as placed."""
+    (measured 1.08×; 1.70× when the garments were fitted together, 1.20× when each garment's
+    passes took their points again by the placed template, and the bound here is 1.15), and the
+    whole template closer to the truth than as placed."""
     import foldmatch_rs as fm
 
     built = built_source("two-garment")
@@ -198,7 +199,24 @@ def test_each_garment_of_two_ends_near_its_fit_alone():
     shirt_faces = remap[faces[np.all(parts[faces] == 1, axis=1)]]
     alone = fm.fit(tpl[shirt], shirt_faces, scan[labels == 1])
     ratio = rms(whole.vertices[shirt], truth[shirt]) / rms(alone.vertices, truth[shirt])
-    assert ratio <= 1.25, ratio
+    assert ratio <= 1.15, ratio
+
+
+def test_a_garment_mask_on_a_two_garment_scan_fits_as_the_body_removed():
+    """Points of weight 0 are removed (docs/method.md "Scan weights"): the two-garment template
+    fitted onto the whole scan with the garment mask as ``target_weights`` ends exactly where
+    its fit of the body-free scan does, unplaced start included (the garments' free edges were
+    judged on the masked body's points too: 22.2 against 21.4 mm)."""
+    import foldmatch_rs as fm
+
+    built = built_source("two-garment")
+    faces, scan, labels = built["faces"], built["scan"], built["labels"]
+    garment = labels > 0
+    for start in ("placed", "unplaced"):
+        tpl = built[start]
+        masked = fm.fit(tpl, faces, scan, target_weights=garment.astype(np.float64))
+        removed = fm.fit(tpl, faces, scan[garment])
+        np.testing.assert_allclose(masked.vertices, removed.vertices, rtol=0, atol=1e-9)
 
 
 def test_eight_landmarks_halve_the_bent_over_frames_error():

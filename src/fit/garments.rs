@@ -203,7 +203,7 @@ pub(super) fn fit_garments(
             landmarks.as_ref(),
             FitRole {
                 several: true,
-                garment: false,
+                ..FitRole::default()
             },
             &each,
             &mut observed,

@@ -204,13 +204,17 @@ pub fn fit_anchored(
 /// What one [`fit_from`] is to the driver (docs/method.md "Scans of dressed people", "Several
 /// garments").
 #[derive(Clone, Copy, Debug, Default)]
-pub(crate) struct FitRole {
+pub(crate) struct FitRole<'a> {
     /// The template is one garment of several, so the scan holds more than it whatever its
     /// size.
     pub(crate) several: bool,
     /// A garment refit's fit onto the garment's points of a larger scan (`target_weights`),
     /// whose isometric refinement is not pulled by the points beyond its rim.
     pub(crate) garment: bool,
+    /// In a garment refit, the scan as the user gave it — the points of positive weight in the
+    /// user's `target_weights` (`None`: every point) — on which its free edges are judged: a
+    /// point of weight 0 is removed, unlike the skin that the refit's own weights leave out.
+    pub(crate) user_scan: Option<&'a [[f64; 3]]>,
 }
 
 /// The fit of one garment ([`garments::fit_garments`] splits a template of several): from
@@ -225,7 +229,7 @@ fn fit_from(
     target_faces: Option<&[[u32; 3]]>,
     target_weights: Option<&[f64]>,
     landmarks: Option<&Landmarks>,
-    role: FitRole,
+    role: FitRole<'_>,
     params: &FitParams,
     observer: &mut (dyn FnMut(&Progress) -> bool + Send),
 ) -> Result<FitResult> {
@@ -316,7 +320,10 @@ fn fit_from(
         target_weights,
         kept.as_deref(),
         landmarks,
-        role.several,
+        // A garment pass of one garment of several fits onto the points its earlier pass
+        // explained or its cut kept (the other garment's too), not onto those the placed
+        // template explains (docs/method.md "Several garments").
+        role.several && !role.garment,
         &schedules,
     )?;
     // A scan that holds more than the garment is fitted more than once: the second fit onto
@@ -462,7 +469,7 @@ fn fit_from(
             target_weights,
             assessed,
             landmarks,
-            role.garment,
+            role.garment.then(|| role.user_scan.unwrap_or(target)),
             params,
         );
         // The result's motion (its accumulated wrinkle field) ends at the refined fit.
@@ -580,6 +587,10 @@ fn fit_from(
     inner.prealign = Prealign::None;
     let mut start = prepared.start.clone();
     prepared.frame.inverse_in_place(&mut start);
+    // The scan as the user gave it, where the user's weights removed points.
+    let user_scan: Option<Vec<[f64; 3]>> = kept
+        .as_ref()
+        .map(|k| k.iter().map(|&j| target[j]).collect());
     // Each later fit from the same start, with the same rest shape (a tracked frame stays
     // anchored), onto the weights of its pass.
     let mut fit_onto = |weights: &[f64], part: usize| -> Result<FitResult> {
@@ -594,6 +605,7 @@ fn fit_from(
             landmarks,
             FitRole {
                 garment: true,
+                user_scan: user_scan.as_deref(),
                 ..role
             },
             &inner,
@@ -696,7 +708,7 @@ struct PlacedFit<'a> {
     target: &'a [[f64; 3]],
     target_faces: Option<&'a [[u32; 3]]>,
     target_weights: Option<&'a [f64]>,
-    role: FitRole,
+    role: FitRole<'a>,
     params: &'a FitParams,
 }
 
@@ -758,7 +770,8 @@ type Placement = (
 /// The [`IsometricRefine`] of `vertices` (in place) against the scan points the fit was drawn
 /// to (`assessed`, else all), weighted by `weights`, the landmark vertices held at their
 /// landmarks ([`LANDMARK_ANCHOR`] × the landmark weight), without the pull of the points
-/// beyond the rim on a `garment_pass`; nothing when fewer than a plane's worth of points.
+/// beyond the rim on a garment pass (`garment_pass`: the scan its free edges are judged on);
+/// nothing when fewer than a plane's worth of points.
 #[allow(clippy::too_many_arguments)]
 fn isometric_refinement(
     vertices: &mut [[f64; 3]],
@@ -769,7 +782,7 @@ fn isometric_refinement(
     weights: Option<&[f64]>,
     assessed: Option<&[usize]>,
     landmarks: Option<&Landmarks>,
-    garment_pass: bool,
+    garment_pass: Option<&[[f64; 3]]>,
     params: &FitParams,
 ) {
     // Every `stride`-th of the points: at most about REFINE_POINTS_PER_VERTEX per vertex.
@@ -801,10 +814,11 @@ fn isometric_refinement(
         let weight = LANDMARK_ANCHOR * params.landmark_weight;
         refine = refine.with_anchors(&l.vertices, &l.positions, weight);
     }
-    if garment_pass {
+    if let Some(scan) = garment_pass {
         // The scan past the rim is mostly skin the cut left in, but past a free edge it is
-        // the garment's own (docs/method.md "Free edges"): judged on the whole scan.
-        let free = free_edges::free_edge_faces(vertices, faces, target);
+        // the garment's own (docs/method.md "Free edges"): judged on the whole scan (the
+        // points the user kept).
+        let free = free_edges::free_edge_faces(vertices, faces, scan);
         refine = refine.without_rim_pull().with_free_edges(free);
     }
     refine.run(
