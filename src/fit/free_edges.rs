@@ -10,7 +10,8 @@
 //! skin over a waistband continues it). There the pull stays on
 //! ([`IsometricRefine::with_free_edges`](super::IsometricRefine::with_free_edges)).
 //!
-//! Each rim vertex walks out over the whole scan (garment and body) in the fit's outward
+//! Each rim vertex walks out over the whole scan (garment and body; not the points the user
+//! weighted 0) in the fit's outward
 //! direction, a scan spacing per step, snapping to the nearest scan point while the surface
 //! runs on ahead: the rim is free when a step lands farther than [`GAP`] spacings from every
 //! scan point within [`REACH`] of the fit's size.
@@ -39,7 +40,8 @@ const AHEAD: f64 = 0.3;
 const SPACING_SAMPLE: usize = 2000;
 
 /// Per face of `faces`: whether it holds a vertex of a free edge of the fit `fitted` on
-/// `scan` (every scan point, the body's too). Empty when the scan has fewer than two points.
+/// `scan` (every scan point the user kept, the body's too). Empty when the scan has fewer than
+/// two points.
 pub(super) fn free_edge_faces(
     fitted: &[[f64; 3]],
     faces: &[[u32; 3]],
