@@ -11,10 +11,9 @@
 //! ([`IsometricRefine::with_free_edges`](super::IsometricRefine::with_free_edges)).
 //!
 //! Each rim vertex walks out over the whole scan (garment and body; not the points the user
-//! weighted 0) in the fit's outward
-//! direction, a scan spacing per step, snapping to the nearest scan point while the surface
-//! runs on ahead: the rim is free when a step lands farther than [`GAP`] spacings from every
-//! scan point within [`REACH`] of the fit's size.
+//! weighted 0) in the fit's outward direction, a scan spacing per step, snapping to the nearest
+//! scan point while the surface runs on ahead: the rim is free when a step lands farther than
+//! [`GAP`] spacings from every scan point within [`REACH`] of the fit's size.
 
 use super::garment_refit::rim_outward;
 use crate::knn::PointIndex;

@@ -59,7 +59,7 @@ pub use schedule::{keeps_start, select_schedule};
 use crate::error::{FoldMatchError, Result};
 use crate::landmarks::Landmarks;
 use crate::math::vec3;
-use crate::quality::PoseGapSource;
+use crate::quality::PoseSource;
 use rayon::prelude::*;
 use schedule::{drive, median_scan_distance, selection_distance, weighted_median, ScheduleRun};
 use setup::Prepared;
@@ -484,9 +484,10 @@ fn fit_from(
         .map(|n| &n.vertex[..]);
     let two_rings =
         (params.method == Method::FoldMatch && params.model.rings == 2).then_some(&prepared.rings);
-    // The verdict's pose gap: from the pre-alignment's best rigid placement when it scored the
-    // same template on the same points (no search of its own); left for later in a fit that
-    // goes on to its garment passes, and in those passes (the driver sets the last one's).
+    // The verdict's pose figures: from the pre-alignment's best score and readings when it
+    // scored the same template on the same points (no search of its own); left for later in a
+    // fit that goes on to its garment passes, and in those passes (the driver sets the last
+    // one's).
     let reference = prealign
         .filter(|_| params.prealign == Prealign::Rigid && rest.is_none())
         .filter(|_| prepared.garment.is_none())
@@ -495,9 +496,9 @@ fn fit_from(
             readings: p.readings_placed,
         });
     let pose = match &reference {
-        _ if refit || role.garment || role.several => PoseGapSource::Deferred,
-        Some(r) => PoseGapSource::Reference(r),
-        None => PoseGapSource::Search,
+        _ if refit || role.garment || role.several => PoseSource::Deferred,
+        Some(r) => PoseSource::Reference(r),
+        None => PoseSource::Search,
     };
     let assessment = crate::quality::assess_points_with(
         &crate::quality::AssessInput {
@@ -546,11 +547,11 @@ fn fit_from(
     chosen.diagnostics.kept_start = kept_start;
     let finish = clock.elapsed().as_secs_f64() - setup - iterations;
     chosen.diagnostics.wall_seconds = [setup, iterations, finish];
-    // A first fit that is final after all: its deferred pose gap, on the points it was judged on
+    // A first fit that is final after all: its deferred pose figures, on the points it was judged on
     // (a garment of several is judged whole by its driver).
     let settled = |mut r: FitResult| {
         if refit && !role.several {
-            r.quality = crate::quality::with_pose_gap(
+            r.quality = crate::quality::with_pose_figures(
                 r.quality,
                 rest_shape,
                 &rest_edges,
@@ -650,10 +651,10 @@ fn fit_from(
         last = fit_onto(&cut, 2 + round)?;
         previous = Some(cut);
     }
-    // The last pass's verdict, with the pose gap its passes left out, on its garment's points.
+    // The last pass's verdict, with the pose figures its passes left out, on its garment's points.
     if !role.several {
         let points: Vec<usize> = last.garment_points.iter().map(|&j| j as usize).collect();
-        last.quality = crate::quality::with_pose_gap(
+        last.quality = crate::quality::with_pose_figures(
             last.quality,
             rest_shape,
             &rest_edges,

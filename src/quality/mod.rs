@@ -45,7 +45,7 @@ use crate::metrics::{bbox_diagonal, cross_of, percentile_linear, EdgeLengths, DE
 use crate::rings::{adjacency, n_rings_of, Neighborhoods};
 
 pub use geometry::{closest_barycentric, point_triangle_distance};
-pub use pose::{fit_pose, pose_figures, pose_gap, PoseFigures, PoseReference, TURN_GAIN};
+pub use pose::{fit_pose, pose_figures, PoseFigures, PoseReference, TURN_GAIN};
 
 /// The support radius in units of `max(scan spacing, fitted median edge)`.
 pub const SUPPORT_RADIUS_FACTOR: f64 = 2.0;
@@ -245,18 +245,18 @@ pub(crate) struct KnownMesh<'a> {
     pub edges: &'a EdgeLengths,
     /// Each scan point's nearest fitted vertex, when the fit found them already.
     pub scan_nearest: Option<&'a [u32]>,
-    /// How the pose gap is found ([`PoseGapSource`]).
-    pub pose: PoseGapSource<'a>,
+    /// How the pose figures are found ([`PoseSource`]).
+    pub pose: PoseSource<'a>,
     /// The vertices the fit carried without scan support (docs/method.md "Partial scans"),
     /// when it carried any: unsupported by the fit's own account, and left out of
     /// [`Quality::fit_to_scan`] (they were never pulled towards the scan).
     pub carried: Option<&'a [bool]>,
 }
 
-/// Where [`assess_with`]'s pose gap comes from.
+/// Where [`assess_with`]'s pose figures come from.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) enum PoseGapSource<'a> {
-    /// A search of its own ([`pose_gap`] without a reference).
+pub(crate) enum PoseSource<'a> {
+    /// A search of its own ([`pose_figures`] without a reference).
     Search,
     /// What the fit's own pre-alignment found on the assessed points ([`pose_figures`]'
     /// `reference`).
@@ -366,11 +366,11 @@ pub(crate) fn assess_with(
     let rest_edge = median_edge(edges, y);
     let edge_distortion = distortion_p95(&ratios);
     let fit_scale = fit_scale(&ratios);
-    let source = known.map_or(PoseGapSource::Search, |k| k.pose);
+    let source = known.map_or(PoseSource::Search, |k| k.pose);
     let pose = match source {
-        PoseGapSource::Deferred => PoseFigures::NONE,
+        PoseSource::Deferred => PoseFigures::NONE,
         // A reference measured on the template at its own size holds for a fit near that size.
-        PoseGapSource::Reference(r) if (fit_scale - 1.0).abs() <= REFERENCE_SCALE_TOLERANCE => {
+        PoseSource::Reference(r) if (fit_scale - 1.0).abs() <= REFERENCE_SCALE_TOLERANCE => {
             pose_figures(y, fit, scan, fit_scale, Some(r))
         }
         _ => pose_figures(y, fit, scan, fit_scale, None),
@@ -458,8 +458,8 @@ pub(crate) fn assess_points_with(
 
 /// `quality` with the pose figures of `fitted` (the template `template`'s fit) against the scan
 /// points `points` of `scan` (`None`: every point) found by a search, and its verdict again:
-/// the pose figures that [`PoseGapSource::Deferred`] left out, once the fit is final.
-pub(crate) fn with_pose_gap(
+/// the pose figures that [`PoseSource::Deferred`] left out, once the fit is final.
+pub(crate) fn with_pose_figures(
     quality: Quality,
     template: &[[f64; 3]],
     edges: &EdgeLengths,

@@ -123,19 +123,3 @@ pub fn pose_figures(
         turn: if turn.is_finite() { turn } else { 0.0 },
     }
 }
-
-/// [`pose_figures`]' gap alone, with the best rigid placement's distance `reference` when
-/// known (then no search runs).
-pub fn pose_gap(
-    template: &[[f64; 3]],
-    fitted: &[[f64; 3]],
-    scan: &[[f64; 3]],
-    scale: f64,
-    reference: Option<f64>,
-) -> f64 {
-    let reference = reference.map(|best_score| PoseReference {
-        best_score,
-        readings: [None, None],
-    });
-    pose_figures(template, fitted, scan, scale, reference.as_ref()).gap
-}

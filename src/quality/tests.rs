@@ -312,6 +312,21 @@ fn the_pose_turn_is_the_angle_to_the_nearest_start_of_the_search_once_a_placemen
     assert!(tie.gap > 1.0);
 }
 
+/// The pose gap of `fit`, with the best rigid placement's distance `reference` when known.
+fn pose_gap(
+    y: &[[f64; 3]],
+    fit: &[[f64; 3]],
+    scan: &[[f64; 3]],
+    scale: f64,
+    reference: Option<f64>,
+) -> f64 {
+    let reference = reference.map(|best_score| PoseReference {
+        best_score,
+        readings: [None, None],
+    });
+    pose_figures(y, fit, scan, scale, reference.as_ref()).gap
+}
+
 #[test]
 fn a_known_reference_replaces_the_search() {
     let (y, _, scan) = asymmetric_sheet();
