@@ -218,13 +218,14 @@ class FitParams(Mapping[str, Any]):
         the template, `CARRY_FAR_EDGES`) already explains without a surplus of points, and
         which lies behind the scan (inside its footprint along its thinnest axis), not beside
         it, has no scan support: the garment's back. Such vertices, in regions of at least 12 %
-        of the template (`CARRY_MIN_SHARE`), are not attracted in the coarse and fine phases
-        and follow their template rings (full rest-shape rigidity) instead of collapsing onto
-        the scanned side; `FitResult.support` reports them, and the verdict leaves them out of
-        its fit → scan distance. Nothing is carried on a flat scan (`CARRY_MIN_DEPTH`): a
-        garment lying flat hides a lower layer that lies under the scanned one. 0 (the
-        default): off, every vertex attracted, as the paper; 2 for one-sided scans
-        (`ONE_SIDED_CARRY`, docs/guide.md "One-sided scans").
+        of the template (`CARRY_MIN_SHARE`) lying far enough behind the scanned side
+        (`CARRY_MIN_BEHIND`), are not attracted in the coarse and fine phases and follow
+        their template rings (full rest-shape rigidity) instead of collapsing onto the scanned
+        side; `FitResult.support` reports them, and the verdict leaves them out of its fit →
+        scan distance. Nothing is carried on a flat scan (`CARRY_MIN_DEPTH`): a garment lying
+        flat hides a lower layer that lies under the scanned one. On a whole scan nothing is
+        carried, so the default (2) serves one-sided and whole scans alike
+        (docs/guide.md "One-sided scans"); 0: off, every vertex attracted, as the paper.
         """
     @property
     def anneal(self) -> float:

@@ -74,10 +74,7 @@ pub enum Selection {
 
 /// The default [`carry_unsupported`](crate::fit::Schedule::carry_unsupported) (docs/method.md
 /// "Partial scans").
-pub const DEFAULT_CARRY_UNSUPPORTED: f64 = 0.0;
-/// The [`carry_unsupported`](crate::fit::Schedule::carry_unsupported) for a scan that saw the
-/// garment from one side (docs/guide.md "One-sided scans").
-pub const ONE_SIDED_CARRY: f64 = 2.0;
+pub const DEFAULT_CARRY_UNSUPPORTED: f64 = 2.0;
 /// [`carry_unsupported`](crate::fit::Schedule::carry_unsupported): the nearest scan point of an
 /// unsupported vertex is explained by a vertex farther than this many mean edges from it on
 /// the template.
@@ -97,6 +94,14 @@ pub const CARRY_MIN_SHARE: f64 = 0.12;
 /// the middle one (standard deviations): a garment lying flat, whose hidden lower layer lies
 /// under the scanned one.
 pub const CARRY_MIN_DEPTH: f64 = 0.2;
+/// [`carry_unsupported`](crate::fit::Schedule::carry_unsupported): a region is carried only
+/// when the depths of its vertices behind the scanned side (along the scan's thinnest
+/// principal axis), summed, reach this many units (the radius's unit) per template vertex:
+/// what collapsing it onto the scan would move the template by on average. The back of a
+/// garment seen from the front is a large region a body's depth behind it; a region that the
+/// rigid phase left a few units off a whole scan (a garment blown flat, its two layers close)
+/// is small or near, and attracted.
+pub const CARRY_MIN_BEHIND: f64 = 1.0;
 
 /// The default [`strain_limit`](crate::fit::Schedule::strain_limit) (docs/method.md "Strain
 /// limiting").
@@ -410,13 +415,14 @@ pub struct Schedule {
     /// the template, [`CARRY_FAR_EDGES`]) already explains without a surplus of points, and
     /// which lies behind the scan (inside its footprint along its thinnest axis), not beside
     /// it, has no scan support: the garment's back. Such vertices, in regions of at least 12 %
-    /// of the template ([`CARRY_MIN_SHARE`]), are not attracted in the coarse and fine phases
-    /// and follow their template rings (full rest-shape rigidity) instead of collapsing onto
-    /// the scanned side; `FitResult.support` reports them, and the verdict leaves them out of
-    /// its fit → scan distance. Nothing is carried on a flat scan ([`CARRY_MIN_DEPTH`]): a
-    /// garment lying flat hides a lower layer that lies under the scanned one. 0 (the
-    /// default): off, every vertex attracted, as the paper; 2 for one-sided scans
-    /// ([`ONE_SIDED_CARRY`], docs/guide.md "One-sided scans").
+    /// of the template ([`CARRY_MIN_SHARE`]) lying far enough behind the scanned side
+    /// ([`CARRY_MIN_BEHIND`]), are not attracted in the coarse and fine phases and follow
+    /// their template rings (full rest-shape rigidity) instead of collapsing onto the scanned
+    /// side; `FitResult.support` reports them, and the verdict leaves them out of its fit →
+    /// scan distance. Nothing is carried on a flat scan ([`CARRY_MIN_DEPTH`]): a garment lying
+    /// flat hides a lower layer that lies under the scanned one. On a whole scan nothing is
+    /// carried, so the default (2) serves one-sided and whole scans alike
+    /// (docs/guide.md "One-sided scans"); 0: off, every vertex attracted, as the paper.
     pub carry_unsupported: f64,
     /// Softening annealing: ε starts at `anneal × ε` and decreases linearly to ε over the
     /// first `anneal_fraction` of the ξ iterations (1: constant ε, the paper's reading).

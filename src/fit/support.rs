@@ -3,7 +3,9 @@
 //! that the coarse and fine phases carry them with their template rings instead of pulling
 //! them onto the scanned side.
 
-use super::params::{FitParams, CARRY_FAR_EDGES, CARRY_MIN_DEPTH, CARRY_MIN_SHARE, CARRY_SURPLUS};
+use super::params::{
+    FitParams, CARRY_FAR_EDGES, CARRY_MIN_BEHIND, CARRY_MIN_DEPTH, CARRY_MIN_SHARE, CARRY_SURPLUS,
+};
 use super::schedule::nearest_vertices;
 use super::setup::Prepared;
 use crate::math::{dist2, vec3};
@@ -19,8 +21,9 @@ use rayon::prelude::*;
 /// nearest vertex `u` lies within `r` of it and more than [`CARRY_FAR_EDGES`] mean edges from
 /// the vertex in the rest shape — without a surplus (the mean over `u` and its ring, the
 /// model's n-ring, of the count of scan points whose nearest vertex each is, at most
-/// [`CARRY_SURPLUS`] × the typical one; more means a second layer belongs there). Regions smaller than [`CARRY_MIN_SHARE`] of the template are
-/// left attracted.
+/// [`CARRY_SURPLUS`] × the typical one; more means a second layer belongs there). Regions
+/// smaller than [`CARRY_MIN_SHARE`] of the template, or lying on average less than
+/// [`CARRY_MIN_BEHIND`] × `unit` behind the scan (the `unit` above), are left attracted.
 pub(super) fn carried_vertices(
     prepared: &Prepared,
     pos: &[[f64; 3]],
@@ -83,8 +86,71 @@ pub(super) fn carried_vertices(
                 && dist2(&rest[u as usize], &rest[v]).sqrt() > far
         })
         .collect();
-    let carried = within_footprint(&scan.points, &axes, pos, carried, 2.0 * unit);
-    large_regions(rings, carried, CARRY_MIN_SHARE)
+    let cell = 2.0 * unit;
+    let mut carried = within_footprint(&scan.points, &axes, pos, carried, cell);
+    // Each region by the depth behind the scanned side that carrying keeps it at, summed and
+    // per template vertex (CARRY_MIN_BEHIND).
+    let depth = ScanDepth::new(&scan.points, &axes, cell);
+    for region in regions(rings, &carried) {
+        let behind = depth.total_behind(pos, &region) / m as f64;
+        if region.len() < least || behind < CARRY_MIN_BEHIND * unit {
+            for &v in &region {
+                carried[v] = false;
+            }
+        }
+    }
+    carried
+}
+
+/// The scan's depth along its thinnest principal axis (the direction a one-sided rig looked
+/// from) over a grid of cells across the other two: each cell's nearest and farthest scan
+/// point.
+struct ScanDepth<'a> {
+    axes: &'a Axes,
+    cell: f64,
+    range: std::collections::HashMap<(i64, i64), (f64, f64)>,
+}
+
+impl<'a> ScanDepth<'a> {
+    fn new(scan: &[[f64; 3]], axes: &'a Axes, cell: f64) -> Self {
+        let mut depth = Self {
+            axes,
+            cell,
+            range: Default::default(),
+        };
+        for p in scan {
+            let (key, z) = depth.locate(p);
+            let r = depth.range.entry(key).or_insert((z, z));
+            r.0 = r.0.min(z);
+            r.1 = r.1.max(z);
+        }
+        depth
+    }
+
+    /// The cell of `p` and its depth.
+    fn locate(&self, p: &[f64; 3]) -> ((i64, i64), f64) {
+        let d = vec3(p) - self.axes.centroid;
+        let f = &self.axes.frame;
+        let key = (
+            (f.column(0).dot(&d) / self.cell).floor() as i64,
+            (f.column(1).dot(&d) / self.cell).floor() as i64,
+        );
+        (key, f.column(2).dot(&d))
+    }
+
+    /// The sum over the vertices of `region` (of `pos`) of the distance along the depth axis
+    /// by which each lies outside its cell's scan depth range: how far behind the scanned
+    /// side they are. A vertex over a cell without scan points counts 0.
+    fn total_behind(&self, pos: &[[f64; 3]], region: &[usize]) -> f64 {
+        region
+            .iter()
+            .filter_map(|&v| {
+                let (key, z) = self.locate(&pos[v]);
+                let &(lo, hi) = self.range.get(&key)?;
+                Some((lo - z).max(z - hi).max(0.0))
+            })
+            .sum()
+    }
 }
 
 /// `mask` cleared where the vertex of `pos` lies outside the scan's footprint: the scan and
@@ -129,23 +195,17 @@ fn within_footprint(
     mask
 }
 
-/// `mask` with its connected regions (through `rings`) of fewer than `min_share` of the
-/// vertices cleared.
-pub(super) fn large_regions(
-    rings: &Neighborhoods,
-    mut mask: Vec<bool>,
-    min_share: f64,
-) -> Vec<bool> {
+/// The connected regions (through `rings`) of the vertices set in `mask`.
+fn regions(rings: &Neighborhoods, mask: &[bool]) -> Vec<Vec<usize>> {
     let m = mask.len();
-    let least = min_region(m, min_share);
     let mut seen = vec![false; m];
     let mut stack = Vec::new();
-    let mut members = Vec::new();
+    let mut out = Vec::new();
     for s in 0..m {
         if !mask[s] || seen[s] {
             continue;
         }
-        members.clear();
+        let mut members = Vec::new();
         stack.push(s);
         seen[s] = true;
         while let Some(v) = stack.pop() {
@@ -158,16 +218,45 @@ pub(super) fn large_regions(
                 }
             }
         }
-        if members.len() < least {
-            for &v in &members {
-                mask[v] = false;
-            }
-        }
+        out.push(members);
     }
-    mask
+    out
 }
 
 /// The fewest vertices of a region that [`large_regions`] keeps.
 fn min_region(m: usize, min_share: f64) -> usize {
     (min_share * m as f64).ceil() as usize
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn scan_depth_measures_how_far_behind_the_scanned_side_a_region_lies() {
+        // Two layers of scan points, z = 0 and z = 1, over the unit square in cells of 0.1
+        // (wide and long enough that z is the thinnest axis).
+        let mut scan = Vec::new();
+        for i in 0..40 {
+            for j in 0..40 {
+                let (x, y) = (-2.0 + 0.1 * i as f64 + 0.05, -2.0 + 0.1 * j as f64 + 0.05);
+                scan.push([x, y, 0.0]);
+                scan.push([x, y, 1.0]);
+            }
+        }
+        let axes = principal_axes(&scan);
+        let depth = ScanDepth::new(&scan, &axes, 0.1);
+        let pos = [
+            [0.05, 0.05, 3.5],  // 2.5 beyond the layer at 1
+            [0.05, 0.05, -1.5], // 1.5 beyond the layer at 0
+            [0.05, 0.05, 0.5],  // between the layers: 0
+            [10.05, 0.05, 9.0], // over no scan point: left out
+        ];
+        let close = |a: f64, b: f64| (a - b).abs() < 1e-9;
+        assert!(close(depth.total_behind(&pos, &[0]), 2.5));
+        assert!(close(depth.total_behind(&pos, &[1]), 1.5));
+        assert!(close(depth.total_behind(&pos, &[2]), 0.0));
+        assert!(close(depth.total_behind(&pos, &[0, 1, 2, 3]), 4.0));
+        assert_eq!(depth.total_behind(&pos, &[3]), 0.0);
+    }
 }

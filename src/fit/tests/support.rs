@@ -43,7 +43,7 @@ fn scan_where(
 fn assert_nothing_carried(template: &[[f64; 3]], faces: &[[u32; 3]], scan: &[[f64; 3]]) {
     assert_eq!(
         fitted(template, faces, scan, 0.0).vertices,
-        fitted(template, faces, scan, ONE_SIDED_CARRY).vertices
+        fitted(template, faces, scan, DEFAULT_CARRY_UNSUPPORTED).vertices
     );
 }
 
@@ -59,7 +59,7 @@ fn the_unscanned_back_of_a_half_scan_is_carried_not_collapsed() {
         .filter(|&v| template[v][0] < -0.15)
         .collect();
     let attracted = fitted(&template, &faces, &scan, 0.0);
-    let carried = fitted(&template, &faces, &scan, ONE_SIDED_CARRY);
+    let carried = fitted(&template, &faces, &scan, DEFAULT_CARRY_UNSUPPORTED);
     let (e_attracted, e_carried) = (
         rms(&attracted.vertices, &truth, &back),
         rms(&carried.vertices, &truth, &back),
