@@ -764,22 +764,30 @@ def test_target_weights_mask_equals_the_masked_scan_and_bad_weights_are_refused(
         fm.fit(v, f, x, target_weights=np.ones((len(x), 1)))
 
 
-def test_a_garment_turned_90_degrees_is_not_fitted_back_to_front():
-    """A real T-shirt scan turned 90° about the vertical: its two readings (±90°, front and back
-    swapped) score alike rigidly, and the least turned one is back to front (f_R 0.37 against
-    0.0098 unmoved). They are other shapes of the template (not its symmetric images), so both
-    are fitted and the closer one kept (docs/method.md "Global pre-alignment")."""
+def _fitted_turned_90(name, kind):
+    """The real harness case `name` (`kind`: "mesh" or "points") fitted with the default as
+    given and with its scan turned 90° about the vertical (bench/prealign.py's move): both
+    results, the moved arrays, and f_R turned ÷ as given. Skips without ../shared/data."""
     from bench import cases, prealign
 
     why = cases.real_data_missing()
     if why:
         pytest.skip(why)
-    case = next(c for c in cases.real_cases(kinds=("mesh",)) if c.name == "vto-tshirt-arm-mesh")
+    case = next(c for c in cases.real_cases(kinds=(kind,)) if c.name == name)
     moved = prealign.moved(case, prealign._turn90)
     base = fm.fit(case.template_vertices, case.faces, case.target)
     turned = fm.fit(moved["template_vertices"], moved["faces"], moved["target"])
     rms = lambda v, g: np.sqrt(((np.asarray(v) - g) ** 2).sum(1).mean())  # noqa: E731
     ratio = rms(turned.vertices, moved["ground_truth"]) / rms(base.vertices, case.ground_truth)
+    return base, turned, moved, ratio
+
+
+def test_a_garment_turned_90_degrees_is_not_fitted_back_to_front():
+    """A real T-shirt scan turned 90° about the vertical: its two readings (±90°, front and back
+    swapped) score alike rigidly, and the least turned one is back to front (f_R 0.37 against
+    0.0098 unmoved). They are other shapes of the template (not its symmetric images), so both
+    are fitted and the closer one kept (docs/method.md "Global pre-alignment")."""
+    base, turned, _, ratio = _fitted_turned_90("vto-tshirt-arm-mesh", "mesh")
     assert ratio <= 1.25, ratio
     p = turned.diagnostics["prealign"]
     assert p["moved"] and p["fitted_readings"] == 2
@@ -818,17 +826,7 @@ def test_a_wind_frame_blown_flat_and_turned_carries_nothing():
     wrong reading win (f_R 24× the unmoved fit's). Its depth behind the scanned side is too
     small for a garment's back (``CARRY_MIN_BEHIND``): nothing is carried and the fit is within
     1.25× of the unmoved one, as with the setting off."""
-    from bench import cases, prealign
-
-    why = cases.real_data_missing()
-    if why:
-        pytest.skip(why)
-    case = next(c for c in cases.real_cases(kinds=("points",)) if c.name == "wind-150-pts")
-    moved = prealign.moved(case, prealign._turn90)
-    base = fm.fit(case.template_vertices, case.faces, case.target)
-    turned = fm.fit(moved["template_vertices"], moved["faces"], moved["target"])
-    rms = lambda v, g: np.sqrt(((np.asarray(v) - g) ** 2).sum(1).mean())  # noqa: E731
-    ratio = rms(turned.vertices, moved["ground_truth"]) / rms(base.vertices, case.ground_truth)
+    _, turned, moved, ratio = _fitted_turned_90("wind-150-pts", "points")
     assert ratio <= 1.25, ratio
     off = fm.fit(
         moved["template_vertices"], moved["faces"], moved["target"], params={"carry_unsupported": 0.0}
