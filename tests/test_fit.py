@@ -794,11 +794,21 @@ def test_a_garment_turned_90_degrees_is_not_fitted_back_to_front():
     assert base.diagnostics["prealign"]["fitted_readings"] in (0, 1)
 
 
-def test_the_back_of_a_real_t_shirt_scanned_from_the_front_is_carried():
-    """The draped VTO T-shirt as one camera rig on its front sees it (bench/front_scan.py): the
-    default carries the unseen back and ends within 2× of its fit of the whole scan (issue 27's
-    figure; 7.2× with the setting off, the back collapsed onto the front), and reports about a
-    fifth of the vertices unsupported (docs/method.md "Partial scans")."""
+@pytest.mark.parametrize(
+    ("name", "bound", "off_above"),
+    [
+        # The VTO T-shirt: 7.2× with the setting off (the back collapsed onto the front).
+        ("vto-tshirt-0000-pts", 2.0, 4.0),
+        # The penetrating skirt: 1.83× with the refinement's springs at their given weight,
+        # 1.48× three times as stiff (CARRIED_SPRING_FACTOR); 4.2× with the setting off.
+        ("skirt-penetrate-pts", 1.6, 3.0),
+    ],
+)
+def test_the_back_of_a_real_garment_scanned_from_the_front_is_carried(name, bound, off_above):
+    """A real garment as one camera rig on its front sees it (bench/front_scan.py): the default
+    carries the unseen back and ends within `bound` × its fit of the whole scan (issue 27's
+    figure: 2), far closer than with the setting off, and reports a fifth to two fifths of the
+    vertices unsupported (docs/method.md "Partial scans")."""
     import hashlib
 
     from bench import cases
@@ -807,16 +817,16 @@ def test_the_back_of_a_real_t_shirt_scanned_from_the_front_is_carried():
     why = cases.real_data_missing()
     if why:
         pytest.skip(why)
-    case = next(c for c in cases.real_cases(kinds=("points",)) if c.name == "vto-tshirt-0000-pts")
+    case = next(c for c in cases.real_cases(kinds=("points",)) if c.name == name)
     seed = int(hashlib.sha256(case.name.encode()).hexdigest()[:8], 16)
     half = front_scan(case.ground_truth, case.faces, int(case.meta["up"]), seed, most=len(case.target))
     rms = lambda v: np.sqrt(((np.asarray(v) - case.ground_truth) ** 2).sum(1).mean())  # noqa: E731
     whole = rms(fm.fit(case.template_vertices, case.faces, case.target).vertices)
     carried = fm.fit(case.template_vertices, case.faces, half)
     attracted = fm.fit(case.template_vertices, case.faces, half, params={"carry_unsupported": 0.0})
-    assert rms(carried.vertices) <= 2.0 * whole, (rms(carried.vertices), whole)
-    assert rms(attracted.vertices) > 4.0 * whole
-    assert 0.15 < 1.0 - np.mean(carried.support) < 0.35
+    assert rms(carried.vertices) <= bound * whole, (rms(carried.vertices), whole)
+    assert rms(attracted.vertices) > off_above * whole
+    assert 0.15 < 1.0 - np.mean(carried.support) < 0.4
 
 
 def test_a_wind_frame_blown_flat_and_turned_carries_nothing():

@@ -221,7 +221,8 @@ class FitParams(Mapping[str, Any]):
         of the template (`CARRY_MIN_SHARE`) lying far enough behind the scanned side
         (`CARRY_MIN_BEHIND`), are not attracted in the coarse and fine phases and follow
         their template rings (full rest-shape rigidity) instead of collapsing onto the scanned
-        side; `FitResult.support` reports them, and the verdict leaves them out of its fit →
+        side (and the isometric refinement's springs are `CARRIED_SPRING_FACTOR` times as
+        stiff); `FitResult.support` reports them, and the verdict leaves them out of its fit →
         scan distance. Nothing is carried on a flat scan (`CARRY_MIN_DEPTH`): a garment lying
         flat hides a lower layer that lies under the scanned one. On a whole scan nothing is
         carried, so the default (2) serves one-sided and whole scans alike

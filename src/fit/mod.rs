@@ -39,16 +39,16 @@ pub use isometric::{IsometricRefine, PlaneNormal, SpringScale, Springs};
 pub use model::{deformation_model, TemplateTopology, Workspace};
 pub use params::{
     Acceleration, FitParams, Method, ModelConstants, Prealign, Readings, RotationSource, Schedule,
-    Selection, ACCURATE_ITERATIONS, AUTO_COARSE_RINGS, AUTO_COARSE_RINGS_MAX, CARRY_FAR_EDGES,
-    CARRY_MIN_BEHIND, CARRY_MIN_DEPTH, CARRY_MIN_SHARE, CARRY_SURPLUS,
-    COARSE_RINGS_REFERENCE_VERTICES, COARSE_SCAN_MAX_AUTO_STRIDE, COARSE_SCAN_POINTS_PER_VERTEX,
-    DEFAULT_CARRY_UNSUPPORTED, DEFAULT_ISOMETRIC_HOLD, DEFAULT_ISOMETRIC_ITERATIONS,
-    DEFAULT_ISOMETRIC_WEIGHT, DEFAULT_ITERATIONS, DEFAULT_KEEP_MARGIN, DEFAULT_KNN_SLACK,
-    DEFAULT_K_MAX, DEFAULT_LANDMARK_WEIGHT, DEFAULT_RHO, DEFAULT_STRAIN_LIMIT, DEFAULT_TWO_WAY_RIM,
-    DEFAULT_TWO_WAY_TRUST, FAR_AWAY, FAST_ITERATIONS, FAST_TWO_WAY, MAX_SCAN_SAMPLE,
-    PAPER_ITERATIONS, PAPER_K_MAX, PAPER_RHO, RIGID_SCAN_POINTS_PER_VERTEX, SCHEDULE_NAMES,
-    SIZE_MISMATCH, TRACKING_ISOMETRIC_ITERATIONS, TRACKING_ITERATIONS, TRACKING_REST_RIGIDITY,
-    TRACKING_STRAIN_LIMIT,
+    Selection, ACCURATE_ITERATIONS, AUTO_COARSE_RINGS, AUTO_COARSE_RINGS_MAX,
+    CARRIED_SPRING_FACTOR, CARRY_FAR_EDGES, CARRY_MIN_BEHIND, CARRY_MIN_DEPTH, CARRY_MIN_SHARE,
+    CARRY_SURPLUS, COARSE_RINGS_REFERENCE_VERTICES, COARSE_SCAN_MAX_AUTO_STRIDE,
+    COARSE_SCAN_POINTS_PER_VERTEX, DEFAULT_CARRY_UNSUPPORTED, DEFAULT_ISOMETRIC_HOLD,
+    DEFAULT_ISOMETRIC_ITERATIONS, DEFAULT_ISOMETRIC_WEIGHT, DEFAULT_ITERATIONS,
+    DEFAULT_KEEP_MARGIN, DEFAULT_KNN_SLACK, DEFAULT_K_MAX, DEFAULT_LANDMARK_WEIGHT, DEFAULT_RHO,
+    DEFAULT_STRAIN_LIMIT, DEFAULT_TWO_WAY_RIM, DEFAULT_TWO_WAY_TRUST, FAR_AWAY, FAST_ITERATIONS,
+    FAST_TWO_WAY, MAX_SCAN_SAMPLE, PAPER_ITERATIONS, PAPER_K_MAX, PAPER_RHO,
+    RIGID_SCAN_POINTS_PER_VERTEX, SCHEDULE_NAMES, SIZE_MISMATCH, TRACKING_ISOMETRIC_ITERATIONS,
+    TRACKING_ITERATIONS, TRACKING_REST_RIGIDITY, TRACKING_STRAIN_LIMIT,
 };
 pub use result::{
     ComponentFigures, Diagnostics, FitResult, IterationRecord, PrealignFigures, Progress,
@@ -470,6 +470,7 @@ fn fit_from(
             assessed,
             landmarks,
             role.garment.then(|| role.user_scan.unwrap_or(target)),
+            winner.carried.iter().any(|&c| c),
             params,
         );
         // The result's motion (its accumulated wrinkle field) ends at the refined fit.
@@ -771,8 +772,9 @@ type Placement = (
 /// The [`IsometricRefine`] of `vertices` (in place) against the scan points the fit was drawn
 /// to (`assessed`, else all), weighted by `weights`, the landmark vertices held at their
 /// landmarks ([`LANDMARK_ANCHOR`] × the landmark weight), without the pull of the points
-/// beyond the rim on a garment pass (`garment_pass`: the scan its free edges are judged on);
-/// nothing when fewer than a plane's worth of points.
+/// beyond the rim on a garment pass (`garment_pass`: the scan its free edges are judged on),
+/// its springs [`CARRIED_SPRING_FACTOR`] times as stiff when the schedule carried a region
+/// without scan support (`carries`); nothing when fewer than a plane's worth of points.
 #[allow(clippy::too_many_arguments)]
 fn isometric_refinement(
     vertices: &mut [[f64; 3]],
@@ -784,6 +786,7 @@ fn isometric_refinement(
     assessed: Option<&[usize]>,
     landmarks: Option<&Landmarks>,
     garment_pass: Option<&[[f64; 3]]>,
+    carries: bool,
     params: &FitParams,
 ) {
     // Every `stride`-th of the points: at most about REFINE_POINTS_PER_VERTEX per vertex.
@@ -826,7 +829,8 @@ fn isometric_refinement(
         vertices,
         params.schedule.isometric_iterations,
         Springs {
-            weight: params.schedule.isometric_weight,
+            weight: params.schedule.isometric_weight
+                * if carries { CARRIED_SPRING_FACTOR } else { 1.0 },
             hold: params.schedule.isometric_hold,
             scale,
         },

@@ -102,6 +102,13 @@ pub const CARRY_MIN_DEPTH: f64 = 0.2;
 /// rigid phase left a few units off a whole scan (a garment blown flat, its two layers close)
 /// is small or near, and attracted.
 pub const CARRY_MIN_BEHIND: f64 = 1.0;
+/// [`carry_unsupported`](crate::fit::Schedule::carry_unsupported): when the schedule carried a
+/// region without scan support, the isometric refinement's spring weight
+/// ([`isometric_weight`](crate::fit::Schedule::isometric_weight)) is this many times the
+/// given one. A third of the template then has no data term, and the scan at its border pulls
+/// the carried region's edges out of the template's metric; stiffer springs keep its shape
+/// (docs/method.md "Partial scans").
+pub const CARRIED_SPRING_FACTOR: f64 = 3.0;
 
 /// The default [`strain_limit`](crate::fit::Schedule::strain_limit) (docs/method.md "Strain
 /// limiting").
@@ -418,7 +425,8 @@ pub struct Schedule {
     /// of the template ([`CARRY_MIN_SHARE`]) lying far enough behind the scanned side
     /// ([`CARRY_MIN_BEHIND`]), are not attracted in the coarse and fine phases and follow
     /// their template rings (full rest-shape rigidity) instead of collapsing onto the scanned
-    /// side; `FitResult.support` reports them, and the verdict leaves them out of its fit →
+    /// side (and the isometric refinement's springs are [`CARRIED_SPRING_FACTOR`] times as
+    /// stiff); `FitResult.support` reports them, and the verdict leaves them out of its fit →
     /// scan distance. Nothing is carried on a flat scan ([`CARRY_MIN_DEPTH`]): a garment lying
     /// flat hides a lower layer that lies under the scanned one. On a whole scan nothing is
     /// carried, so the default (2) serves one-sided and whole scans alike
