@@ -22,8 +22,9 @@ use rayon::prelude::*;
 /// the vertex in the rest shape — without a surplus (the mean over `u` and its ring, the
 /// model's n-ring, of the count of scan points whose nearest vertex each is, at most
 /// [`CARRY_SURPLUS`] × the typical one; more means a second layer belongs there). Regions
-/// smaller than [`CARRY_MIN_SHARE`] of the template, or lying on average less than
-/// [`CARRY_MIN_BEHIND`] × `unit` behind the scan (the `unit` above), are left attracted.
+/// smaller than [`CARRY_MIN_SHARE`] of the template, or whose vertices' depths behind the
+/// scanned side, summed, fall short of [`CARRY_MIN_BEHIND`] × `unit` (the `unit` above) per
+/// template vertex, are left attracted.
 pub(super) fn carried_vertices(
     prepared: &Prepared,
     pos: &[[f64; 3]],
@@ -223,7 +224,7 @@ fn regions(rings: &Neighborhoods, mask: &[bool]) -> Vec<Vec<usize>> {
     out
 }
 
-/// The fewest vertices of a region that [`large_regions`] keeps.
+/// The fewest vertices of a region that [`carried_vertices`] carries.
 fn min_region(m: usize, min_share: f64) -> usize {
     (min_share * m as f64).ceil() as usize
 }
