@@ -87,11 +87,17 @@ pub(super) fn carried_vertices(
                 && dist2(&rest[u as usize], &rest[v]).sqrt() > far
         })
         .collect();
-    let cell = 2.0 * unit;
-    let mut carried = within_footprint(&scan.points, &axes, pos, carried, cell);
+    if !carried.iter().any(|&c| c) {
+        return carried;
+    }
+    let depth = ScanDepth::new(&scan.points, &axes, 2.0 * unit);
+    // Behind the scan, not beside it.
+    let mut carried = carried;
+    for (v, c) in carried.iter_mut().enumerate() {
+        *c = *c && depth.covers(&pos[v]);
+    }
     // Each region by the depth behind the scanned side that carrying keeps it at, summed and
     // per template vertex (CARRY_MIN_BEHIND).
-    let depth = ScanDepth::new(&scan.points, &axes, cell);
     for region in regions(rings, &carried) {
         let behind = depth.total_behind(pos, &region) / m as f64;
         if region.len() < least || behind < CARRY_MIN_BEHIND * unit {
@@ -103,9 +109,9 @@ pub(super) fn carried_vertices(
     carried
 }
 
-/// The scan's depth along its thinnest principal axis (the direction a one-sided rig looked
-/// from) over a grid of cells across the other two: each cell's nearest and farthest scan
-/// point.
+/// The scan's footprint and depth along its thinnest principal axis (the direction a one-sided
+/// rig looked from) over a grid of cells across the other two: each cell's nearest and farthest
+/// scan point.
 struct ScanDepth<'a> {
     axes: &'a Axes,
     cell: f64,
@@ -139,6 +145,18 @@ impl<'a> ScanDepth<'a> {
         (key, f.column(2).dot(&d))
     }
 
+    /// Whether `p` lies in the scan's footprint: projected along the depth axis, in a cell next
+    /// to (or in) one that holds scan points. The unseen back of a one-sided scan lies behind
+    /// its front, inside it; a flap of a folded sheet that the rigid phase left spread out lies
+    /// beside the scan. Every point does on a grid without extent (`cell` ≤ 0).
+    fn covers(&self, p: &[f64; 3]) -> bool {
+        if self.cell <= 0.0 {
+            return true;
+        }
+        let ((i, j), _) = self.locate(p);
+        (-1..=1).any(|di| (-1..=1).any(|dj| self.range.contains_key(&(i + di, j + dj))))
+    }
+
     /// The sum over the vertices of `region` (of `pos`) of the distance along the depth axis
     /// by which each lies outside its cell's scan depth range: how far behind the scanned
     /// side they are. A vertex over a cell without scan points counts 0.
@@ -152,48 +170,6 @@ impl<'a> ScanDepth<'a> {
             })
             .sum()
     }
-}
-
-/// `mask` cleared where the vertex of `pos` lies outside the scan's footprint: the scan and
-/// the vertices projected along the scan's thinnest principal axis (`axes`, the direction a
-/// one-sided rig looked from) onto a grid of `cell`, the scan's cells grown by one. The unseen
-/// back of a one-sided scan lies behind its front, inside it; a flap of a folded sheet that
-/// the rigid phase left spread out lies beside the scan.
-fn within_footprint(
-    scan: &[[f64; 3]],
-    axes: &Axes,
-    pos: &[[f64; 3]],
-    mut mask: Vec<bool>,
-    cell: f64,
-) -> Vec<bool> {
-    use std::collections::HashSet;
-    if !mask.iter().any(|&c| c) || cell <= 0.0 {
-        return mask;
-    }
-    let centre = axes.centroid;
-    let (a, b) = (axes.frame.column(0), axes.frame.column(1));
-    let key = |p: &[f64; 3]| {
-        let d = vec3(p) - centre;
-        (
-            (a.dot(&d) / cell).floor() as i64,
-            (b.dot(&d) / cell).floor() as i64,
-        )
-    };
-    let mut cells: HashSet<(i64, i64)> = HashSet::new();
-    for p in scan {
-        let (i, j) = key(p);
-        for di in -1..=1 {
-            for dj in -1..=1 {
-                cells.insert((i + di, j + dj));
-            }
-        }
-    }
-    for (v, c) in mask.iter_mut().enumerate() {
-        if *c && !cells.contains(&key(&pos[v])) {
-            *c = false;
-        }
-    }
-    mask
 }
 
 /// The connected regions (through `rings`) of the vertices set in `mask`.
