@@ -41,6 +41,14 @@ def unseen_share(truth: np.ndarray, scan: np.ndarray) -> float:
     return float(np.mean(np.sqrt(d2[:, 0]) > 2 * spacing))
 
 
+def half_scan(case) -> np.ndarray:
+    """What one camera rig on the front of `case` sees of its truth (bench/front_scan.py), at
+    most as many points as its whole scan, the rig's noise drawn from the case's name."""
+    up = int(case.meta.get("up", 1))
+    seed = int(hashlib.sha256(case.name.encode()).hexdigest()[:8], 16)
+    return front_scan(case.ground_truth, case.faces, up, seed, most=len(case.target))
+
+
 def rows_of(
     groups: list[str], kw: dict[str, Any], half_kw: dict[str, Any] | None = None
 ) -> list[dict[str, Any]]:
@@ -51,9 +59,7 @@ def rows_of(
         for case in variants.group_cases(group):
             if case.ground_truth is None:
                 continue
-            up = int(case.meta.get("up", 1))
-            seed = int(hashlib.sha256(case.name.encode()).hexdigest()[:8], 16)
-            half = front_scan(case.ground_truth, case.faces, up, seed, most=len(case.target))
+            half = half_scan(case)
             whole = fm.fit(
                 case.template_vertices, case.faces, case.target, target_faces=case.target_faces, **kw
             )

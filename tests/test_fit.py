@@ -809,17 +809,14 @@ def test_the_back_of_a_real_garment_scanned_from_the_front_is_carried(name, boun
     carries the unseen back and ends within `bound` × its fit of the whole scan (issue 27's
     figure: 2), far closer than with the setting off, and reports a fifth to two fifths of the
     vertices unsupported (docs/method.md "Partial scans")."""
-    import hashlib
-
     from bench import cases
-    from bench.front_scan import front_scan
+    from bench.partial import half_scan
 
     why = cases.real_data_missing()
     if why:
         pytest.skip(why)
     case = next(c for c in cases.real_cases(kinds=("points",)) if c.name == name)
-    seed = int(hashlib.sha256(case.name.encode()).hexdigest()[:8], 16)
-    half = front_scan(case.ground_truth, case.faces, int(case.meta["up"]), seed, most=len(case.target))
+    half = half_scan(case)
     rms = lambda v: np.sqrt(((np.asarray(v) - case.ground_truth) ** 2).sum(1).mean())  # noqa: E731
     whole = rms(fm.fit(case.template_vertices, case.faces, case.target).vertices)
     carried = fm.fit(case.template_vertices, case.faces, half)
