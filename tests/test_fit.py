@@ -709,11 +709,15 @@ def test_carry_unsupported_keeps_the_back_of_a_one_sided_scan():
     assert np.mean(~np.asarray(carried.support)[back]) > 0.9
     q = carried.quality
     everyone = float(np.mean(carried.residuals)) / q["scan_diagonal"]
+    # The carried vertices count as unsupported, but the verdict's test of the share leaves
+    # them out: about half of a tube seen from one side is unseen.
+    assert 0.25 < q["carried_share"] <= q["unsupported_share"], q
     assert q["verdict"] == "ok", q
     assert q["fit_to_scan"] < 0.7 * everyone, (q["fit_to_scan"], everyone)
     # fm.assess knows nothing of what the fit carried: all vertices count.
     again = fm.assess(v, f, carried.vertices, scan)["quality"]
     assert math.isclose(again["fit_to_scan"], everyone, rel_tol=1e-9)
+    assert again["carried_share"] == 0.0
     with pytest.raises(fm.InvalidParameterError, match="carry_unsupported"):
         fm.fit(v, f, scan, params={"carry_unsupported": -1.0})
 
@@ -797,11 +801,16 @@ def test_a_garment_turned_90_degrees_is_not_fitted_back_to_front():
 @pytest.mark.parametrize(
     ("name", "bound", "off_above"),
     [
-        # The VTO T-shirt: 7.2× with the setting off (the back collapsed onto the front).
-        ("vto-tshirt-0000-pts", 2.0, 4.0),
+        # The VTO T-shirt: 7.2× with the setting off (the back collapsed onto the front), 1.79×
+        # without the border band (CARRY_BAND), 1.44× with it.
+        ("vto-tshirt-0000-pts", 1.6, 4.0),
         # The penetrating skirt: 1.83× with the refinement's springs at their given weight,
-        # 1.48× three times as stiff (CARRIED_SPRING_FACTOR); 4.2× with the setting off.
-        ("skirt-penetrate-pts", 1.6, 3.0),
+        # 1.48× three times as stiff (CARRIED_SPRING_FACTOR), 1.23× with the border band; 4.2×
+        # with the setting off.
+        ("skirt-penetrate-pts", 1.4, 3.0),
+        # The small skirt: 5.6× without the border band, 4.4× with it (issue 27's 2× not met);
+        # its back collapses (13×) with the setting off.
+        ("skirt-small-pts", 5.0, 8.0),
     ],
 )
 def test_the_back_of_a_real_garment_scanned_from_the_front_is_carried(name, bound, off_above):

@@ -107,7 +107,9 @@ class FitResult:
     quality : dict
         Does the fit look right: ``verdict`` (``"ok"`` or ``"suspicious"``), ``reasons`` and
         the figures behind them, none of which needs ground truth (see :func:`assess`; the
-        fit's own ``fit_to_scan`` leaves out the vertices it carried without support).
+        fit's own ``fit_to_scan`` leaves out the vertices it carried without support, and
+        ``carried_share``, their share of the vertices, is counted in ``unsupported_share`` but
+        left out of the verdict's test of it).
     correspondences : (M,) uint32
         Per template vertex, the index of the scan point it ends nearest to.
     residuals : (M,) float
@@ -786,7 +788,8 @@ def assess(
         ``quality``: ``verdict`` (``"ok"`` or ``"suspicious"``), ``reasons`` (one sentence per
         figure past its threshold), ``fit_to_scan`` and ``scan_to_fit`` (mean distances over
         the scan's bounding-box diagonal; scan→fit to the fitted surface), ``asymmetry``,
-        ``unsupported_share``, ``flipped_share``, ``collapsed_share``, ``edge_distortion``
+        ``unsupported_share``, ``carried_share`` (0 here: :func:`assess` knows of no carried
+        vertices), ``flipped_share``, ``collapsed_share``, ``edge_distortion``
         (95th percentile of the edge-length ratio, scale divided out), ``pose_gap`` (the
         template in the fit's rigid pose against its best rigid placement on the scan: the
         ratio of their distances to the scan, ≥ 1), ``pose_turn`` (degrees from the fit's rigid

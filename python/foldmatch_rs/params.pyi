@@ -222,9 +222,12 @@ class FitParams(Mapping[str, Any]):
         (`CARRY_MIN_BEHIND`), are not attracted in the coarse and fine phases and follow
         their template rings (full rest-shape rigidity) instead of collapsing onto the scanned
         side (and the isometric refinement's springs are `CARRIED_SPRING_FACTOR` times as
-        stiff); `FitResult.support` reports them, and the verdict leaves them out of its fit →
-        scan distance. Nothing is carried on a flat scan (`CARRY_MIN_DEPTH`): a garment lying
-        flat hides a lower layer that lies under the scanned one. On a whole scan nothing is
+        stiff), and the vertices next to them (`CARRY_BAND`) move only along their normals.
+        `FitResult.support` reports the carried vertices, and the verdict leaves them out of
+        its fit → scan distance and its test of the unsupported share
+        (`quality["carried_share"]`). Nothing is carried on a flat scan (`CARRY_MIN_DEPTH`):
+        a garment lying flat hides a lower layer that lies under the scanned one. On a whole
+        scan nothing is
         carried, so the default (2) serves one-sided and whole scans alike
         (docs/guide.md "One-sided scans"); 0: off, every vertex attracted, as the paper.
         """

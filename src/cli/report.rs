@@ -157,9 +157,16 @@ impl FileReport {
             return String::new();
         };
         let f = |k: &str| q.get(k).and_then(Value::as_f64).unwrap_or(f64::NAN);
+        // A one-sided scan's carried vertices (docs/method.md "Partial scans").
+        let carried = q
+            .get("carried_share")
+            .and_then(Value::as_f64)
+            .filter(|&c| c > 0.0)
+            .map(|c| format!(" ({:.1} % carried)", 100.0 * c))
+            .unwrap_or_default();
         format!(
             "quality {}: fit→scan {:.4} and scan→fit {:.4} of the scan diagonal (mean), \
-             asymmetry {:+.2}, unsupported vertices {:.1} %, flipped faces {:.1} %, collapsed \
+             asymmetry {:+.2}, unsupported vertices {:.1} %{carried}, flipped faces {:.1} %, collapsed \
              faces {:.1} %, edge-length distortion {:.2} (95th percentile), pose gap {:.2}, pose turn {:.0}°",
             q.get("verdict").and_then(Value::as_str).unwrap_or("?"),
             f("fit_to_scan"),

@@ -109,6 +109,12 @@ pub const CARRY_MIN_BEHIND: f64 = 1.0;
 /// the carried region's edges out of the template's metric; stiffer springs keep its shape
 /// (docs/method.md "Partial scans").
 pub const CARRIED_SPRING_FACTOR: f64 = 3.0;
+/// [`carry_unsupported`](crate::fit::Schedule::carry_unsupported): the vertices within this
+/// many of the model's n-rings of a carried vertex (and not carried themselves) move only
+/// along their vertex normal in the coarse and fine phases. The scan's edge there is where
+/// the rig stopped seeing, not where the garment ends, and the pulls toward the seen side
+/// slide them around the garment onto it (docs/method.md "Partial scans").
+pub const CARRY_BAND: usize = 2;
 
 /// The default [`strain_limit`](crate::fit::Schedule::strain_limit) (docs/method.md "Strain
 /// limiting").
@@ -426,9 +432,12 @@ pub struct Schedule {
     /// ([`CARRY_MIN_BEHIND`]), are not attracted in the coarse and fine phases and follow
     /// their template rings (full rest-shape rigidity) instead of collapsing onto the scanned
     /// side (and the isometric refinement's springs are [`CARRIED_SPRING_FACTOR`] times as
-    /// stiff); `FitResult.support` reports them, and the verdict leaves them out of its fit →
-    /// scan distance. Nothing is carried on a flat scan ([`CARRY_MIN_DEPTH`]): a garment lying
-    /// flat hides a lower layer that lies under the scanned one. On a whole scan nothing is
+    /// stiff), and the vertices next to them ([`CARRY_BAND`]) move only along their normals.
+    /// `FitResult.support` reports the carried vertices, and the verdict leaves them out of
+    /// its fit → scan distance and its test of the unsupported share
+    /// (`quality["carried_share"]`). Nothing is carried on a flat scan ([`CARRY_MIN_DEPTH`]):
+    /// a garment lying flat hides a lower layer that lies under the scanned one. On a whole
+    /// scan nothing is
     /// carried, so the default (2) serves one-sided and whole scans alike
     /// (docs/guide.md "One-sided scans"); 0: off, every vertex attracted, as the paper.
     pub carry_unsupported: f64,
@@ -588,6 +597,8 @@ pub(crate) struct Internal {
     /// `false` queries a k-d tree for every vertex and every scan point every iteration.
     /// Results are the same either way.
     pub(crate) knn_cache: bool,
+    /// [`CARRY_BAND`] (0: no border band); the tests compare against 0.
+    pub(crate) carry_band: usize,
 }
 
 impl Default for FitParams {
@@ -683,6 +694,7 @@ impl Default for Internal {
         Self {
             matrix_series: true,
             knn_cache: true,
+            carry_band: CARRY_BAND,
         }
     }
 }

@@ -213,6 +213,11 @@ pub(super) struct ScheduleRun {
     /// carried by their rest rings instead of attracted in the coarse and fine phases
     /// ([`carry_unsupported`](crate::fit::Schedule::carry_unsupported); empty: none).
     pub(super) carried: Vec<bool>,
+    /// The vertices near a carried region, which move along their normals only, and a buffer
+    /// of the vertex normals (both empty when nothing is carried; docs/method.md "Partial
+    /// scans").
+    pub(super) band: Vec<bool>,
+    pub(super) normals: Vec<[f64; 3]>,
 }
 
 impl ScheduleRun {
@@ -276,6 +281,8 @@ impl ScheduleRun {
                     StrainLimit::new(&prepared.rest, &prepared.faces, pinned)
                 }),
             carried: Vec::new(),
+            band: Vec::new(),
+            normals: Vec::new(),
             params,
         }
     }
@@ -322,10 +329,49 @@ impl ScheduleRun {
             }
         }
         let update_start = std::time::Instant::now();
-        // The landmarks' spring on the proposal: the rings holding them see it (Eq. 4, 8).
-        // The unsupported vertices, once the rigid phase has placed the template.
+        // The unsupported vertices, once the rigid phase has placed the template, and the
+        // border band around them.
         if it == self.rigid_iterations + 1 && params.carries() {
             self.carried = support::carried_vertices(prepared, &self.pos, params);
+            if self.carried.contains(&true) && params.internal.carry_band > 0 {
+                self.band = support::border_band(
+                    &prepared.rings,
+                    &self.carried,
+                    params.internal.carry_band,
+                );
+                self.normals = vec![[0.0; 3]; self.pos.len()];
+            }
+        }
+        if phase != Phase::Rigid && !self.band.is_empty() {
+            crate::mesh::vertex_normals(
+                &self.pos,
+                &prepared.faces,
+                &prepared.incidence,
+                &mut self.normals,
+            );
+            let (band, normals) = (&self.band, &self.normals);
+            match sampled.map(|i| &mut self.samples[i]) {
+                Some(sample) => {
+                    for (i, &v) in sample.vertices.iter().enumerate() {
+                        if band[v as usize] {
+                            sample.attraction.proposed[i] = support::along_normal(
+                                &sample.pos[i],
+                                &sample.attraction.proposed[i],
+                                &normals[v as usize],
+                            );
+                        }
+                    }
+                }
+                None => {
+                    let proposed = &mut self.attraction.proposed;
+                    for (v, &b) in band.iter().enumerate() {
+                        if b {
+                            proposed[v] =
+                                support::along_normal(&self.pos[v], &proposed[v], &normals[v]);
+                        }
+                    }
+                }
+            }
         }
         if phase != Phase::Rigid && !self.carried.is_empty() {
             match sampled.map(|i| &mut self.samples[i]) {
@@ -345,6 +391,7 @@ impl ScheduleRun {
                 }
             }
         }
+        // The landmarks' spring on the proposal: the rings holding them see it (Eq. 4, 8).
         if let (Phase::Fine, Some(l)) = (phase, prepared.landmarks.as_ref()) {
             l.pull(params.landmark_weight, &mut self.attraction.proposed);
         }

@@ -109,6 +109,35 @@ pub(super) fn carried_vertices(
     carried
 }
 
+/// The vertices not in `carried` within `steps` rings (`rings`, the model's n-rings) of one
+/// that is: the border of the carried regions
+/// ([`CARRY_BAND`](super::params::CARRY_BAND)).
+pub(super) fn border_band(rings: &Neighborhoods, carried: &[bool], steps: usize) -> Vec<bool> {
+    let mut band = vec![false; carried.len()];
+    let mut front: Vec<usize> = (0..carried.len()).filter(|&v| carried[v]).collect();
+    for _ in 0..steps {
+        let mut next = Vec::new();
+        for &v in &front {
+            for &k in rings.of(v) {
+                let k = k as usize;
+                if !carried[k] && !band[k] {
+                    band[k] = true;
+                    next.push(k);
+                }
+            }
+        }
+        front = next;
+    }
+    band
+}
+
+/// `proposed` moved back onto the line through `pos` along the unit `normal`: the proposal's
+/// tangential part dropped (a zero normal keeps `pos`).
+pub(super) fn along_normal(pos: &[f64; 3], proposed: &[f64; 3], normal: &[f64; 3]) -> [f64; 3] {
+    let (p, n) = (vec3(pos), vec3(normal));
+    (p + n * n.dot(&(vec3(proposed) - p))).into()
+}
+
 /// The scan's footprint and depth along its thinnest principal axis (the direction a one-sided
 /// rig looked from) over a grid of cells across the other two: each cell's nearest and farthest
 /// scan point.

@@ -11,6 +11,7 @@
 //! | [`Quality::scan_to_fit`] | mean over scan points of the distance to the fitted surface (the faces around the nearest fitted vertex), ÷ the same diagonal |
 //! | [`Quality::asymmetry`] | `(fit_to_scan − scan_to_fit) / (fit_to_scan + scan_to_fit + r/D)`, in `(−1, 1)`, `r` the support radius and `D` the diagonal (distances below the support radius are sampling, not disagreement): positive when template parts hang off the scan, negative when scan parts are left uncovered |
 //! | [`Quality::unsupported_share`] | share of template vertices without scan support (below) |
+//! | [`Quality::carried_share`] | share of template vertices the fit carried without support (docs/method.md "Partial scans"): counted in `unsupported_share`, left out of the verdict's test of it |
 //! | [`Quality::flipped_share`] | share of template faces whose fitted normal points against the template normal carried by the local rotation of the face's 2-ring (template → fit, Kabsch) |
 //! | [`Quality::collapsed_share`] | share of template faces whose area fell below `τ_S` (0.02, [`crate::metrics::DEFAULT_TAU_S`]) of the template's |
 //! | [`Quality::edge_distortion`] | 95th percentile over the template's edges of `max(ℓ̂/ℓ, ℓ/ℓ̂)`, fitted over template length, after dividing out the fit's median edge ratio (so a uniform scale, e.g. millimetres against metres, is not a distortion) |
@@ -170,6 +171,11 @@ pub struct Quality {
     pub asymmetry: f64,
     /// Share of template vertices without scan support.
     pub unsupported_share: f64,
+    /// Share of template vertices the fit carried without scan support (the unseen side of a
+    /// one-sided scan: docs/method.md "Partial scans"); counted in `unsupported_share`, but
+    /// not held against the fit by the verdict (0 for [`assess`]).
+    #[serde(default)]
+    pub carried_share: f64,
     /// Share of evaluated faces flipped against the locally rotated template.
     pub flipped_share: f64,
     /// Share of evaluated faces whose area fell below τ_S of the template's.
@@ -397,6 +403,9 @@ pub(crate) fn assess_with(
         scan_to_fit,
         asymmetry,
         unsupported_share,
+        carried_share: carried.map_or(0.0, |c| {
+            c.iter().filter(|&&b| b).count() as f64 / c.len().max(1) as f64
+        }),
         flipped_share: faces_figures.flipped,
         collapsed_share: faces_figures.collapsed,
         edge_distortion,
@@ -505,7 +514,15 @@ pub fn judged(mut quality: Quality, thresholds: &VerdictThresholds) -> Quality {
         ("fit→scan distance", q.fit_to_scan, "of the scan diagonal"),
         ("scan→fit distance", q.scan_to_fit, "of the scan diagonal"),
         ("|asymmetry|", q.asymmetry.abs(), "of the two distances"),
-        ("share of unsupported vertices", q.unsupported_share, ""),
+        if q.carried_share > 0.0 {
+            (
+                "share of unsupported vertices, less those carried",
+                q.unsupported_share - q.carried_share,
+                "",
+            )
+        } else {
+            ("share of unsupported vertices", q.unsupported_share, "")
+        },
         ("share of flipped faces", q.flipped_share, ""),
         ("share of collapsed faces", q.collapsed_share, ""),
         ("edge-length distortion (95th pct)", q.edge_distortion, ""),

@@ -354,10 +354,15 @@ fn a_dressed_scan_fit_from_a_turned_start_gets_its_pose_gap_after_its_garment_pa
             scene.push([-2.0 + 0.125 * i as f64, -2.0 + 0.125 * j as f64, -1.5]);
         }
     }
-    let params = crate::fit::FitParams {
+    let mut params = crate::fit::FitParams {
         prealign: crate::fit::Prealign::Centroid,
         ..Default::default()
     };
+    // One of the fit's passes carries part of the sheet (the plane lies behind it), and the
+    // border band around a carried region (docs/method.md "Partial scans") leads this wrong
+    // fit to a pose whose gap stays under the threshold. The band is not what this test is
+    // about: it checks that the gap is measured after the garment passes.
+    params.internal.carry_band = 0;
     let fit = crate::fit::fit_simple(&y, &f, &scene, None, &params).unwrap();
     assert!(!fit.garment_points.is_empty(), "the garment passes ran");
     let q = &fit.quality;

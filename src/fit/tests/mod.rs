@@ -569,6 +569,7 @@ fn the_fast_paths_change_the_fit_only_by_round_off() {
         exact.internal = Internal {
             matrix_series: false,
             knn_cache: false,
+            ..Internal::default()
         };
         let (a, b) = (
             fit_simple(&v, &f, &x, None, &fast).unwrap(),
