@@ -200,18 +200,28 @@ pub fn vertex_normals(
     incidence: &VertexFaces,
     out: &mut [[f64; 3]],
 ) {
-    out.par_iter_mut().enumerate().for_each(|(k, n)| {
-        let mut acc = Vec3::zeros();
-        for &fi in &incidence.faces[incidence.offsets[k]..incidence.offsets[k + 1]] {
-            acc += face_area_normal(positions, &faces[fi as usize]);
-        }
-        let len = acc.norm();
-        *n = if len > 0.0 {
-            (acc / len).into()
-        } else {
-            [0.0; 3]
-        };
-    });
+    out.par_iter_mut()
+        .enumerate()
+        .for_each(|(k, n)| *n = vertex_normal(positions, faces, incidence, k));
+}
+
+/// The area-weighted unit normal of vertex `k` (zero when its faces have no area).
+pub fn vertex_normal(
+    positions: &[[f64; 3]],
+    faces: &[[u32; 3]],
+    incidence: &VertexFaces,
+    k: usize,
+) -> [f64; 3] {
+    let mut acc = Vec3::zeros();
+    for &fi in &incidence.faces[incidence.offsets[k]..incidence.offsets[k + 1]] {
+        acc += face_area_normal(positions, &faces[fi as usize]);
+    }
+    let len = acc.norm();
+    if len > 0.0 {
+        (acc / len).into()
+    } else {
+        [0.0; 3]
+    }
 }
 
 #[cfg(test)]

@@ -227,8 +227,7 @@ class FitParams(Mapping[str, Any]):
         its fit → scan distance and its test of the unsupported share
         (`quality["carried_share"]`). Nothing is carried on a flat scan (`CARRY_MIN_DEPTH`):
         a garment lying flat hides a lower layer that lies under the scanned one. On a whole
-        scan nothing is
-        carried, so the default (2) serves one-sided and whole scans alike
+        scan nothing is carried, so the default (2) serves one-sided and whole scans alike
         (docs/guide.md "One-sided scans"); 0: off, every vertex attracted, as the paper.
         """
     @property

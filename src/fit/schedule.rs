@@ -213,11 +213,9 @@ pub(super) struct ScheduleRun {
     /// carried by their rest rings instead of attracted in the coarse and fine phases
     /// ([`carry_unsupported`](crate::fit::Schedule::carry_unsupported); empty: none).
     pub(super) carried: Vec<bool>,
-    /// The vertices near a carried region, which move along their normals only, and a buffer
-    /// of the vertex normals (both empty when nothing is carried; docs/method.md "Partial
-    /// scans").
+    /// The vertices near a carried region, which move along their normals only (empty when
+    /// nothing is carried; docs/method.md "Partial scans").
     pub(super) band: Vec<bool>,
-    pub(super) normals: Vec<[f64; 3]>,
 }
 
 impl ScheduleRun {
@@ -282,7 +280,6 @@ impl ScheduleRun {
                 }),
             carried: Vec::new(),
             band: Vec::new(),
-            normals: Vec::new(),
             params,
         }
     }
@@ -339,17 +336,12 @@ impl ScheduleRun {
                     &self.carried,
                     params.internal.carry_band,
                 );
-                self.normals = vec![[0.0; 3]; self.pos.len()];
             }
         }
         if phase != Phase::Rigid && !self.band.is_empty() {
-            crate::mesh::vertex_normals(
-                &self.pos,
-                &prepared.faces,
-                &prepared.incidence,
-                &mut self.normals,
-            );
-            let (band, normals) = (&self.band, &self.normals);
+            let (band, pos) = (&self.band, &self.pos);
+            let normal =
+                |v: usize| crate::mesh::vertex_normal(pos, &prepared.faces, &prepared.incidence, v);
             match sampled.map(|i| &mut self.samples[i]) {
                 Some(sample) => {
                     for (i, &v) in sample.vertices.iter().enumerate() {
@@ -357,7 +349,7 @@ impl ScheduleRun {
                             sample.attraction.proposed[i] = support::along_normal(
                                 &sample.pos[i],
                                 &sample.attraction.proposed[i],
-                                &normals[v as usize],
+                                &normal(v as usize),
                             );
                         }
                     }
@@ -366,8 +358,7 @@ impl ScheduleRun {
                     let proposed = &mut self.attraction.proposed;
                     for (v, &b) in band.iter().enumerate() {
                         if b {
-                            proposed[v] =
-                                support::along_normal(&self.pos[v], &proposed[v], &normals[v]);
+                            proposed[v] = support::along_normal(&pos[v], &proposed[v], &normal(v));
                         }
                     }
                 }
