@@ -805,12 +805,14 @@ def test_a_garment_turned_90_degrees_is_not_fitted_back_to_front():
         # without the border band (CARRY_BAND), 1.44× with it.
         ("vto-tshirt-0000-pts", 1.6, 4.0),
         # The penetrating skirt: 1.83× with the refinement's springs at their given weight,
-        # 1.48× three times as stiff (CARRIED_SPRING_FACTOR), 1.23× with the border band; 4.2×
+        # 1.48× three times as stiff (CARRIED_SPRING_FACTOR), 1.23× with the border band,
+        # 1.11× with no fit → scan match for the carried back in the refinement; 4.2× with the
+        # setting off.
+        ("skirt-penetrate-pts", 1.18, 3.0),
+        # The small skirt: 5.6× without the border band, 4.4× with it, 3.6× with the carried
+        # back unmatched in the refinement (issue 27's 2× not met); its back collapses (13×)
         # with the setting off.
-        ("skirt-penetrate-pts", 1.4, 3.0),
-        # The small skirt: 5.6× without the border band, 4.4× with it (issue 27's 2× not met);
-        # its back collapses (13×) with the setting off.
-        ("skirt-small-pts", 5.0, 8.0),
+        ("skirt-small-pts", 4.0, 8.0),
     ],
 )
 def test_the_back_of_a_real_garment_scanned_from_the_front_is_carried(name, bound, off_above):

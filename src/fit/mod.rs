@@ -470,7 +470,7 @@ fn fit_from(
             assessed,
             landmarks,
             role.garment.then(|| role.user_scan.unwrap_or(target)),
-            winner.carried.iter().any(|&c| c),
+            &winner.carried,
             params,
         );
         // The result's motion (its accumulated wrinkle field) ends at the refined fit.
@@ -773,8 +773,9 @@ type Placement = (
 /// to (`assessed`, else all), weighted by `weights`, the landmark vertices held at their
 /// landmarks ([`LANDMARK_ANCHOR`] × the landmark weight), without the pull of the points
 /// beyond the rim on a garment pass (`garment_pass`: the scan its free edges are judged on),
-/// its springs [`CARRIED_SPRING_FACTOR`] times as stiff when the schedule carried a region
-/// without scan support (`carries`); nothing when fewer than a plane's worth of points.
+/// its springs [`CARRIED_SPRING_FACTOR`] times as stiff and the vertices of the region without
+/// a fit → scan match when the schedule carried a region without scan support (`carried`, a
+/// flag per vertex or empty); nothing when fewer than a plane's worth of points.
 #[allow(clippy::too_many_arguments)]
 fn isometric_refinement(
     vertices: &mut [[f64; 3]],
@@ -786,9 +787,10 @@ fn isometric_refinement(
     assessed: Option<&[usize]>,
     landmarks: Option<&Landmarks>,
     garment_pass: Option<&[[f64; 3]]>,
-    carries: bool,
+    carried: &[bool],
     params: &FitParams,
 ) {
+    let carries = carried.contains(&true);
     // Every `stride`-th of the points: at most about REFINE_POINTS_PER_VERTEX per vertex.
     let live = assessed.map_or(target.len(), <[usize]>::len);
     let stride = live
@@ -817,6 +819,11 @@ fn isometric_refinement(
     if let Some(l) = landmarks {
         let weight = LANDMARK_ANCHOR * params.landmark_weight;
         refine = refine.with_anchors(&l.vertices, &l.positions, weight);
+    }
+    if carries {
+        // The region carried without scan support has no fit → scan match either (its
+        // nearest scan points lie on the seen side): docs/method.md "Partial scans".
+        refine = refine.without_scan_under(carried);
     }
     if let Some(scan) = garment_pass {
         // The scan past the rim is mostly skin the cut left in, but past a free edge it is

@@ -31,7 +31,8 @@
 //! where the springs and the scan beyond its rim ask — which undoes a slide along the scan (what
 //! makes a tracked sequence drift, docs/method.md "Tracking"). `c` makes the scan → fit term
 //! weigh as much as the vertices; `t_i` is 0 for a vertex whose nearest scan point is beyond
-//! [`TRIM`] × the median distance and [`REACH`] edge lengths (it has no scan under it), and
+//! [`TRIM`] × the median distance and [`REACH`] edge lengths (it has no scan under it) or that
+//! lies in a region the schedule carried ([`IsometricRefine::without_scan_under`]), and
 //! likewise `ω_j` for a scan point far from the fit; past a free edge `ω_j` is
 //! [`FREE_EDGE_WEIGHT`].
 
@@ -97,6 +98,9 @@ pub struct IsometricRefine<'a> {
     /// and the point it is held at.
     anchor_weight: Vec<f64>,
     anchor_at: Vec<[f64; 3]>,
+    /// Vertices without a fit → scan match (`t_i = 0`): a region the schedule carried without
+    /// scan support ([`IsometricRefine::without_scan_under`]); empty: none.
+    unmatched: Vec<bool>,
     /// Whether scan points beyond the fit's rim pull it ([`IsometricRefine::without_rim_pull`]).
     rim_pull: bool,
     /// Per face, whether the scan beyond its rim pulls it even without the rim pull
@@ -246,6 +250,7 @@ impl<'a> IsometricRefine<'a> {
             reach,
             anchor_weight: Vec::new(),
             anchor_at: Vec::new(),
+            unmatched: Vec::new(),
             rim_pull: true,
             free_edge: Vec::new(),
         }
@@ -314,6 +319,18 @@ impl<'a> IsometricRefine<'a> {
                     self.anchor_at[v as usize] = *z;
                 }
             }
+        }
+        self
+    }
+
+    /// No fit → scan match for the vertices marked in `vertices` (one flag per vertex): the
+    /// region a one-sided scan left unseen, which the schedule carried (docs/method.md
+    /// "Partial scans"). Its nearest scan points lie on the seen side, so a plane through one
+    /// of them would draw the unseen back onto the front's edge; it keeps its shape by the
+    /// springs and the hold alone.
+    pub fn without_scan_under(mut self, vertices: &[bool]) -> Self {
+        if vertices.len() == self.ring.len() && vertices.contains(&true) {
+            self.unmatched = vertices.to_vec();
         }
         self
     }
@@ -453,6 +470,11 @@ impl<'a> IsometricRefine<'a> {
             .zip(b.distance[..m].par_iter())
             .with_min_len(MIN_LEN)
             .for_each(|(t, &d)| *t = if d <= cut { 1.0 } else { 0.0 });
+        for (t, &u) in b.t.iter_mut().zip(&self.unmatched) {
+            if u {
+                *t = 0.0;
+            }
+        }
     }
 
     /// Matches every scan point to its closest point on the faces around its nearest vertex

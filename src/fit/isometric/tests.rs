@@ -497,3 +497,46 @@ fn the_scan_past_a_free_edge_carries_the_garment_against_the_hold() {
         "slid {before:.4}, refined {after:.4} from the truth"
     );
 }
+
+#[test]
+fn a_region_without_scan_under_it_keeps_its_shape() {
+    // The cylinder patch at its truth, scanned on one side of x = 0 only (a one-sided rig):
+    // the unseen side's vertices near the scan's edge match points of the seen side, whose
+    // planes bend the unseen side towards them; marked as without scan under them (the region
+    // a fit carried), they keep their place.
+    let (truth, faces) = cylinder_patch();
+    let scan: Vec<[f64; 3]> = scan_of(&truth, &faces, 4000)
+        .into_iter()
+        .filter(|p| p[0] > 0.0)
+        .collect();
+    let unseen: Vec<bool> = truth.iter().map(|p| p[0] < -0.05).collect();
+    let incidence = VertexFaces::new(&faces, truth.len());
+    let run = |mark: bool| {
+        let mut fit = truth.clone();
+        let mut refine = IsometricRefine::new(&truth, &faces, &incidence, &scan, None);
+        if mark {
+            refine = refine.without_scan_under(&unseen);
+        }
+        refine.run(&mut fit, ITERATIONS, springs(WEIGHT, SpringScale::Rest));
+        fit
+    };
+    let moved = |fit: &[[f64; 3]]| {
+        let which: Vec<usize> = (0..truth.len()).filter(|&v| unseen[v]).collect();
+        let s: f64 = which.iter().map(|&v| dist2(&fit[v], &truth[v])).sum();
+        (s / which.len() as f64).sqrt()
+    };
+    let (matched, marked) = (run(false), run(true));
+    assert!(moved(&matched) > 1e-3, "matched: {:.5}", moved(&matched));
+    assert!(
+        moved(&marked) < 0.2 * moved(&matched),
+        "marked {:.5}, matched {:.5}",
+        moved(&marked),
+        moved(&matched)
+    );
+    // A mask of another length, or with nothing marked, changes nothing.
+    let mut fit = truth.clone();
+    IsometricRefine::new(&truth, &faces, &incidence, &scan, None)
+        .without_scan_under(&unseen[1..])
+        .run(&mut fit, ITERATIONS, springs(WEIGHT, SpringScale::Rest));
+    assert_eq!(fit, matched);
+}
