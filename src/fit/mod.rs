@@ -820,11 +820,9 @@ fn isometric_refinement(
         let weight = LANDMARK_ANCHOR * params.landmark_weight;
         refine = refine.with_anchors(&l.vertices, &l.positions, weight);
     }
-    if carries {
-        // The region carried without scan support has no fit → scan match either (its
-        // nearest scan points lie on the seen side): docs/method.md "Partial scans".
-        refine = refine.without_scan_under(carried);
-    }
+    // The region carried without scan support has no fit → scan match either (its nearest
+    // scan points lie on the seen side): docs/method.md "Partial scans".
+    refine = refine.without_scan_under(carried);
     if let Some(scan) = garment_pass {
         // The scan past the rim is mostly skin the cut left in, but past a free edge it is
         // the garment's own (docs/method.md "Free edges"): judged on the whole scan (the

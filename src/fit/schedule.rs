@@ -338,49 +338,22 @@ impl ScheduleRun {
                 );
             }
         }
-        if phase != Phase::Rigid && !self.band.is_empty() {
-            let (band, pos) = (&self.band, &self.pos);
-            let normal =
-                |v: usize| crate::mesh::vertex_normal(pos, &prepared.faces, &prepared.incidence, v);
-            match sampled.map(|i| &mut self.samples[i]) {
-                Some(sample) => {
-                    for (i, &v) in sample.vertices.iter().enumerate() {
-                        if band[v as usize] {
-                            sample.attraction.proposed[i] = support::along_normal(
-                                &sample.pos[i],
-                                &sample.attraction.proposed[i],
-                                &normal(v as usize),
-                            );
-                        }
-                    }
-                }
-                None => {
-                    let proposed = &mut self.attraction.proposed;
-                    for (v, &b) in band.iter().enumerate() {
-                        if b {
-                            proposed[v] = support::along_normal(&pos[v], &proposed[v], &normal(v));
-                        }
-                    }
-                }
-            }
-        }
         if phase != Phase::Rigid && !self.carried.is_empty() {
-            match sampled.map(|i| &mut self.samples[i]) {
-                Some(sample) => {
-                    for (i, &v) in sample.vertices.iter().enumerate() {
-                        if self.carried[v as usize] {
-                            sample.attraction.proposed[i] = sample.pos[i];
-                        }
-                    }
+            // A carried vertex's proposal is where it is; a border vertex's keeps only its
+            // part along the vertex normal.
+            let (carried, band, full) = (&self.carried, &self.band, &self.pos);
+            let sample = sampled.map(|i| &mut self.samples[i]);
+            rewrite_proposals(sample, &mut self.attraction, full, |v, pos, proposed| {
+                if carried[v] {
+                    Some(*pos)
+                } else if band.get(v).copied().unwrap_or(false) {
+                    let normal =
+                        crate::mesh::vertex_normal(full, &prepared.faces, &prepared.incidence, v);
+                    Some(support::along_normal(pos, proposed, &normal))
+                } else {
+                    None
                 }
-                None => {
-                    for (v, &c) in self.carried.iter().enumerate() {
-                        if c {
-                            self.attraction.proposed[v] = self.pos[v];
-                        }
-                    }
-                }
-            }
+            });
         }
         // The landmarks' spring on the proposal: the rings holding them see it (Eq. 4, 8).
         if let (Phase::Fine, Some(l)) = (phase, prepared.landmarks.as_ref()) {
@@ -518,6 +491,34 @@ impl ScheduleRun {
             residuals: assessment.residuals,
             support: assessment.support,
             garment_points: Vec::new(),
+        }
+    }
+}
+
+/// Rewrites the phase's proposals: `rewrite(v, position, proposal)` for each of its points (the
+/// sample's, or every vertex's when `sample` is `None`), `v` the template vertex; `Some` replaces
+/// the proposal.
+fn rewrite_proposals(
+    sample: Option<&mut PhaseSample>,
+    attraction: &mut Attraction,
+    pos: &[[f64; 3]],
+    mut rewrite: impl FnMut(usize, &[f64; 3], &[f64; 3]) -> Option<[f64; 3]>,
+) {
+    match sample {
+        Some(sample) => {
+            for (i, &v) in sample.vertices.iter().enumerate() {
+                let (p, q) = (&sample.pos[i], &sample.attraction.proposed[i]);
+                if let Some(new) = rewrite(v as usize, p, q) {
+                    sample.attraction.proposed[i] = new;
+                }
+            }
+        }
+        None => {
+            for (v, (p, q)) in pos.iter().zip(attraction.proposed.iter_mut()).enumerate() {
+                if let Some(new) = rewrite(v, p, q) {
+                    *q = new;
+                }
+            }
         }
     }
 }

@@ -100,7 +100,7 @@ pub struct IsometricRefine<'a> {
     anchor_at: Vec<[f64; 3]>,
     /// Vertices without a fit → scan match (`t_i = 0`): a region the schedule carried without
     /// scan support ([`IsometricRefine::without_scan_under`]); empty: none.
-    unmatched: Vec<bool>,
+    unmatched: &'a [bool],
     /// Whether scan points beyond the fit's rim pull it ([`IsometricRefine::without_rim_pull`]).
     rim_pull: bool,
     /// Per face, whether the scan beyond its rim pulls it even without the rim pull
@@ -250,7 +250,7 @@ impl<'a> IsometricRefine<'a> {
             reach,
             anchor_weight: Vec::new(),
             anchor_at: Vec::new(),
-            unmatched: Vec::new(),
+            unmatched: &[],
             rim_pull: true,
             free_edge: Vec::new(),
         }
@@ -327,10 +327,10 @@ impl<'a> IsometricRefine<'a> {
     /// region a one-sided scan left unseen, which the schedule carried (docs/method.md
     /// "Partial scans"). Its nearest scan points lie on the seen side, so a plane through one
     /// of them would draw the unseen back onto the front's edge; it keeps its shape by the
-    /// springs and the hold alone.
-    pub fn without_scan_under(mut self, vertices: &[bool]) -> Self {
-        if vertices.len() == self.ring.len() && vertices.contains(&true) {
-            self.unmatched = vertices.to_vec();
+    /// springs and the hold alone. A mask of another length than the vertices' is ignored.
+    pub fn without_scan_under(mut self, vertices: &'a [bool]) -> Self {
+        if vertices.len() == self.ring.len() {
+            self.unmatched = vertices;
         }
         self
     }
@@ -466,15 +466,15 @@ impl<'a> IsometricRefine<'a> {
                 *d = near.1.sqrt();
             });
         let cut = (TRIM * median(&b.distance[..m], &mut b.scratch)).max(self.reach);
+        let unmatched = self.unmatched;
         b.t.par_iter_mut()
             .zip(b.distance[..m].par_iter())
+            .enumerate()
             .with_min_len(MIN_LEN)
-            .for_each(|(t, &d)| *t = if d <= cut { 1.0 } else { 0.0 });
-        for (t, &u) in b.t.iter_mut().zip(&self.unmatched) {
-            if u {
-                *t = 0.0;
-            }
-        }
+            .for_each(|(i, (t, &d))| {
+                let under = !unmatched.get(i).copied().unwrap_or(false);
+                *t = if d <= cut && under { 1.0 } else { 0.0 };
+            });
     }
 
     /// Matches every scan point to its closest point on the faces around its nearest vertex
