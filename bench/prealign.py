@@ -3,8 +3,10 @@ pre-alignment"): harness cases with the scan moved the way real scans arrive, fi
 default, scored against the fit of the same scan in the template's frame.
 
 Each case's scan (and its ground truth, the same way) is moved: given z-up instead of y-up
-(``zup``), turned 90° about the vertical (``turn90``), turned 60° about an oblique axis and
-shifted by one bounding-box diagonal (``oblique60``); for ``prealign="similarity"`` also
+(``zup``), turned 90° and 180° about the vertical (``turn90``, ``turn180``: the person facing
+the other way, where a garment nearly symmetric front to back fits as closely back to front,
+docs/method.md), turned 60° about an oblique axis and shifted by one bounding-box diagonal
+(``oblique60``); for ``prealign="similarity"`` also
 scaled ×0.5 and ×2 about the origin (``half``, ``double``) and given in millimetres
 (``mm``: ×1000). Every moved case is fitted with the default (rigid moves) or with
 ``prealign="similarity"`` (scale moves) and its f_R — measured in the moved scan's frame
@@ -65,12 +67,18 @@ def _turn90(points: np.ndarray, diag: np.ndarray, up: int) -> np.ndarray:
     return _rotate(points, axis, 90.0)
 
 
+def _turn180(points: np.ndarray, diag: np.ndarray, up: int) -> np.ndarray:
+    axis = np.zeros(3)
+    axis[up] = 1.0
+    return _rotate(points, axis, 180.0)
+
+
 def _oblique60(points: np.ndarray, diag: np.ndarray, up: int) -> np.ndarray:
     return _rotate(points, [1.0, 2.0, -1.5], 60.0) + diag
 
 
 #: The rigid moves, fitted with the default.
-RIGID: dict[str, Move] = {"zup": _zup, "turn90": _turn90, "oblique60": _oblique60}
+RIGID: dict[str, Move] = {"zup": _zup, "turn90": _turn90, "turn180": _turn180, "oblique60": _oblique60}
 #: The scale moves, fitted with ``prealign="similarity"``.
 SCALED: dict[str, Move] = {
     "half": lambda p, d, u: 0.5 * p,

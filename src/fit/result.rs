@@ -221,7 +221,8 @@ pub struct Diagnostics {
 /// What the global pre-alignment found ([`crate::prealign::align`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct PrealignFigures {
-    /// Whether the placements were searched (false: the template as given lay on the scan).
+    /// Whether the placements were searched (false: the template as given lay on a scan larger
+    /// than the garment, a dressed body, and was kept without a search).
     pub searched: bool,
     /// Whether the template was moved from where it was given.
     pub moved: bool,

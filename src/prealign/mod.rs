@@ -53,10 +53,18 @@ pub enum Motion {
     Similarity,
 }
 
-/// The identity is kept without a search when its two-sided distance is at most this fraction
-/// of the scan's RMS radius (a placed template: the distance is of the order of the fold
-/// depth, a turned or displaced one of the order of the radius).
+/// A template whose two-sided distance as given is at most this fraction of the scan's RMS
+/// radius is placed already (the distance is of the order of the fold depth, a turned or
+/// displaced one's of the order of the radius): only its own reading and its half turns are
+/// searched ([`PLACED_TURN`]), and it moves only where one of them halves its score ([`SEARCH_GAIN`]);
+/// in a scene ([`SCENE`]) it is kept without a search.
 pub const PLACED: f64 = 0.1;
+
+/// A template placed already ([`PLACED`]) is searched from the principal-frame candidates
+/// turned at least this much (degrees) from it, or at most 180° less, only: its half turns
+/// (back to front, upside down), the readings a garment that lies on its scan can be mistaken
+/// for, and its own reading.
+pub const PLACED_TURN: f64 = 150.0;
 
 /// A scan whose bounding-box diagonal exceeds the template's this many times is a scene
 /// larger than the garment (a dressed body; the same ratio as the dressed-scan rule of
@@ -151,19 +159,32 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
     // be the garment in other units, which a template lies on a part of.)
     let scaled = motion == Motion::Similarity;
     let scene = !scaled && bbox_diagonal(scan) > SCENE * bbox_diagonal(template);
-    if identity_score <= PLACED * sa.rms_radius
-        || (scene && identity_forward <= PLACED * ta.rms_radius)
+    if scene
+        && (identity_score <= PLACED * sa.rms_radius || identity_forward <= PLACED * ta.rms_radius)
     {
         return unchanged(identity_score);
     }
+    // A template that lies on the scan as given is searched too, near it and from its half
+    // turns only, and moved only where the search lies closer by [`SEARCH_GAIN`]: a garment turned back to
+    // front whose two sides differ a little can lie within [`PLACED`] as given.
+    let placed = identity_score <= PLACED * sa.rms_radius;
     let scale = if scaled {
         sa.rms_radius / ta.rms_radius
     } else {
         1.0
     };
-    let (refined, given_index) = refined_placements(&clouds, &ta, &sa, scale, scaled, identity);
+    let (refined, given_index) =
+        refined_placements(&clouds, &ta, &sa, scale, scaled, identity, placed);
     let (transform, score) = least_turned_near_tie(&refined);
     let readings = distinct_readings(&refined);
+    if placed && score > SEARCH_GAIN * identity_score {
+        return Alignment {
+            searched: true,
+            readings,
+            best_score: best_of(&refined),
+            ..unchanged(identity_score)
+        };
+    }
     // A template placed roughly right — the basin of its placement as given ties with the
     // best — stays as given unless the search improves its score by [`SEARCH_GAIN`].
     let best = best_of(&refined);
@@ -215,7 +236,8 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
 /// `ta` and `sa` (centroids matched, the template scaled by `scale`) and `given` — refined by
 /// trimmed ICP on the coarse samples, side by side; the distinct placements that score near
 /// the best there, and the basin of `given`, refined again on the full samples. Returns those
-/// and the index of `given`'s basin among them.
+/// and the index of `given`'s basin among them. When `given` is `placed` (it lies on the scan),
+/// only the candidates near it and its half turns are tried ([`PLACED_TURN`]).
 fn refined_placements(
     clouds: &Clouds,
     ta: &Axes,
@@ -223,6 +245,7 @@ fn refined_placements(
     scale: f64,
     scaled: bool,
     given: Similarity,
+    placed: bool,
 ) -> (Vec<(Similarity, f64)>, usize) {
     let mut starts: Vec<Similarity> = axes::candidate_rotations(ta, sa)
         .into_iter()
@@ -232,6 +255,14 @@ fn refined_placements(
             translation: sa.centroid - scale * (rotation * ta.centroid),
         })
         .collect();
+    if placed {
+        // A template that lies on the scan: its own reading and its half turns (back to front,
+        // upside down) only.
+        starts.retain(|s| {
+            let turn = s.turned_from(&given);
+            turn >= PLACED_TURN || turn <= 180.0 - PLACED_TURN
+        });
+    }
     starts.push(given);
     let coarse: Vec<(Similarity, f64)> = starts
         .into_par_iter()
@@ -295,7 +326,7 @@ pub fn pose_scores(
         let basin = icp::refine(&clouds, coarse, false, Level::Full).1;
         return Some((basin, basin));
     }
-    let (refined, given_index) = refined_placements(&clouds, &ta, &sa, 1.0, false, rigid);
+    let (refined, given_index) = refined_placements(&clouds, &ta, &sa, 1.0, false, rigid, false);
     Some((refined[given_index].1, best_of(&refined)))
 }
 
