@@ -56,14 +56,15 @@ pub enum Motion {
 /// A template whose two-sided distance as given is at most this fraction of the scan's RMS
 /// radius is placed already (the distance is of the order of the fold depth, a turned or
 /// displaced one's of the order of the radius): only its own reading and its half turns are
-/// searched ([`PLACED_TURN`]), and it moves only where one of them halves its score ([`SEARCH_GAIN`]);
-/// in a scene ([`SCENE`]) it is kept without a search.
+/// searched ([`PLACED_TURN`]), and it is turned back by a half turn where that halves its score
+/// ([`SEARCH_GAIN`]), else kept as given; in a scene ([`SCENE`]) it is kept without a search.
 pub const PLACED: f64 = 0.1;
 
 /// A template placed already ([`PLACED`]) is searched from the principal-frame candidates
 /// turned at least this much (degrees) from it, or at most 180° less, only: its half turns
 /// (back to front, upside down), the readings a garment that lies on its scan can be mistaken
-/// for, and its own reading.
+/// for, and its own reading (without it, an exactly symmetric template's mirror reading can
+/// win the least-turn tie-break); only a half turn moves it.
 pub const PLACED_TURN: f64 = 150.0;
 
 /// A scan whose bounding-box diagonal exceeds the template's this many times is a scene
@@ -164,9 +165,10 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
     {
         return unchanged(identity_score);
     }
-    // A template that lies on the scan as given is searched too, near it and from its half
-    // turns only, and moved only where the search lies closer by [`SEARCH_GAIN`]: a garment turned back to
-    // front whose two sides differ a little can lie within [`PLACED`] as given.
+    // A template that lies on the scan as given is searched too, from its own reading and its
+    // half turns, and turned back by a half turn where that halves its score
+    // ([`SEARCH_GAIN`]): a garment whose front and back differ a little can lie within
+    // [`PLACED`] back to front.
     let placed = identity_score <= PLACED * sa.rms_radius;
     let scale = if scaled {
         sa.rms_radius / ta.rms_radius
@@ -177,7 +179,11 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
         refined_placements(&clouds, &ta, &sa, scale, scaled, identity, placed);
     let (transform, score) = least_turned_near_tie(&refined);
     let readings = distinct_readings(&refined);
-    if placed && score > SEARCH_GAIN * identity_score {
+    // A placed template is turned back by a half turn or kept: its own reading's basin is
+    // left to the fit's rigid phase.
+    if placed
+        && (score > SEARCH_GAIN * identity_score || transform.turned_from(&identity) < PLACED_TURN)
+    {
         return Alignment {
             searched: true,
             readings,
