@@ -627,7 +627,8 @@ def prealign(template_vertices: Any, target: Any, motion: str = "rigid") -> dict
     robust two-sided distances ``identity_score`` (the placement as given) and ``score`` (after),
     ``searched`` (False: the template lay on a scan larger than the garment, a dressed body,
     and was kept without a search; a template that lies on a garment's scan is searched from
-    its own reading and its half turns only, and kept unless one halves its score) and ``readings``
+    its own reading and its half turns only, and turned back by a half turn where that halves
+    its score, else kept as given) and ``readings``
     (the orientations that fit the scan alike; above 1, a symmetric template's reading was
     chosen by least turn, and landmarks settle it; 0 when nothing was searched). ``fit`` goes
     further when two such readings are other shapes of the template (a garment back to front,
