@@ -61,16 +61,15 @@ def _zup(points: np.ndarray, diag: np.ndarray, up: int) -> np.ndarray:
     return _rotate(points, axis, 90.0)
 
 
-def _turn90(points: np.ndarray, diag: np.ndarray, up: int) -> np.ndarray:
-    axis = np.zeros(3)
-    axis[up] = 1.0
-    return _rotate(points, axis, 90.0)
+def _about_vertical(degrees: float) -> Move:
+    """A turn by `degrees` about the case's up axis."""
 
+    def move(points: np.ndarray, diag: np.ndarray, up: int) -> np.ndarray:
+        axis = np.zeros(3)
+        axis[up] = 1.0
+        return _rotate(points, axis, degrees)
 
-def _turn180(points: np.ndarray, diag: np.ndarray, up: int) -> np.ndarray:
-    axis = np.zeros(3)
-    axis[up] = 1.0
-    return _rotate(points, axis, 180.0)
+    return move
 
 
 def _oblique60(points: np.ndarray, diag: np.ndarray, up: int) -> np.ndarray:
@@ -78,7 +77,12 @@ def _oblique60(points: np.ndarray, diag: np.ndarray, up: int) -> np.ndarray:
 
 
 #: The rigid moves, fitted with the default.
-RIGID: dict[str, Move] = {"zup": _zup, "turn90": _turn90, "turn180": _turn180, "oblique60": _oblique60}
+RIGID: dict[str, Move] = {
+    "zup": _zup,
+    "turn90": _about_vertical(90.0),
+    "turn180": _about_vertical(180.0),
+    "oblique60": _oblique60,
+}
 #: The scale moves, fitted with ``prealign="similarity"``.
 SCALED: dict[str, Move] = {
     "half": lambda p, d, u: 0.5 * p,

@@ -778,7 +778,7 @@ def _fitted_turned_90(name, kind):
     if why:
         pytest.skip(why)
     case = next(c for c in cases.real_cases(kinds=(kind,)) if c.name == name)
-    moved = prealign.moved(case, prealign._turn90)
+    moved = prealign.moved(case, prealign.RIGID["turn90"])
     base = fm.fit(case.template_vertices, case.faces, case.target)
     turned = fm.fit(moved["template_vertices"], moved["faces"], moved["target"])
     rms = lambda v, g: np.sqrt(((np.asarray(v) - g) ** 2).sum(1).mean())  # noqa: E731

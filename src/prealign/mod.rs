@@ -179,53 +179,40 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
         refined_placements(&clouds, &ta, &sa, scale, scaled, identity, placed);
     let (transform, score) = least_turned_near_tie(&refined);
     let readings = distinct_readings(&refined);
+    let best = best_of(&refined);
+    // Searched, and the placement as given kept.
+    let kept = Alignment {
+        searched: true,
+        readings,
+        best_score: best,
+        ..unchanged(identity_score)
+    };
     // A placed template is turned back by a half turn or kept: its own reading's basin is
     // left to the fit's rigid phase.
     if placed
         && (score > SEARCH_GAIN * identity_score || transform.turned_from(&identity) < PLACED_TURN)
     {
-        return Alignment {
-            searched: true,
-            readings,
-            best_score: best_of(&refined),
-            ..unchanged(identity_score)
-        };
+        return kept;
     }
     // A template placed roughly right — the basin of its placement as given ties with the
     // best — stays as given unless the search improves its score by [`SEARCH_GAIN`].
-    let best = best_of(&refined);
     let (basin, given_basin) = refined[given_index];
     // (With the scale free, a basin that rescales the template was not placed right: a scan in
     // other units.)
     let same_size = (basin.scale - 1.0).abs() < PLACED;
     if same_size && given_basin <= best * (1.0 + NEAR_TIE) && score > SEARCH_GAIN * identity_score {
-        return Alignment {
-            searched: true,
-            readings,
-            best_score: best,
-            ..unchanged(identity_score)
-        };
+        return kept;
     }
     // In a scene the two-sided score is mostly the body's: a placement elsewhere is taken only
     // when the template itself lies on the scan better there, by [`SEARCH_GAIN`].
     if scene && clouds.scores(&transform).1 > SEARCH_GAIN * identity_forward {
-        return Alignment {
-            searched: true,
-            readings,
-            best_score: best,
-            ..unchanged(identity_score)
-        };
+        return kept;
     }
     let moved = (transform.translation + (transform.rotation - Mat3::identity()) * sa.centroid)
         .norm()
         .max((transform.scale - 1.0).abs() * sa.rms_radius);
     if transform.angle_degrees() < SMALL_ANGLE && moved < PLACED * sa.rms_radius {
-        return Alignment {
-            searched: true,
-            readings,
-            best_score: best,
-            ..unchanged(identity_score)
-        };
+        return kept;
     }
     Alignment {
         transform,
