@@ -35,7 +35,7 @@ mod validate;
 
 pub use attraction::{DRESSED_TRUST_FACTOR, GARMENT_FRAME_RATIO};
 pub use garments::GARMENT_MIN_SHARE;
-pub use isometric::{IsometricRefine, PlaneNormal, SpringScale, Springs};
+pub use isometric::{HoldWhere, IsometricRefine, PlaneNormal, SpringScale, Springs};
 pub use model::{deformation_model, TemplateTopology, Workspace};
 pub use params::{
     Acceleration, FitParams, Method, ModelConstants, Prealign, Readings, RotationSource, Schedule,
@@ -48,7 +48,8 @@ pub use params::{
     DEFAULT_STRAIN_LIMIT, DEFAULT_TWO_WAY_RIM, DEFAULT_TWO_WAY_TRUST, FAR_AWAY, FAST_ITERATIONS,
     FAST_TWO_WAY, MAX_SCAN_SAMPLE, PAPER_ITERATIONS, PAPER_K_MAX, PAPER_RHO,
     RIGID_SCAN_POINTS_PER_VERTEX, SCHEDULE_NAMES, SIZE_MISMATCH, TRACKING_ISOMETRIC_ITERATIONS,
-    TRACKING_ITERATIONS, TRACKING_REST_RIGIDITY, TRACKING_STRAIN_LIMIT,
+    TRACKING_ITERATIONS, TRACKING_REST_RIGIDITY, TRACKING_STRAIN_LIMIT, UNSTRETCHED_SMOOTHING,
+    UNSTRETCHED_SPREAD, UNSTRETCHED_STEPS,
 };
 pub use result::{
     ComponentFigures, Diagnostics, FitResult, IterationRecord, PrealignFigures, Progress,
@@ -452,6 +453,11 @@ fn fit_from(
         winner.pos.clone_from(&prepared.start);
         start_vertices
     } else if refine {
+        // A garment pass that left the garment unstretched is refined to the rest shape's
+        // metric (UNSTRETCHED_SPREAD).
+        let unstretched = role.garment
+            && rest_edges.stretch_field_spread(&vertices, UNSTRETCHED_SMOOTHING)
+                < UNSTRETCHED_SPREAD;
         let mut refined = vertices;
         // A tracked frame's rest shape is its sequence's own metric; a single fit's template
         // may be placed at any size.
@@ -471,6 +477,7 @@ fn fit_from(
             landmarks,
             role.garment.then(|| role.user_scan.unwrap_or(target)),
             &winner.carried,
+            unstretched,
             params,
         );
         // The result's motion (its accumulated wrinkle field) ends at the refined fit.
@@ -775,7 +782,9 @@ type Placement = (
 /// beyond the rim on a garment pass (`garment_pass`: the scan its free edges are judged on),
 /// its springs [`CARRIED_SPRING_FACTOR`] times as stiff and the vertices of the region without
 /// a fit → scan match when the schedule carried a region without scan support (`carried`, a
-/// flag per vertex or empty); nothing when fewer than a plane's worth of points.
+/// flag per vertex or empty); `unstretched` ([`UNSTRETCHED_SPREAD`]): [`UNSTRETCHED_STEPS`]
+/// steps at least, the hold only where the scan has no points for the fit
+/// ([`HoldWhere::Unsupported`]). Nothing when fewer than a plane's worth of points.
 #[allow(clippy::too_many_arguments)]
 fn isometric_refinement(
     vertices: &mut [[f64; 3]],
@@ -788,6 +797,7 @@ fn isometric_refinement(
     landmarks: Option<&Landmarks>,
     garment_pass: Option<&[[f64; 3]]>,
     carried: &[bool],
+    unstretched: bool,
     params: &FitParams,
 ) {
     let carries = carried.contains(&true);
@@ -830,14 +840,21 @@ fn isometric_refinement(
         let free = free_edges::free_edge_faces(vertices, faces, scan);
         refine = refine.without_rim_pull().with_free_edges(free);
     }
+    let (steps, hold_where) = if unstretched {
+        let steps = params.schedule.isometric_iterations.max(UNSTRETCHED_STEPS);
+        (steps, HoldWhere::Unsupported)
+    } else {
+        (params.schedule.isometric_iterations, HoldWhere::Everywhere)
+    };
     refine.run(
         vertices,
-        params.schedule.isometric_iterations,
+        steps,
         Springs {
             weight: params.schedule.isometric_weight
                 * if carries { CARRIED_SPRING_FACTOR } else { 1.0 },
             hold: params.schedule.isometric_hold,
             scale,
+            hold_where,
         },
     );
 }

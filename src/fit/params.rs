@@ -109,6 +109,20 @@ pub const CARRY_MIN_BEHIND: f64 = 1.0;
 /// the carried region's edges out of the template's metric; stiffer springs keep its shape
 /// (docs/method.md "Partial scans").
 pub const CARRIED_SPRING_FACTOR: f64 = 3.0;
+/// A garment pass (the refit and the cuts of a scan of a dressed person) whose schedule left
+/// the garment unstretched — the spread of its stretch field
+/// ([`EdgeLengths::stretch_field_spread`](crate::metrics::EdgeLengths::stretch_field_spread),
+/// [`UNSTRETCHED_SMOOTHING`] rounds) below this — is refined to the rest shape's metric: its
+/// isometric refinement runs [`UNSTRETCHED_STEPS`] steps with the hold only where the scan has
+/// no points for the fit. The simulated skirts' passes lie at 0.028–0.037, the T-shirts' (not
+/// the template's isometries: ARCSim's rest shape differs from the pattern's) at 0.06–0.15
+/// (docs/method.md "Isometric refinement", unstretched garments).
+pub const UNSTRETCHED_SPREAD: f64 = 0.05;
+/// Neighbour averagings of the stretch field behind [`UNSTRETCHED_SPREAD`].
+pub const UNSTRETCHED_SMOOTHING: usize = 40;
+/// The refinement steps of an unstretched garment pass ([`UNSTRETCHED_SPREAD`]): without the
+/// hold the springs converge slowly.
+pub const UNSTRETCHED_STEPS: usize = 300;
 /// [`carry_unsupported`](crate::fit::Schedule::carry_unsupported): the vertices within this
 /// many of the model's n-rings of a carried vertex (and not carried themselves) move only
 /// along their vertex normal in the coarse and fine phases. The scan's edge there is where

@@ -81,6 +81,49 @@ impl EdgeLengths {
         let mean = logs.iter().sum::<f64>() / n;
         (logs.iter().map(|l| (l - mean).powi(2)).sum::<f64>() / n).sqrt()
     }
+
+    /// The spread of the fit's stretch *field*: each vertex's mean `ln(ℓ / ℓ⁰)` over its
+    /// edges, averaged `rounds` times with its neighbours' values (each round: the mean over
+    /// the vertex and its neighbours), and the population standard deviation of those values
+    /// over the vertices with an edge. Unlike [`EdgeLengths::spread`], the edge-scale noise of
+    /// a fit on a noisy scan averages out, and what remains is stretch over regions — a sleeve
+    /// longer than the template's, a garment that is not the template's isometry (docs/method.md
+    /// "Isometric refinement", unstretched garments). 0 for a similarity of the template.
+    pub fn stretch_field_spread(&self, fitted: &[[f64; 3]], rounds: usize) -> f64 {
+        let m = fitted.len();
+        let (mut sum, mut count) = (vec![0.0f64; m], vec![0usize; m]);
+        for (&(a, b), &rest) in self.edges.iter().zip(&self.rest) {
+            let log = (edge_length(fitted, (a, b)) / rest).max(1e-12).ln();
+            for v in [a as usize, b as usize] {
+                sum[v] += log;
+                count[v] += 1;
+            }
+        }
+        let mut field: Vec<f64> = sum
+            .iter()
+            .zip(&count)
+            .map(|(&s, &c)| if c > 0 { s / c as f64 } else { 0.0 })
+            .collect();
+        let mut next = vec![0.0f64; m];
+        for _ in 0..rounds {
+            for (v, (n, &c)) in next.iter_mut().zip(&count).enumerate() {
+                *n = field[v] / (c + 1) as f64;
+            }
+            for &(a, b) in &self.edges {
+                let (a, b) = (a as usize, b as usize);
+                next[a] += field[b] / (count[a] + 1) as f64;
+                next[b] += field[a] / (count[b] + 1) as f64;
+            }
+            std::mem::swap(&mut field, &mut next);
+        }
+        let values: Vec<f64> = (0..m).filter(|&v| count[v] > 0).map(|v| field[v]).collect();
+        if values.is_empty() {
+            return 0.0;
+        }
+        let n = values.len() as f64;
+        let mean = values.iter().sum::<f64>() / n;
+        (values.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n).sqrt()
+    }
 }
 
 /// The length of the edge `(a, b)` on the points `p`.

@@ -45,6 +45,65 @@ fn edge_length_spread_counts_each_edge_once_and_ignores_similarities() {
 
 // ---------- brute-force references (O(N·M), written independently) ----------
 
+/// The stretch field's spread: 0 for a similarity; a regional stretch (one half of a sheet
+/// 20 % longer) keeps most of its spread through the smoothing, edge-scale noise of the same
+/// per-edge spread averages out.
+#[test]
+fn stretch_field_spread_keeps_regional_stretch_and_averages_out_noise() {
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let (flat, faces) = crate::synthetic::grid_sheet(41, 41, 1.0, 1.0);
+    let lengths = EdgeLengths::new(&flat, &faces);
+    let similar: Vec<[f64; 3]> = flat
+        .iter()
+        .map(|p| [2.0 * p[1], -2.0 * p[0], 2.0 * p[2] + 1.0])
+        .collect();
+    assert!(lengths.stretch_field_spread(&similar, 40) < 1e-12);
+    // Half the sheet (x > 0) stretched along x by 20 %.
+    let regional: Vec<[f64; 3]> = flat
+        .iter()
+        .map(|p| [if p[0] > 0.0 { 1.2 * p[0] } else { p[0] }, p[1], p[2]])
+        .collect();
+    // Noise across the sheet, scaled to the same per-edge spread.
+    let jitter: Vec<[f64; 3]> = flat
+        .iter()
+        .map(|_| {
+            [
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                0.0,
+            ]
+        })
+        .collect();
+    let noisy = |a: f64| -> Vec<[f64; 3]> {
+        flat.iter()
+            .zip(&jitter)
+            .map(|(p, j)| [p[0] + a * j[0], p[1] + a * j[1], p[2]])
+            .collect()
+    };
+    let target = lengths.spread(&regional);
+    let (mut lo, mut hi) = (0.0, 0.1);
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        if lengths.spread(&noisy(mid)) < target {
+            lo = mid
+        } else {
+            hi = mid
+        }
+    }
+    let noise = noisy(lo);
+    assert_relative_eq!(lengths.spread(&noise), target, max_relative = 1e-3);
+    let (kept, averaged) = (
+        lengths.stretch_field_spread(&regional, 40),
+        lengths.stretch_field_spread(&noise, 40),
+    );
+    assert!(kept > 0.5 * target, "{kept:.4} of {target:.4}");
+    assert!(averaged < 0.2 * kept, "{averaged:.5} against {kept:.4}");
+    // Without smoothing rounds the two are of one order.
+    assert!(
+        lengths.stretch_field_spread(&noise, 0) > 0.3 * lengths.stretch_field_spread(&regional, 0)
+    );
+}
+
 fn dist(a: &[f64; 3], b: &[f64; 3]) -> f64 {
     ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
 }

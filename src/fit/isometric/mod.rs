@@ -26,7 +26,9 @@
 //! similarity placement, the harness's simulated drapes) keeps its proportions and is not
 //! pulled back to its own size. The hold (`h`, 0 unless set) keeps the edge vectors near the
 //! schedule's result: on a noisy scan, whose points the point-to-plane term would follow,
-//! it keeps the mesh from crumpling at the edge-length scale (flipped faces). Both
+//! it keeps the mesh from crumpling at the edge-length scale (flipped faces); with
+//! [`HoldWhere::Unsupported`] it holds only the edges where the scan has no points for the fit
+//! (`hold.rs`: a garment the schedule left unstretched). Both
 //! distance terms measure across the surface only, so the fit moves along the scan freely —
 //! where the springs and the scan beyond its rim ask — which undoes a slide along the scan (what
 //! makes a tracked sequence drift, docs/method.md "Tracking"). `c` makes the scan → fit term
@@ -46,6 +48,8 @@ use crate::rings::{adjacency, ring_lengths, Neighborhoods};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::sync::OnceLock;
+
+mod hold;
 
 /// Matches beyond this multiple of their median distance (and beyond [`REACH`]) are dropped
 /// (fit → scan and scan → fit alike).
@@ -117,6 +121,23 @@ pub struct Springs {
     pub hold: f64,
     /// The size the rest lengths are taken at.
     pub scale: SpringScale,
+    /// Which edges the hold applies to.
+    pub hold_where: HoldWhere,
+}
+
+/// Which edges [`Springs::hold`] applies to.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum HoldWhere {
+    /// Every edge.
+    #[default]
+    Everywhere,
+    /// Only where the scan has no points for the fit (a hole, an unseen part): an edge holds
+    /// `h` times the share of its two ends without support — a vertex whose one-ring the scan
+    /// points choose as nearest less than a quarter as often as a typical vertex's, as the
+    /// first matches found them, the region grown by one ring (`hold.rs`). The springs alone
+    /// shape the rest: for a garment the schedule left unstretched (docs/method.md "Isometric
+    /// refinement", unstretched garments).
+    Unsupported,
 }
 
 /// The size the edge springs hold the rest shape's proportions at.
@@ -189,8 +210,13 @@ struct Buffers {
     a_dir: Vec<[f64; 3]>,
     partials: Vec<f64>,
     /// Each vertex's `Σ_k (Y⁰_i − Y⁰_k)` over its ring, `Y⁰` the fit as the refinement starts
-    /// (the hold term's right-hand side).
+    /// (the hold term's right-hand side), each term times its edge's hold when the holds differ
+    /// per edge (`edge_hold`).
     held: Vec<[f64; 3]>,
+    /// Per ring slot, the edge's hold, and per vertex the sum of its slots' ([`HoldWhere::
+    /// Unsupported`]); empty: `h` on every edge.
+    edge_hold: Vec<f64>,
+    vertex_hold: Vec<f64>,
     /// The fit's vertex normals at the last match ([`PlaneNormal::Fit`]; empty otherwise).
     fit_normal: Vec<[f64; 3]>,
 }
@@ -369,28 +395,13 @@ impl<'a> IsometricRefine<'a> {
             a_dir: vec![[0.0; 3]; m],
             partials: vec![0.0; m.div_ceil(CHUNK)],
             held: vec![[0.0; 3]; m],
+            edge_hold: Vec::new(),
+            vertex_hold: Vec::new(),
             fit_normal: match self.plane_normal {
                 PlaneNormal::Fit => vec![[0.0; 3]; m],
                 PlaneNormal::Scan => Vec::new(),
             },
         };
-        if springs.hold > 0.0 {
-            let ring = &self.ring;
-            let start = &*vertices;
-            b.held
-                .par_iter_mut()
-                .enumerate()
-                .with_min_len(MIN_LEN)
-                .for_each(|(i, held)| {
-                    let si = vec3(&start[i]);
-                    let sum: Vec3 = ring
-                        .of(i)
-                        .iter()
-                        .map(|&k| si - vec3(&start[k as usize]))
-                        .sum();
-                    *held = sum.into();
-                });
-        }
         let scale = match springs.scale {
             SpringScale::Rest => 1.0,
             SpringScale::Fit => self.scale_of(vertices, &mut b.scratch),
@@ -400,11 +411,51 @@ impl<'a> IsometricRefine<'a> {
             if step % MATCH_EVERY == 0 {
                 self.fit_to_scan(vertices, &mut b);
                 c = self.scan_to_fit(vertices, &mut b);
-                self.assemble_matrix(&mut b, springs.weight + springs.hold, c);
+                if step == 0 {
+                    self.hold_at_start(vertices, &mut b, &springs);
+                }
+                let uniform = if b.edge_hold.is_empty() {
+                    springs.hold
+                } else {
+                    0.0
+                };
+                self.assemble_matrix(&mut b, springs.weight + uniform, c);
             }
             self.assemble_rhs(vertices, &mut b, &springs, c, scale);
             solve(vertices, &self.ring, &mut b);
         }
+    }
+
+    /// The hold term's right-hand side at the fit as the refinement starts, and, for
+    /// [`HoldWhere::Unsupported`], each edge's hold from the first matches.
+    fn hold_at_start(&self, start: &[[f64; 3]], b: &mut Buffers, springs: &Springs) {
+        if springs.hold <= 0.0 {
+            return;
+        }
+        if springs.hold_where == HoldWhere::Unsupported {
+            let unsupported = hold::unsupported(&self.ring, start.len(), &b.matched, self.weights);
+            (b.edge_hold, b.vertex_hold) = hold::edge_holds(&self.ring, &unsupported, springs.hold);
+        }
+        let ring = &self.ring;
+        let edge_hold = &b.edge_hold;
+        b.held
+            .par_iter_mut()
+            .enumerate()
+            .with_min_len(MIN_LEN)
+            .for_each(|(i, held)| {
+                let si = vec3(&start[i]);
+                let lo = ring.offsets[i];
+                let sum: Vec3 = ring
+                    .of(i)
+                    .iter()
+                    .enumerate()
+                    .map(|(e, &k)| {
+                        let edge = si - vec3(&start[k as usize]);
+                        edge_hold.get(lo + e).map_or(edge, |&h| h * edge)
+                    })
+                    .sum();
+                *held = sum.into();
+            });
     }
 
     /// The springs' scale `s`: the median over edges of `y`'s length ÷ the rest length.
@@ -621,17 +672,20 @@ impl<'a> IsometricRefine<'a> {
         let normal = &b.normal;
         // The scan → fit block of corners (l, k) of face f.
         let coupling = |f: usize, l: usize, k: usize| face_q[f][pair(l, k)];
+        let edge_hold = &b.edge_hold;
         b.off
             .par_iter_mut()
             .zip(self.edge_faces.par_iter())
+            .enumerate()
             .with_min_len(MIN_LEN)
-            .for_each(|(a, shared)| {
-                *a = -edges * Mat3::identity();
+            .for_each(|(slot, (a, shared))| {
+                *a = -(edges + edge_hold.get(slot).copied().unwrap_or(0.0)) * Mat3::identity();
                 for e in shared.iter().filter(|e| e.face != u32::MAX) {
                     let [li, lk] = e.corners;
                     *a += c * coupling(e.face as usize, li as usize, lk as usize);
                 }
             });
+        let vertex_hold = &b.vertex_hold;
         b.diag
             .par_iter_mut()
             .zip(b.diag_inv.par_iter_mut())
@@ -639,7 +693,9 @@ impl<'a> IsometricRefine<'a> {
             .with_min_len(MIN_LEN)
             .for_each(|(i, (diag, diag_inv))| {
                 let n = vec3(&normal[i]);
-                let mut d = (edges * ring.of(i).len() as f64 + self.anchor(i)) * Mat3::identity()
+                let held = vertex_hold.get(i).copied().unwrap_or(0.0);
+                let mut d = (edges * ring.of(i).len() as f64 + held + self.anchor(i))
+                    * Mat3::identity()
                     + t[i] * n * n.transpose();
                 for &f in self.vertex_faces.of(i) {
                     let f = f as usize;
@@ -657,6 +713,7 @@ impl<'a> IsometricRefine<'a> {
         let (ring, rest_length) = (&self.ring, &self.rest_length);
         let (t, p, face_r) = (&b.t, &b.p, &b.face_r);
         let held = &b.held;
+        let per_edge = !b.edge_hold.is_empty();
         b.rhs
             .par_iter_mut()
             .enumerate()
@@ -672,8 +729,9 @@ impl<'a> IsometricRefine<'a> {
                         sum += edge * (scale * rest_length[lo + e] / len);
                     }
                 }
-                let mut out =
-                    springs.weight * sum + springs.hold * vec3(&held[i]) + t[i] * vec3(&p[i]);
+                // The holds are in `held` already when they differ per edge.
+                let hold = if per_edge { 1.0 } else { springs.hold };
+                let mut out = springs.weight * sum + hold * vec3(&held[i]) + t[i] * vec3(&p[i]);
                 let a = self.anchor(i);
                 if a > 0.0 {
                     out += a * vec3(&self.anchor_at[i]);
