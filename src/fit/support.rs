@@ -62,15 +62,7 @@ pub(super) fn carried_vertices(
             claims[u as usize] += 1.0;
         }
     }
-    let rings = &prepared.rings;
-    let ring_claims: Vec<f64> = (0..m)
-        .into_par_iter()
-        .map(|u| {
-            let ring = rings.of(u);
-            let sum: f64 = ring.iter().map(|&k| claims[k as usize]).sum();
-            (claims[u] + sum) / (ring.len() + 1) as f64
-        })
-        .collect();
+    let ring_claims = ring_mean(&prepared.rings, &claims);
     let mut positive: Vec<f64> = ring_claims.iter().copied().filter(|&c| c > 0.0).collect();
     let typical = upper_median(&mut positive);
     let rest = &prepared.rest;
@@ -98,7 +90,7 @@ pub(super) fn carried_vertices(
     }
     // Each region by the depth behind the scanned side that carrying keeps it at, summed and
     // per template vertex (CARRY_MIN_BEHIND).
-    for region in regions(rings, &carried) {
+    for region in regions(&prepared.rings, &carried) {
         let behind = depth.total_behind(pos, &region) / m as f64;
         if region.len() < least || behind < CARRY_MIN_BEHIND * unit {
             for &v in &region {
@@ -107,6 +99,18 @@ pub(super) fn carried_vertices(
         }
     }
     carried
+}
+
+/// Per vertex, the mean of `values` over the vertex and its ring (`rings`).
+pub(super) fn ring_mean(rings: &Neighborhoods, values: &[f64]) -> Vec<f64> {
+    (0..values.len())
+        .into_par_iter()
+        .map(|u| {
+            let ring = rings.of(u);
+            let sum: f64 = ring.iter().map(|&k| values[k as usize]).sum();
+            (values[u] + sum) / (ring.len() + 1) as f64
+        })
+        .collect()
 }
 
 /// The vertices not in `carried` within `steps` rings (`rings`, the model's n-rings) of one

@@ -77,9 +77,7 @@ impl EdgeLengths {
             .zip(&self.rest)
             .map(|(&e, &rest)| (edge_length(fitted, e) / rest).max(1e-12).ln())
             .collect();
-        let n = logs.len() as f64;
-        let mean = logs.iter().sum::<f64>() / n;
-        (logs.iter().map(|l| (l - mean).powi(2)).sum::<f64>() / n).sqrt()
+        population_std(&logs)
     }
 
     /// The spread of the fit's stretch *field*: each vertex's mean `ln(ℓ / ℓ⁰)` over its
@@ -117,13 +115,18 @@ impl EdgeLengths {
             std::mem::swap(&mut field, &mut next);
         }
         let values: Vec<f64> = (0..m).filter(|&v| count[v] > 0).map(|v| field[v]).collect();
-        if values.is_empty() {
-            return 0.0;
-        }
-        let n = values.len() as f64;
-        let mean = values.iter().sum::<f64>() / n;
-        (values.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n).sqrt()
+        population_std(&values)
     }
+}
+
+/// The population standard deviation of `values` (0 when empty).
+fn population_std(values: &[f64]) -> f64 {
+    if values.is_empty() {
+        return 0.0;
+    }
+    let n = values.len() as f64;
+    let mean = values.iter().sum::<f64>() / n;
+    (values.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n).sqrt()
 }
 
 /// The length of the edge `(a, b)` on the points `p`.

@@ -1,8 +1,9 @@
-//! Where the refinement's hold applies (docs/method.md "Isometric refinement: unstretched
-//! garments"): on every edge, or only where the scan has no points for the fit — a hole, the
+//! Where the refinement's hold applies (docs/method.md "Isometric refinement", unstretched
+//! garments): on every edge, or only where the scan has no points for the fit — a hole, the
 //! part of a garment inside the body — so that a garment whose schedule left it unstretched is
 //! refined to the rest shape's metric wherever the scan sees it.
 
+use crate::fit::support::{border_band, ring_mean};
 use crate::rings::Neighborhoods;
 
 /// A vertex has no scan support when the scan points whose nearest vertex lies in its ring
@@ -14,43 +15,34 @@ pub const UNSUPPORTED_CLAIMS: f64 = 0.25;
 /// its rim, slide along it as freely as those inside it.
 pub const UNSUPPORTED_GROW: usize = 1;
 
-/// Per vertex (of `m`), whether the scan has no points for it: `matched` is every scan point's
-/// nearest vertex (`u32::MAX`: none), `weights` the points' weights (0: not the garment's).
+/// Per vertex of `ring`, whether the scan has no points for it: `matched` is every scan
+/// point's nearest vertex (`u32::MAX`: none), `weights` the points' weights (0: not the
+/// garment's).
 pub fn unsupported(
     ring: &Neighborhoods,
-    m: usize,
     matched: &[(u32, f64)],
     weights: Option<&[f64]>,
 ) -> Vec<bool> {
+    let m = ring.len();
     let mut claims = vec![0.0f64; m];
     for (j, &(v, _)) in matched.iter().enumerate() {
         if v != u32::MAX && weights.is_none_or(|w| w[j] > 0.0) {
             claims[v as usize] += 1.0;
         }
     }
-    let per_ring: Vec<f64> = (0..m)
-        .map(|i| {
-            let r = ring.of(i);
-            (claims[i] + r.iter().map(|&k| claims[k as usize]).sum::<f64>()) / (r.len() + 1) as f64
-        })
-        .collect();
+    let per_ring = ring_mean(ring, &claims);
     let mut positive: Vec<f64> = per_ring.iter().copied().filter(|&c| c > 0.0).collect();
     if positive.is_empty() {
         // No point claims a vertex: nothing to compare with (the refinement has no scan).
         return vec![false; m];
     }
     let typical = crate::metrics::upper_median(&mut positive);
-    let mut out: Vec<bool> = per_ring
+    let core: Vec<bool> = per_ring
         .iter()
         .map(|&c| c < UNSUPPORTED_CLAIMS * typical)
         .collect();
-    for _ in 0..UNSUPPORTED_GROW {
-        let before = out.clone();
-        for (i, o) in out.iter_mut().enumerate() {
-            *o = *o || ring.of(i).iter().any(|&k| before[k as usize]);
-        }
-    }
-    out
+    let band = border_band(ring, &core, UNSUPPORTED_GROW);
+    core.iter().zip(&band).map(|(&c, &b)| c || b).collect()
 }
 
 /// Each ring slot's (edge i → k) hold, `hold` times the mean of its two ends' `unsupported`
@@ -98,7 +90,7 @@ mod tests {
             .filter(|v| !(16..24).contains(v))
             .flat_map(|v| std::iter::repeat_n((v, 0.0), 4))
             .collect();
-        let out = unsupported(&ring, m, &matched, None);
+        let out = unsupported(&ring, &matched, None);
         // Columns 9 and 10 have no claim in their ring; 8 and 11, beside them, are grown into
         // if not marked already; the columns three and more away keep their support.
         for (v, &marked) in out.iter().enumerate() {
@@ -111,7 +103,7 @@ mod tests {
         }
         // Points of weight 0 claim nothing; with none claiming, no vertex is marked.
         let weights = vec![0.0; matched.len()];
-        assert!(unsupported(&ring, m, &matched, Some(&weights))
+        assert!(unsupported(&ring, &matched, Some(&weights))
             .iter()
             .all(|&u| !u));
     }

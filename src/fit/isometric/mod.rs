@@ -433,7 +433,7 @@ impl<'a> IsometricRefine<'a> {
             return;
         }
         if springs.hold_where == HoldWhere::Unsupported {
-            let unsupported = hold::unsupported(&self.ring, start.len(), &b.matched, self.weights);
+            let unsupported = hold::unsupported(&self.ring, &b.matched, self.weights);
             (b.edge_hold, b.vertex_hold) = hold::edge_holds(&self.ring, &unsupported, springs.hold);
         }
         let ring = &self.ring;
