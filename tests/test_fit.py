@@ -389,14 +389,17 @@ def selected(distances, spreads, margin):
     return min(tied, key=lambda i: (spreads[i], i))
 
 
-def test_accurate_preset_is_the_default_with_150_iterations(case):
-    """preset="accurate" is the default with 150 iterations: the same parameters otherwise,
-    and the same fit as asking the default for 150 iterations."""
+def test_accurate_preset_is_the_default_with_150_iterations_and_every_fit_freed(case):
+    """preset="accurate" is the default with 150 iterations and every unstretched fit refined
+    to the template's metric: the same parameters otherwise, and the same fit as asking the
+    default for those two."""
     v, f, x = case["template_vertices"], case["faces"], case["scan"]
     r = fm.fit(v, f, x, preset="accurate")
-    assert r.params == {**fm.DEFAULT_PARAMS, "iterations": 150}
+    freed = {"iterations": 150, "unstretched_refinement": "every_fit"}
+    assert r.params == {**fm.DEFAULT_PARAMS, **freed}
     assert r.iterations == 150
-    np.testing.assert_array_equal(r.vertices, fm.fit(v, f, x, iterations=150).vertices)
+    same = fm.fit(v, f, x, iterations=150, params={"unstretched_refinement": "every_fit"})
+    np.testing.assert_array_equal(r.vertices, same.vertices)
 
 
 def test_wide_selection_selects_among_three_schedules(case):

@@ -347,6 +347,16 @@ class FitParams(Mapping[str, Any]):
         a tracked sequence it adds a slide to every frame, which piles up (`"fit"` in the
         `"tracking"` preset; docs/method.md "Tracking").
         """
+    @property
+    def unstretched_refinement(self) -> Literal['garments', 'every_fit', 'off']:
+        """Which fits whose schedule left the template unstretched — the spread of its stretch
+        field below `UNSTRETCHED_SPREAD` — are refined to the rest shape's metric, the hold
+        only where the scan has no points for the fit (`UNSTRETCHED_STEPS` steps; the hold
+        everywhere instead where that turns over more than `UNSTRETCHED_FLIPS` of the faces):
+        `"garments"` (the garment passes of a scan of a dressed person; default), `"every_fit"`
+        (also every fit of a scan of the garment alone that carried no region without scan
+        support; the `"accurate"` preset) or `"off"` (docs/method.md "Isometric refinement").
+        """
 
     # ---- Acceleration
     @property

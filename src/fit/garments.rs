@@ -338,6 +338,7 @@ fn assemble(
     diagnostics.candidate_scan_distances.clear();
     diagnostics.candidate_edge_spreads.clear();
     let mut schedules = Vec::new();
+    let mut refinements = Vec::new();
     let mut ring_sizes = 0.0;
     for &(g, fit) in &fitted {
         for (i, &v) in g.vertices.iter().enumerate() {
@@ -368,11 +369,13 @@ fn assemble(
         diagnostics.knn_queries += d.knn_queries;
         diagnostics.two_way_queries += d.two_way_queries;
         schedules.push(d.schedule.clone());
+        refinements.push(d.refinement.clone());
     }
     diagnostics.degenerate_faces.sort_unstable();
     diagnostics.duplicate_faces.sort_unstable();
     diagnostics.mean_ring_size = ring_sizes / m as f64;
     diagnostics.schedule = schedules.join(" + ");
+    diagnostics.refinement = refinements.join(" + ");
     let iterations = fitted.iter().map(|f| f.1.iterations).max().unwrap_or(0);
     let history = merged_history(&fitted, iterations);
     let snapshots = merged_snapshots(&fitted, &vertices);

@@ -39,17 +39,18 @@ pub use isometric::{HoldWhere, IsometricRefine, PlaneNormal, SpringScale, Spring
 pub use model::{deformation_model, TemplateTopology, Workspace};
 pub use params::{
     Acceleration, FitParams, Method, ModelConstants, Prealign, Readings, RotationSource, Schedule,
-    Selection, ACCURATE_ITERATIONS, AUTO_COARSE_RINGS, AUTO_COARSE_RINGS_MAX,
-    CARRIED_SPRING_FACTOR, CARRY_BAND, CARRY_FAR_EDGES, CARRY_MIN_BEHIND, CARRY_MIN_DEPTH,
-    CARRY_MIN_SHARE, CARRY_SURPLUS, COARSE_RINGS_REFERENCE_VERTICES, COARSE_SCAN_MAX_AUTO_STRIDE,
-    COARSE_SCAN_POINTS_PER_VERTEX, DEFAULT_CARRY_UNSUPPORTED, DEFAULT_ISOMETRIC_HOLD,
-    DEFAULT_ISOMETRIC_ITERATIONS, DEFAULT_ISOMETRIC_WEIGHT, DEFAULT_ITERATIONS,
-    DEFAULT_KEEP_MARGIN, DEFAULT_KNN_SLACK, DEFAULT_K_MAX, DEFAULT_LANDMARK_WEIGHT, DEFAULT_RHO,
-    DEFAULT_STRAIN_LIMIT, DEFAULT_TWO_WAY_RIM, DEFAULT_TWO_WAY_TRUST, FAR_AWAY, FAST_ITERATIONS,
-    FAST_TWO_WAY, MAX_SCAN_SAMPLE, PAPER_ITERATIONS, PAPER_K_MAX, PAPER_RHO,
-    RIGID_SCAN_POINTS_PER_VERTEX, SCHEDULE_NAMES, SIZE_MISMATCH, TRACKING_ISOMETRIC_ITERATIONS,
-    TRACKING_ITERATIONS, TRACKING_REST_RIGIDITY, TRACKING_STRAIN_LIMIT, UNSTRETCHED_SMOOTHING,
-    UNSTRETCHED_SPREAD, UNSTRETCHED_STEPS,
+    Selection, UnstretchedRefinement, ACCURATE_ITERATIONS, AUTO_COARSE_RINGS,
+    AUTO_COARSE_RINGS_MAX, CARRIED_SPRING_FACTOR, CARRY_BAND, CARRY_FAR_EDGES, CARRY_MIN_BEHIND,
+    CARRY_MIN_DEPTH, CARRY_MIN_SHARE, CARRY_SURPLUS, COARSE_RINGS_REFERENCE_VERTICES,
+    COARSE_SCAN_MAX_AUTO_STRIDE, COARSE_SCAN_POINTS_PER_VERTEX, DEFAULT_CARRY_UNSUPPORTED,
+    DEFAULT_ISOMETRIC_HOLD, DEFAULT_ISOMETRIC_ITERATIONS, DEFAULT_ISOMETRIC_WEIGHT,
+    DEFAULT_ITERATIONS, DEFAULT_KEEP_MARGIN, DEFAULT_KNN_SLACK, DEFAULT_K_MAX,
+    DEFAULT_LANDMARK_WEIGHT, DEFAULT_RHO, DEFAULT_STRAIN_LIMIT, DEFAULT_TWO_WAY_RIM,
+    DEFAULT_TWO_WAY_TRUST, FAR_AWAY, FAST_ITERATIONS, FAST_TWO_WAY, MAX_SCAN_SAMPLE,
+    PAPER_ITERATIONS, PAPER_K_MAX, PAPER_RHO, RIGID_SCAN_POINTS_PER_VERTEX, SCHEDULE_NAMES,
+    SIZE_MISMATCH, TRACKING_ISOMETRIC_ITERATIONS, TRACKING_ITERATIONS, TRACKING_REST_RIGIDITY,
+    TRACKING_STRAIN_LIMIT, UNSTRETCHED_FLIPS, UNSTRETCHED_SMOOTHING, UNSTRETCHED_SPREAD,
+    UNSTRETCHED_STEPS,
 };
 pub use result::{
     ComponentFigures, Diagnostics, FitResult, IterationRecord, PrealignFigures, Progress,
@@ -449,13 +450,25 @@ fn fit_from(
     // template explains (`assessed`), which seed the garment's segmentation: a fit whose slides
     // are undone explains less skin (docs/method.md "Scans of dressed people").
     let refine = !kept_start && params.schedule.isometric_iterations > 0;
+    let mut refinement = Refinement::None;
     let vertices = if kept_start {
         winner.pos.clone_from(&prepared.start);
         start_vertices
     } else if refine {
-        // A garment pass that left the garment unstretched is refined to the rest shape's
-        // metric (UNSTRETCHED_SPREAD).
-        let unstretched = role.garment
+        // A fit that left the template unstretched is refined to the rest shape's metric
+        // (UNSTRETCHED_SPREAD): a garment pass, or with `every_fit` also a fit of a scan of
+        // the garment alone that carried no region without scan support.
+        let eligible = match params.schedule.unstretched_refinement {
+            UnstretchedRefinement::Garments => role.garment,
+            UnstretchedRefinement::EveryFit => {
+                role.garment
+                    || (prepared.garment.is_none()
+                        && !role.several
+                        && !winner.carried.contains(&true))
+            }
+            UnstretchedRefinement::Off => false,
+        };
+        let unstretched = eligible
             && rest_edges.stretch_field_spread(&vertices, UNSTRETCHED_SMOOTHING)
                 < UNSTRETCHED_SPREAD;
         let mut refined = vertices;
@@ -466,7 +479,7 @@ fn fit_from(
         } else {
             SpringScale::Fit
         };
-        isometric_refinement(
+        refinement = isometric_refinement(
             &mut refined,
             rest_shape,
             scale,
@@ -553,6 +566,7 @@ fn fit_from(
         chosen.params = params.clone();
     }
     chosen.diagnostics.kept_start = kept_start;
+    chosen.diagnostics.refinement = refinement.name().to_owned();
     let finish = clock.elapsed().as_secs_f64() - setup - iterations;
     chosen.diagnostics.wall_seconds = [setup, iterations, finish];
     // A first fit that is final after all: its deferred pose figures, on the points it was judged on
@@ -784,7 +798,9 @@ type Placement = (
 /// a fit → scan match when the schedule carried a region without scan support (`carried`, a
 /// flag per vertex or empty); `unstretched` ([`UNSTRETCHED_SPREAD`]): [`UNSTRETCHED_STEPS`]
 /// steps at least, the hold only where the scan has no points for the fit
-/// ([`HoldWhere::Unsupported`]). Nothing when fewer than a plane's worth of points.
+/// ([`HoldWhere::Unsupported`]), or with the hold everywhere where that turned over more than
+/// [`UNSTRETCHED_FLIPS`] of the faces. Nothing when fewer than a plane's worth of points.
+/// Returns how it ended.
 #[allow(clippy::too_many_arguments)]
 fn isometric_refinement(
     vertices: &mut [[f64; 3]],
@@ -799,7 +815,7 @@ fn isometric_refinement(
     carried: &[bool],
     unstretched: bool,
     params: &FitParams,
-) {
+) -> Refinement {
     let carries = carried.contains(&true);
     // Every `stride`-th of the points: at most about REFINE_POINTS_PER_VERTEX per vertex.
     let live = assessed.map_or(target.len(), <[usize]>::len);
@@ -820,7 +836,7 @@ fn isometric_refinement(
     });
     let point_weights = point_weights.filter(|w| w.iter().any(|&x| x > 0.0));
     if points.len() < 12 {
-        return;
+        return Refinement::None;
     }
     let (faces, incidence) = (&prepared.faces, &prepared.incidence);
     let mut refine =
@@ -840,23 +856,62 @@ fn isometric_refinement(
         let free = free_edges::free_edge_faces(vertices, faces, scan);
         refine = refine.without_rim_pull().with_free_edges(free);
     }
-    let (steps, hold_where) = if unstretched {
-        let steps = params.schedule.isometric_iterations.max(UNSTRETCHED_STEPS);
-        (steps, HoldWhere::Unsupported)
-    } else {
-        (params.schedule.isometric_iterations, HoldWhere::Everywhere)
+    let springs = |hold_where| Springs {
+        weight: params.schedule.isometric_weight
+            * if carries { CARRIED_SPRING_FACTOR } else { 1.0 },
+        hold: params.schedule.isometric_hold,
+        scale,
+        hold_where,
     };
-    refine.run(
-        vertices,
-        steps,
-        Springs {
-            weight: params.schedule.isometric_weight
-                * if carries { CARRIED_SPRING_FACTOR } else { 1.0 },
-            hold: params.schedule.isometric_hold,
-            scale,
-            hold_where,
-        },
-    );
+    let held = springs(HoldWhere::Everywhere);
+    if !unstretched {
+        refine.run(vertices, params.schedule.isometric_iterations, held);
+        return Refinement::Held;
+    }
+    // Freed where the scan has points for the fit; held everywhere instead where that turned
+    // over more than UNSTRETCHED_FLIPS of the faces.
+    let start = vertices.to_vec();
+    let steps = params.schedule.isometric_iterations.max(UNSTRETCHED_STEPS);
+    refine.run(vertices, steps, springs(HoldWhere::Unsupported));
+    if turned_over_share(&start, vertices, faces) <= UNSTRETCHED_FLIPS {
+        return Refinement::Freed;
+    }
+    vertices.copy_from_slice(&start);
+    refine.run(vertices, params.schedule.isometric_iterations, held);
+    Refinement::HeldAfterFlips
+}
+
+/// The share of `faces` whose normal in `after` points against their normal in `before`.
+fn turned_over_share(before: &[[f64; 3]], after: &[[f64; 3]], faces: &[[u32; 3]]) -> f64 {
+    let normal = |p: &[[f64; 3]], f: &[u32; 3]| {
+        let [a, b, c] = f.map(|v| vec3(&p[v as usize]));
+        (b - a).cross(&(c - a))
+    };
+    let turned = faces
+        .par_iter()
+        .filter(|f| normal(before, f).dot(&normal(after, f)) < 0.0)
+        .count();
+    turned as f64 / faces.len().max(1) as f64
+}
+
+/// How [`isometric_refinement`] ended a fit ([`Diagnostics::refinement`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Refinement {
+    None,
+    Held,
+    Freed,
+    HeldAfterFlips,
+}
+
+impl Refinement {
+    fn name(self) -> &'static str {
+        match self {
+            Refinement::None => "",
+            Refinement::Held => "held",
+            Refinement::Freed => "freed",
+            Refinement::HeldAfterFlips => "held_after_flips",
+        }
+    }
 }
 
 /// The isometric refinement sees at most about this many scan points per template vertex

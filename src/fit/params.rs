@@ -123,6 +123,12 @@ pub const UNSTRETCHED_SMOOTHING: usize = 40;
 /// The refinement steps of an unstretched garment pass ([`UNSTRETCHED_SPREAD`]): without the
 /// hold the springs converge slowly.
 pub const UNSTRETCHED_STEPS: usize = 300;
+/// An unstretched fit's refinement ([`UNSTRETCHED_SPREAD`]) that turns over more than this
+/// share of the faces (their normals against the schedule's result) is run again with the
+/// hold everywhere: on a noisy scan the freed springs follow the noise at the edge-length
+/// scale (`bench.variants`, the `"accurate"` preset: a wind frame's flipped faces beyond its
+/// truth's + 1 point at 0.005; docs/method.md "Isometric refinement").
+pub const UNSTRETCHED_FLIPS: f64 = 0.003;
 /// [`carry_unsupported`](crate::fit::Schedule::carry_unsupported): the vertices within this
 /// many of the model's n-rings of a carried vertex (and not carried themselves) move only
 /// along their vertex normal in the coarse and fine phases. The scan's edge there is where
@@ -543,6 +549,31 @@ pub struct Schedule {
     /// a tracked sequence it adds a slide to every frame, which piles up (`"fit"` in the
     /// `"tracking"` preset; docs/method.md "Tracking").
     pub isometric_plane: PlaneNormal,
+    /// Which fits whose schedule left the template unstretched — the spread of its stretch
+    /// field below [`UNSTRETCHED_SPREAD`] — are refined to the rest shape's metric, the hold
+    /// only where the scan has no points for the fit ([`UNSTRETCHED_STEPS`] steps; the hold
+    /// everywhere instead where that turns over more than [`UNSTRETCHED_FLIPS`] of the faces):
+    /// `"garments"` (the garment passes of a scan of a dressed person; default), `"every_fit"`
+    /// (also every fit of a scan of the garment alone that carried no region without scan
+    /// support; the `"accurate"` preset) or `"off"` (docs/method.md "Isometric refinement").
+    pub unstretched_refinement: UnstretchedRefinement,
+}
+
+/// Which fits [`Schedule::unstretched_refinement`] refines to the rest shape's metric.
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema,
+)]
+#[serde(rename_all = "snake_case")]
+pub enum UnstretchedRefinement {
+    /// The garment passes (the refit and the cuts) of a scan of a dressed person.
+    #[default]
+    Garments,
+    /// Also every fit of a scan of the garment alone that carried no region without scan
+    /// support: those fits come closer to their truth, at up to three times the time of the
+    /// fits it frees (docs/method.md "Isometric refinement").
+    EveryFit,
+    /// None: every fit keeps the hold everywhere.
+    Off,
 }
 
 /// Acceleration: samples and approximate neighborhoods that make a fit faster and change its
@@ -686,6 +717,7 @@ impl Default for Schedule {
             isometric_weight: DEFAULT_ISOMETRIC_WEIGHT,
             isometric_hold: DEFAULT_ISOMETRIC_HOLD,
             isometric_plane: PlaneNormal::Scan,
+            unstretched_refinement: UnstretchedRefinement::Garments,
         }
     }
 }

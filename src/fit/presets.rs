@@ -2,9 +2,10 @@
 
 use super::isometric::PlaneNormal;
 use super::params::{
-    FitParams, Method, Prealign, Selection, ACCURATE_ITERATIONS, FAST_ITERATIONS, FAST_TWO_WAY,
-    PAPER_ITERATIONS, PAPER_K_MAX, PAPER_RHO, TRACKING_ISOMETRIC_ITERATIONS, TRACKING_ITERATIONS,
-    TRACKING_REST_RIGIDITY, TRACKING_STRAIN_LIMIT,
+    FitParams, Method, Prealign, Selection, UnstretchedRefinement, ACCURATE_ITERATIONS,
+    FAST_ITERATIONS, FAST_TWO_WAY, PAPER_ITERATIONS, PAPER_K_MAX, PAPER_RHO,
+    TRACKING_ISOMETRIC_ITERATIONS, TRACKING_ITERATIONS, TRACKING_REST_RIGIDITY,
+    TRACKING_STRAIN_LIMIT,
 };
 use crate::error::{FoldMatchError, Result};
 use crate::nbody::TwoWayPull;
@@ -118,15 +119,19 @@ impl FitParams {
     }
 
     /// The default with [`ACCURATE_ITERATIONS`] iterations instead of 80, every phase
-    /// lengthened in proportion, and the same isometric refinement (the `"accurate"` preset):
-    /// closer to the truth and to the scan at about 1.5× the time; more
-    /// iterations still fit the scan closer but drift from the truth (docs/method.md, "Beyond
-    /// the paper: the default configuration").
+    /// lengthened in proportion, and every fit that the schedule left unstretched refined to
+    /// the rest shape's metric ([`UnstretchedRefinement::EveryFit`]; the default does so on
+    /// the garment passes of a dressed scan only) (the `"accurate"` preset): closer to the
+    /// truth and to the scan at about twice the time; more iterations alone still fit the scan
+    /// closer but drift from the truth (docs/method.md, "Beyond the paper: the default
+    /// configuration", "Isometric refinement").
     pub fn accurate() -> Self {
-        Self {
+        let mut p = Self {
             iterations: ACCURATE_ITERATIONS,
             ..Self::default()
-        }
+        };
+        p.schedule.unstretched_refinement = UnstretchedRefinement::EveryFit;
+        p
     }
 
     /// One schedule instead of schedule selection's two (the `"fast"` preset), between the

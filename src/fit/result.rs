@@ -212,6 +212,15 @@ pub struct Diagnostics {
     /// ([`crate::metrics::edge_length_spread`]), in [`SCHEDULE_NAMES`](super::SCHEDULE_NAMES)
     /// order; empty otherwise.
     pub candidate_edge_spreads: Vec<f64>,
+    /// How the isometric refinement ended the fit: `"held"` (the hold on every edge),
+    /// `"freed"` (a fit the schedule left unstretched, held only where the scan has no points
+    /// for it: [`unstretched_refinement`](super::Schedule::unstretched_refinement)),
+    /// `"held_after_flips"` (freed, then run again with the hold everywhere because the freed
+    /// run turned over more than [`UNSTRETCHED_FLIPS`](super::UNSTRETCHED_FLIPS) of the
+    /// faces) or `""` (no refinement: off, or the do-no-harm rule kept the start). Several
+    /// garments: theirs joined by `" + "`.
+    #[serde(default)]
+    pub refinement: String,
     /// The global pre-alignment ([`FitParams::prealign`](super::FitParams::prealign) `"rigid"`
     /// or `"similarity"`, docs/method.md "Global pre-alignment"); `None` when it did not run
     /// (another mode, landmarks, a template of several garments).

@@ -43,9 +43,14 @@ fn accurate_preset_is_the_default_lengthened() {
         {
             let mut p = accurate.clone();
             p.iterations = DEFAULT_ITERATIONS;
+            p.schedule.unstretched_refinement = UnstretchedRefinement::Garments;
             p
         },
         FitParams::default()
+    );
+    assert_eq!(
+        accurate.schedule.unstretched_refinement,
+        UnstretchedRefinement::EveryFit
     );
     // Every phase keeps its share of the iterations: 45 rigid, 75 coarse, 30 FoldMatch (24,
     // 40 and 16 of the default's 80).
