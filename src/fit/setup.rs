@@ -19,7 +19,7 @@ use rayon::prelude::*;
 
 /// What every schedule of a fit reads and none writes: the inputs validated and in the normalized
 /// frame (docs/method.md, "Frame"), the scan's k-d tree and curvature, the template's topology.
-/// Built once per [`fit`], shared by both runs of schedule selection.
+/// Built once per [`fit`](super::fit), shared by both runs of schedule selection.
 pub(super) struct Prepared {
     pub(super) faces: Vec<[u32; 3]>,
     pub(super) frame: Frame,

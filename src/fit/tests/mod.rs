@@ -3,6 +3,7 @@
 
 use super::params::Internal;
 use super::phases::{annealed, rest_ring_placement};
+use super::refinement::turned_over_share;
 use super::*;
 use crate::math::{vec3, Vec3};
 use crate::rings::n_rings;
