@@ -17,25 +17,12 @@ fn turned_over_share_counts_the_faces_whose_normal_reversed() {
     // Two triangles of a unit square; the second folded past flat turns over, the first only
     // tilts.
     let faces = [[0, 1, 2], [0, 2, 3]];
-    let before = [
-        [0.0, 0.0, 0.0],
-        [1.0, 0.0, 0.0],
-        [1.0, 1.0, 0.0],
-        [0.0, 1.0, 0.0],
-    ];
-    let tilted = [
-        [0.0, 0.0, 0.0],
-        [1.0, 0.0, 0.5],
-        [1.0, 1.0, 0.0],
-        [0.0, 1.0, 0.0],
-    ];
+    // The square with its corners 1 and 3 at `a` and `b`.
+    let square = |a: [f64; 3], b: [f64; 3]| [[0.0, 0.0, 0.0], a, [1.0, 1.0, 0.0], b];
+    let before = square([1.0, 0.0, 0.0], [0.0, 1.0, 0.0]);
+    let tilted = square([1.0, 0.0, 0.5], [0.0, 1.0, 0.0]);
     assert_eq!(turned_over_share(&before, &tilted, &faces), 0.0);
-    let folded = [
-        [0.0, 0.0, 0.0],
-        [1.0, 0.0, 0.0],
-        [1.0, 1.0, 0.0],
-        [1.5, 0.5, 0.0],
-    ];
+    let folded = square([1.0, 0.0, 0.0], [1.5, 0.5, 0.0]);
     assert_eq!(turned_over_share(&before, &folded, &faces), 0.5);
     assert_eq!(turned_over_share(&before, &before, &[]), 0.0);
 }
