@@ -351,8 +351,9 @@ class FitParams(Mapping[str, Any]):
     def unstretched_refinement(self) -> Literal['garments', 'every_fit', 'off']:
         """Which fits whose schedule left the template unstretched — the spread of its stretch
         field below `UNSTRETCHED_SPREAD` — are refined to the rest shape's metric, the hold
-        only where the scan has no points for the fit (`UNSTRETCHED_STEPS` steps; the hold
-        everywhere instead where that turns over more than `UNSTRETCHED_FLIPS` of the faces):
+        only where the scan has no points for the fit (`UNSTRETCHED_STEPS` steps; outside a
+        garment pass, the hold everywhere where that turns over more than `UNSTRETCHED_FLIPS`
+        of the faces):
         `"garments"` (the garment passes of a scan of a dressed person; default), `"every_fit"`
         (also every fit of a scan of the garment alone that carried no region without scan
         support; the `"accurate"` preset) or `"off"` (docs/method.md "Isometric refinement").

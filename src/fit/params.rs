@@ -123,9 +123,9 @@ pub const UNSTRETCHED_SMOOTHING: usize = 40;
 /// The refinement steps of an unstretched garment pass ([`UNSTRETCHED_SPREAD`]): without the
 /// hold the springs converge slowly.
 pub const UNSTRETCHED_STEPS: usize = 300;
-/// An unstretched fit's refinement ([`UNSTRETCHED_SPREAD`]) that turns over more than this
-/// share of the faces (their normals against the schedule's result) is run again with the
-/// hold everywhere: on a noisy scan the freed springs follow the noise at the edge-length
+/// An unstretched fit's refinement ([`UNSTRETCHED_SPREAD`]) outside a garment pass that turns
+/// over more than this share of the faces (their normals against the schedule's result) is
+/// run again with the hold everywhere: on a noisy scan the freed springs follow the noise at the edge-length
 /// scale (`bench.variants`, the `"accurate"` preset: a wind frame's flipped faces beyond its
 /// truth's + 1 point at 0.005; docs/method.md "Isometric refinement").
 pub const UNSTRETCHED_FLIPS: f64 = 0.003;
@@ -551,8 +551,9 @@ pub struct Schedule {
     pub isometric_plane: PlaneNormal,
     /// Which fits whose schedule left the template unstretched — the spread of its stretch
     /// field below [`UNSTRETCHED_SPREAD`] — are refined to the rest shape's metric, the hold
-    /// only where the scan has no points for the fit ([`UNSTRETCHED_STEPS`] steps; the hold
-    /// everywhere instead where that turns over more than [`UNSTRETCHED_FLIPS`] of the faces):
+    /// only where the scan has no points for the fit ([`UNSTRETCHED_STEPS`] steps; outside a
+    /// garment pass, the hold everywhere where that turns over more than [`UNSTRETCHED_FLIPS`]
+    /// of the faces):
     /// `"garments"` (the garment passes of a scan of a dressed person; default), `"every_fit"`
     /// (also every fit of a scan of the garment alone that carried no region without scan
     /// support; the `"accurate"` preset) or `"off"` (docs/method.md "Isometric refinement").
