@@ -109,8 +109,9 @@ pub const CARRY_MIN_BEHIND: f64 = 1.0;
 /// the carried region's edges out of the template's metric; stiffer springs keep its shape
 /// (docs/method.md "Partial scans").
 pub const CARRIED_SPRING_FACTOR: f64 = 3.0;
-/// A garment pass (the refit and the cuts of a scan of a dressed person) whose schedule left
-/// the garment unstretched — the spread of its stretch field
+/// A garment pass (the refit and the cuts of a scan of a dressed person; with
+/// [`UnstretchedRefinement::EveryFit`] also a fit of a scan of the garment alone) whose
+/// schedule left the garment unstretched — the spread of its stretch field
 /// ([`EdgeLengths::stretch_field_spread`](crate::metrics::EdgeLengths::stretch_field_spread),
 /// [`UNSTRETCHED_SMOOTHING`] rounds) below this — is refined to the rest shape's metric: its
 /// isometric refinement runs [`UNSTRETCHED_STEPS`] steps with the hold only where the scan has
@@ -125,9 +126,9 @@ pub const UNSTRETCHED_SMOOTHING: usize = 40;
 pub const UNSTRETCHED_STEPS: usize = 300;
 /// An unstretched fit's refinement ([`UNSTRETCHED_SPREAD`]) outside a garment pass that turns
 /// over more than this share of the faces (their normals against the schedule's result) is
-/// run again with the hold everywhere: on a noisy scan the freed springs follow the noise at the edge-length
-/// scale (`bench.variants`, the `"accurate"` preset: a wind frame's flipped faces beyond its
-/// truth's + 1 point at 0.005; docs/method.md "Isometric refinement").
+/// run again with the hold everywhere: on a noisy scan the freed springs follow the noise at
+/// the edge-length scale (`bench.variants`, the `"accurate"` preset: a wind frame's flipped
+/// faces beyond its truth's + 1 point at 0.005; docs/method.md "Isometric refinement").
 pub const UNSTRETCHED_FLIPS: f64 = 0.003;
 /// [`carry_unsupported`](crate::fit::Schedule::carry_unsupported): the vertices within this
 /// many of the model's n-rings of a carried vertex (and not carried themselves) move only

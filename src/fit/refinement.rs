@@ -8,6 +8,7 @@ use super::params::{FitParams, CARRIED_SPRING_FACTOR, UNSTRETCHED_FLIPS, UNSTRET
 use super::setup::Prepared;
 use crate::landmarks::Landmarks;
 use crate::math::vec3;
+use crate::metrics::cross_of;
 use rayon::prelude::*;
 use std::borrow::Cow;
 
@@ -111,10 +112,7 @@ pub(super) fn turned_over_share(
     after: &[[f64; 3]],
     faces: &[[u32; 3]],
 ) -> f64 {
-    let normal = |p: &[[f64; 3]], f: &[u32; 3]| {
-        let [a, b, c] = f.map(|v| vec3(&p[v as usize]));
-        (b - a).cross(&(c - a))
-    };
+    let normal = |p: &[[f64; 3]], f: &[u32; 3]| vec3(&cross_of(p, f));
     let turned = faces
         .par_iter()
         .filter(|f| normal(before, f).dot(&normal(after, f)) < 0.0)
