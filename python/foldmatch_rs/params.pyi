@@ -358,6 +358,13 @@ class FitParams(Mapping[str, Any]):
         (also every fit of a scan of the garment alone that carried no region without scan
         support; the `"accurate"` preset) or `"off"` (docs/method.md "Isometric refinement").
         """
+    @property
+    def rim_weight(self) -> float:
+        """On a mesh target (`target_faces`) of the garment alone, the weight of the spring that
+        lays the template's boundary loops onto the target's at their rest arc length, in the
+        fine phase and the isometric refinement (docs/method.md "Rim matching"): a fit slid or
+        swirled along the target's surface is placed by where the cloth ends. 0: off.
+        """
 
     # ---- Acceleration
     @property

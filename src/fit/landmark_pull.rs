@@ -21,6 +21,16 @@ pub(super) struct LandmarkTargets {
 }
 
 impl LandmarkTargets {
+    /// Targets already in the fit's frame, pulled in the FoldMatch (or NRGa) iterations only
+    /// (no coarse ring holds them): the rim matching's (docs/method.md "Rim matching").
+    pub(super) fn in_frame(vertices: Vec<u32>, targets: Vec<Vec3>) -> Self {
+        Self {
+            vertices,
+            targets,
+            coarse: Vec::new(),
+        }
+    }
+
     /// The landmarks' targets mapped into `frame`, and the coarse rings that hold them (the
     /// n-rings are symmetric: v's ring holds u exactly when u's ring holds v).
     pub(super) fn new(
@@ -28,26 +38,7 @@ impl LandmarkTargets {
         frame: &Frame,
         coarse_levels: &[Neighborhoods],
     ) -> Self {
-        let coarse = coarse_levels
-            .iter()
-            .map(|rings| {
-                let mut holders: Vec<(u32, u32)> = landmarks
-                    .vertices
-                    .iter()
-                    .enumerate()
-                    .flat_map(|(i, &u)| rings.of(u as usize).iter().map(move |&v| (v, i as u32)))
-                    .collect();
-                holders.sort_unstable();
-                let mut out: Vec<(u32, Vec<u32>)> = Vec::new();
-                for (v, i) in holders {
-                    match out.last_mut() {
-                        Some((w, ids)) if *w == v => ids.push(i),
-                        _ => out.push((v, vec![i])),
-                    }
-                }
-                out
-            })
-            .collect();
+        let coarse = holders(&landmarks.vertices, coarse_levels);
         Self {
             vertices: landmarks.vertices.clone(),
             targets: frame
@@ -139,6 +130,31 @@ impl LandmarkTargets {
             next[u as usize] = ((x + eta * t) / (1.0 + eta)).into();
         }
     }
+}
+
+/// Per coarse level: every vertex whose coarse ring holds one of `vertices`, with the indices
+/// (into `vertices`) of those it holds, in vertex order (the n-rings are symmetric: v's ring
+/// holds u exactly when u's ring holds v).
+fn holders(vertices: &[u32], coarse_levels: &[Neighborhoods]) -> Vec<Vec<(u32, Vec<u32>)>> {
+    coarse_levels
+        .iter()
+        .map(|rings| {
+            let mut held: Vec<(u32, u32)> = vertices
+                .iter()
+                .enumerate()
+                .flat_map(|(i, &u)| rings.of(u as usize).iter().map(move |&v| (v, i as u32)))
+                .collect();
+            held.sort_unstable();
+            let mut out: Vec<(u32, Vec<u32>)> = Vec::new();
+            for (v, i) in held {
+                match out.last_mut() {
+                    Some((w, ids)) if *w == v => ids.push(i),
+                    _ => out.push((v, vec![i])),
+                }
+            }
+            out
+        })
+        .collect()
 }
 
 #[cfg(test)]

@@ -26,6 +26,7 @@ mod phases;
 mod presets;
 mod refinement;
 mod result;
+mod rim_match;
 mod schedule;
 mod setup;
 mod strain_limit;
@@ -46,12 +47,12 @@ pub use params::{
     COARSE_SCAN_MAX_AUTO_STRIDE, COARSE_SCAN_POINTS_PER_VERTEX, DEFAULT_CARRY_UNSUPPORTED,
     DEFAULT_ISOMETRIC_HOLD, DEFAULT_ISOMETRIC_ITERATIONS, DEFAULT_ISOMETRIC_WEIGHT,
     DEFAULT_ITERATIONS, DEFAULT_KEEP_MARGIN, DEFAULT_KNN_SLACK, DEFAULT_K_MAX,
-    DEFAULT_LANDMARK_WEIGHT, DEFAULT_RHO, DEFAULT_STRAIN_LIMIT, DEFAULT_TWO_WAY_RIM,
-    DEFAULT_TWO_WAY_TRUST, FAR_AWAY, FAST_ITERATIONS, FAST_TWO_WAY, MAX_SCAN_SAMPLE,
-    PAPER_ITERATIONS, PAPER_K_MAX, PAPER_RHO, RIGID_SCAN_POINTS_PER_VERTEX, SCHEDULE_NAMES,
-    SIZE_MISMATCH, TRACKING_ISOMETRIC_ITERATIONS, TRACKING_ITERATIONS, TRACKING_REST_RIGIDITY,
-    TRACKING_STRAIN_LIMIT, UNSTRETCHED_FLIPS, UNSTRETCHED_SMOOTHING, UNSTRETCHED_SPREAD,
-    UNSTRETCHED_STEPS,
+    DEFAULT_LANDMARK_WEIGHT, DEFAULT_RHO, DEFAULT_RIM_WEIGHT, DEFAULT_STRAIN_LIMIT,
+    DEFAULT_TWO_WAY_RIM, DEFAULT_TWO_WAY_TRUST, FAR_AWAY, FAST_ITERATIONS, FAST_TWO_WAY,
+    MAX_SCAN_SAMPLE, PAPER_ITERATIONS, PAPER_K_MAX, PAPER_RHO, RIGID_SCAN_POINTS_PER_VERTEX,
+    SCHEDULE_NAMES, SIZE_MISMATCH, TRACKING_ISOMETRIC_ITERATIONS, TRACKING_ITERATIONS,
+    TRACKING_REST_RIGIDITY, TRACKING_STRAIN_LIMIT, UNSTRETCHED_FLIPS, UNSTRETCHED_SMOOTHING,
+    UNSTRETCHED_SPREAD, UNSTRETCHED_STEPS,
 };
 pub use refinement::{LANDMARK_ANCHOR, REFINE_POINTS_PER_VERTEX};
 pub use result::{
@@ -473,6 +474,20 @@ fn fit_from(
         let unstretched = eligible
             && rest_edges.stretch_field_spread(&vertices, UNSTRETCHED_SMOOTHING)
                 < UNSTRETCHED_SPREAD;
+        // The rim matching's targets from the schedule's result, held by the refinement.
+        let rim = prepared
+            .rim_match
+            .as_ref()
+            .filter(|_| params.schedule.rim_weight > 0.0)
+            .map(|rm| {
+                let t = rm.targets(&winner.pos, prepared.edge_length);
+                let mut positions: Vec<[f64; 3]> = t.targets.iter().map(|&q| q.into()).collect();
+                prepared.frame.inverse_in_place(&mut positions);
+                Landmarks {
+                    vertices: t.vertices,
+                    positions,
+                }
+            });
         let mut refined = vertices;
         // A tracked frame's rest shape is its sequence's own metric; a single fit's template
         // may be placed at any size.
@@ -490,6 +505,7 @@ fn fit_from(
             target_weights,
             assessed,
             landmarks,
+            rim.as_ref(),
             role.garment.then(|| role.user_scan.unwrap_or(target)),
             &winner.carried,
             unstretched,

@@ -150,6 +150,9 @@ pub const DEFAULT_ISOMETRIC_WEIGHT: f64 = 3.0;
 /// (docs/method.md "Isometric refinement").
 pub const DEFAULT_ISOMETRIC_ITERATIONS: usize = 30;
 
+/// The default [`rim_weight`](crate::fit::Schedule::rim_weight).
+pub const DEFAULT_RIM_WEIGHT: f64 = 0.05;
+
 /// The default [`isometric_hold`](crate::fit::Schedule::isometric_hold): a single fit's
 /// refinement keeps each edge near the schedule's result, so that it corrects slides without
 /// crumpling the mesh after the scan's noise.
@@ -559,6 +562,11 @@ pub struct Schedule {
     /// (also every fit of a scan of the garment alone that carried no region without scan
     /// support; the `"accurate"` preset) or `"off"` (docs/method.md "Isometric refinement").
     pub unstretched_refinement: UnstretchedRefinement,
+    /// On a mesh target (`target_faces`) of the garment alone, the weight of the spring that
+    /// lays the template's boundary loops onto the target's at their rest arc length, in the
+    /// fine phase and the isometric refinement (docs/method.md "Rim matching"): a fit slid or
+    /// swirled along the target's surface is placed by where the cloth ends. 0: off.
+    pub rim_weight: f64,
 }
 
 /// Which fits [`Schedule::unstretched_refinement`] refines to the rest shape's metric.
@@ -720,6 +728,7 @@ impl Default for Schedule {
             isometric_hold: DEFAULT_ISOMETRIC_HOLD,
             isometric_plane: PlaneNormal::Scan,
             unstretched_refinement: UnstretchedRefinement::Garments,
+            rim_weight: DEFAULT_RIM_WEIGHT,
         }
     }
 }

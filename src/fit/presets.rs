@@ -15,7 +15,7 @@ impl FitParams {
     /// The paper's method as printed, with only the converging readings (docs/method.md, "Ablation
     /// of the readings"): one-way attraction, no rigid or coarse phase, constant softening, Eq. 5
     /// as the affine-invariant mean, ρ = 0.2 % and K ≤ 64, 100 iterations and no isometric
-    /// refinement (the `"paper"` preset).
+    /// refinement or rim matching (the `"paper"` preset).
     pub fn paper() -> Self {
         let mut p = Self {
             iterations: PAPER_ITERATIONS,
@@ -35,6 +35,7 @@ impl FitParams {
         p.schedule.garment_refit = 0.0;
         p.schedule.strain_limit = 0.0;
         p.schedule.carry_unsupported = 0.0;
+        p.schedule.rim_weight = 0.0;
         p.readings.regularization = Regularization::AffineInvariant;
         p.prealign = Prealign::None;
         p

@@ -14,7 +14,8 @@ use std::borrow::Cow;
 
 /// The [`IsometricRefine`] of `vertices` (in place) against the scan points the fit was drawn
 /// to (`assessed`, else all), weighted by `weights`, the landmark vertices held at their
-/// landmarks ([`LANDMARK_ANCHOR`] × the landmark weight), without the pull of the points
+/// landmarks ([`LANDMARK_ANCHOR`] × the landmark weight) and the rim vertices at the rim
+/// matching's targets (`rim`, the same × the rim weight; docs/method.md "Rim matching"), without the pull of the points
 /// beyond the rim on a garment pass (`garment_pass`: the scan its free edges are judged on),
 /// its springs [`CARRIED_SPRING_FACTOR`] times as stiff and the vertices of the region without
 /// a fit → scan match when the schedule carried a region without scan support (`carried`, a
@@ -34,6 +35,7 @@ pub(super) fn isometric_refinement(
     weights: Option<&[f64]>,
     assessed: Option<&[usize]>,
     landmarks: Option<&Landmarks>,
+    rim: Option<&Landmarks>,
     garment_pass: Option<&[[f64; 3]]>,
     carried: &[bool],
     unstretched: bool,
@@ -68,6 +70,10 @@ pub(super) fn isometric_refinement(
     if let Some(l) = landmarks {
         let weight = LANDMARK_ANCHOR * params.landmark_weight;
         refine = refine.with_anchors(&l.vertices, &l.positions, weight);
+    }
+    if let Some(r) = rim {
+        let weight = LANDMARK_ANCHOR * params.schedule.rim_weight;
+        refine = refine.with_anchors(&r.vertices, &r.positions, weight);
     }
     // The region carried without scan support has no fit → scan match either (its nearest
     // scan points lie on the seen side): docs/method.md "Partial scans".

@@ -2,6 +2,7 @@
 //! that chooses among them, and the iteration loop that drives the phases.
 
 use super::attraction::Attraction;
+use super::landmark_pull::LandmarkTargets;
 use super::model::{deformation_model, TemplateTopology, Workspace};
 use super::params::{FitParams, Method};
 use super::phases::{self, Phase, PhaseSample};
@@ -216,7 +217,13 @@ pub(super) struct ScheduleRun {
     /// The vertices near a carried region, which move along their normals only (empty when
     /// nothing is carried; docs/method.md "Partial scans").
     pub(super) band: Vec<bool>,
+    /// The rim matching's targets in the fine phase, refreshed every [`RIM_REFRESH`]
+    /// iterations (`None` before it, or without rim matching; docs/method.md "Rim matching").
+    pub(super) rim: Option<LandmarkTargets>,
 }
+
+/// The fine phase lays the rim onto the mesh target's afresh every this many iterations.
+pub const RIM_REFRESH: usize = 4;
 
 impl ScheduleRun {
     pub(super) fn new(prepared: &Prepared, params: FitParams) -> Self {
@@ -280,6 +287,7 @@ impl ScheduleRun {
                 }),
             carried: Vec::new(),
             band: Vec::new(),
+            rim: None,
             params,
         }
     }
@@ -355,9 +363,23 @@ impl ScheduleRun {
                 }
             });
         }
+        // The rim matching's targets, from the fit as the fine phase finds it and afresh
+        // every RIM_REFRESH iterations (docs/method.md "Rim matching").
+        let fine_j = it.saturating_sub(self.rigid_iterations + self.coarse_iterations);
+        if let (Phase::Fine, Some(rm)) = (phase, prepared.rim_match.as_ref()) {
+            if params.schedule.rim_weight > 0.0 && (fine_j - 1).is_multiple_of(RIM_REFRESH) {
+                let t = rm.targets(&self.pos, prepared.edge_length);
+                self.rim = Some(LandmarkTargets::in_frame(t.vertices, t.targets));
+            }
+        }
         // The landmarks' spring on the proposal: the rings holding them see it (Eq. 4, 8).
         if let (Phase::Fine, Some(l)) = (phase, prepared.landmarks.as_ref()) {
             l.pull(params.landmark_weight, &mut self.attraction.proposed);
+        }
+        // The rim's spring on the proposal only: the rings see it (Eq. 4, 8), and the update
+        // is not pulled vertex by vertex (that folds the faces along the rim).
+        if let (Phase::Fine, Some(r)) = (phase, self.rim.as_ref()) {
+            r.pull(params.schedule.rim_weight, &mut self.attraction.proposed);
         }
         let (old, new, next) = (&self.pos, &self.attraction.proposed, &mut self.next);
         let sample = sampled.map(|i| &self.samples[i]);

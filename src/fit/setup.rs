@@ -6,6 +6,7 @@ use super::landmark_pull::LandmarkTargets;
 use super::model::TemplateTopology;
 use super::params::{FitParams, Method, Prealign, FAR_AWAY};
 use super::result::Diagnostics;
+use super::rim_match::RimMatch;
 use crate::curvature::{gaussian_curvature_mesh, gaussian_curvature_points};
 use crate::error::{FoldMatchError, Result};
 use crate::knn::{morton_order, neighborhood_size, PointIndex};
@@ -66,6 +67,10 @@ pub(super) struct Prepared {
     /// The template's boundary vertices and their one-rings (for
     /// [`two_way_rim`](crate::fit::Schedule::two_way_rim); empty when no schedule uses it).
     pub(super) rim: Rim,
+    /// The template's and the mesh target's boundary loops, when a schedule matches them
+    /// ([`rim_weight`](crate::fit::Schedule::rim_weight)) on a mesh target of the garment
+    /// alone, every point kept (docs/method.md "Rim matching").
+    pub(super) rim_match: Option<RimMatch>,
     /// The scan points (user indices) that schedule selection's scan distance averages over:
     /// those the template explains where the scan holds more than the garment
     /// ([`explained_points`]); `None`: every point of positive weight.
@@ -97,6 +102,7 @@ impl Prepared {
         let params = &schedules[0];
         validate_points("template_vertices", template_vertices)?;
         validate_points("target", target)?;
+        let user_target = target;
         validate_faces("template_faces", template_faces, template_vertices.len())?;
         if let Some(tf) = target_faces {
             validate_faces("target_faces", tf, target.len())?;
@@ -320,6 +326,10 @@ impl Prepared {
         } else {
             Rim::default()
         };
+        let rim_match = target_faces
+            .filter(|_| garment.is_none() && kept.is_none() && !several)
+            .filter(|_| schedules.iter().any(|p| p.schedule.rim_weight > 0.0))
+            .and_then(|tf| RimMatch::new(&rest, &faces, &frame.forward(user_target), tf));
         let diagnostics = Diagnostics {
             target_neighbours: k,
             coarse_rings: coarse_radius,
@@ -351,6 +361,7 @@ impl Prepared {
             scan_strides,
             edge_length,
             rim,
+            rim_match,
             garment: garment.map(|g| {
                 g.iter()
                     .map(|&j| kept.map_or(j as usize, |k| k[j as usize]))

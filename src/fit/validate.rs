@@ -156,6 +156,7 @@ impl FitParams {
                 NON_NEGATIVE,
             ),
             ("isometric_hold", self.schedule.isometric_hold, NON_NEGATIVE),
+            ("rim_weight", self.schedule.rim_weight, NON_NEGATIVE),
             (
                 "carry_unsupported",
                 self.schedule.carry_unsupported,

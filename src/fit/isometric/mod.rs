@@ -332,13 +332,16 @@ impl<'a> IsometricRefine<'a> {
 
     /// Holds the vertices `vertices` at `positions` with the weight `weight` each (against a
     /// fit → scan weight of 1): the term `a Σ ‖Y_v − z_v‖²` joins `E`, so that the refinement
-    /// keeps a fit's landmark vertices at their landmarks (docs/method.md "Landmarks").
-    /// Indices out of range are ignored.
+    /// keeps a fit's landmark vertices at their landmarks (docs/method.md "Landmarks"). A
+    /// second call adds its anchors to the first's (the rim matching's, "Rim matching"; a
+    /// vertex in both keeps the second's). Indices out of range are ignored.
     pub fn with_anchors(mut self, vertices: &[u32], positions: &[[f64; 3]], weight: f64) -> Self {
         let m = self.ring.len();
         if weight > 0.0 && !vertices.is_empty() {
-            self.anchor_weight = vec![0.0; m];
-            self.anchor_at = vec![[0.0; 3]; m];
+            if self.anchor_weight.len() != m {
+                self.anchor_weight = vec![0.0; m];
+                self.anchor_at = vec![[0.0; 3]; m];
+            }
             for (&v, z) in vertices.iter().zip(positions) {
                 if let Some(a) = self.anchor_weight.get_mut(v as usize) {
                     *a = weight;
