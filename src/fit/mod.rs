@@ -454,6 +454,10 @@ fn fit_from(
     // are undone explains less skin (docs/method.md "Scans of dressed people").
     let refine = !kept_start && params.schedule.isometric_iterations > 0;
     let mut refinement = Refinement::None;
+    let rim_matched = match &winner.rim {
+        Some(r) if !kept_start => r.vertices.len(),
+        _ => 0,
+    };
     let vertices = if kept_start {
         winner.pos.clone_from(&prepared.start);
         start_vertices
@@ -478,7 +482,7 @@ fn fit_from(
         let rim = prepared
             .rim_match
             .as_ref()
-            .filter(|_| params.schedule.rim_weight > 0.0)
+            .filter(|_| params.schedule.rim_weight > 0.0 && winner.rim.is_some())
             .map(|rm| {
                 let t = rm.targets(&winner.pos, prepared.edge_length);
                 let mut positions: Vec<[f64; 3]> = t.targets.iter().map(|&q| q.into()).collect();
@@ -585,6 +589,7 @@ fn fit_from(
     }
     chosen.diagnostics.kept_start = kept_start;
     chosen.diagnostics.refinement = refinement.name().to_owned();
+    chosen.diagnostics.rim_matched = rim_matched;
     let finish = clock.elapsed().as_secs_f64() - setup - iterations;
     chosen.diagnostics.wall_seconds = [setup, iterations, finish];
     // A first fit that is final after all: its deferred pose figures, on the points it was judged on

@@ -221,6 +221,12 @@ pub struct Diagnostics {
     /// garments: theirs joined by `" + "`.
     #[serde(default)]
     pub refinement: String,
+    /// How many template boundary vertices the rim matching laid onto the mesh target's
+    /// boundary in the fit's last fine-phase iterations
+    /// ([`rim_weight`](super::Schedule::rim_weight), docs/method.md "Rim matching"); 0 when
+    /// it did not run (a point-cloud target, off) or matched no loop.
+    #[serde(default)]
+    pub rim_matched: usize,
     /// The global pre-alignment ([`FitParams::prealign`](super::FitParams::prealign) `"rigid"`
     /// or `"similarity"`, docs/method.md "Global pre-alignment"); `None` when it did not run
     /// (another mode, landmarks, a template of several garments).

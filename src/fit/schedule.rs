@@ -364,10 +364,14 @@ impl ScheduleRun {
             });
         }
         // The rim matching's targets, from the fit as the fine phase finds it and afresh
-        // every RIM_REFRESH iterations (docs/method.md "Rim matching").
+        // every RIM_REFRESH iterations; not where the fit carries a region the target does
+        // not show, whose boundary there is not the cloth's (docs/method.md "Rim matching").
         let fine_j = it.saturating_sub(self.rigid_iterations + self.coarse_iterations);
         if let (Phase::Fine, Some(rm)) = (phase, prepared.rim_match.as_ref()) {
-            if params.schedule.rim_weight > 0.0 && (fine_j - 1).is_multiple_of(RIM_REFRESH) {
+            if params.schedule.rim_weight > 0.0
+                && !self.carried.contains(&true)
+                && (fine_j - 1).is_multiple_of(RIM_REFRESH)
+            {
                 let t = rm.targets(&self.pos, prepared.edge_length);
                 self.rim = Some(LandmarkTargets::in_frame(t.vertices, t.targets));
             }
