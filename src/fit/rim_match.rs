@@ -290,19 +290,7 @@ mod tests {
 
     /// An nx × ny grid sheet in the xy plane, spacing 1.
     fn grid(nx: usize, ny: usize) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
-        let v = (0..ny)
-            .flat_map(|j| (0..nx).map(move |i| [i as f64, j as f64, 0.0]))
-            .collect();
-        let mut f = Vec::new();
-        for j in 0..ny - 1 {
-            for i in 0..nx - 1 {
-                let a = (j * nx + i) as u32;
-                let (b, c, d) = (a + 1, a + nx as u32, a + nx as u32 + 1);
-                f.push([a, b, d]);
-                f.push([a, d, c]);
-            }
-        }
-        (v, f)
+        crate::synthetic::grid_sheet(nx, ny, (nx - 1) as f64, (ny - 1) as f64)
     }
 
     #[test]
@@ -360,8 +348,8 @@ mod tests {
         let far: Vec<[f64; 3]> = v.iter().map(|p| [p[0], p[1], p[2] + 20.0]).collect();
         let m = RimMatch::new(&v, &f, &far, &f).expect("loops");
         assert!(m.targets(&v, 1.0).vertices.is_empty());
-        // A target loop twice as long: beyond the length ratio.
-        let big: Vec<[f64; 3]> = v.iter().map(|p| [2.0 * p[0], 2.0 * p[1], 0.0]).collect();
+        // A target loop three times as long: beyond the length ratio.
+        let big: Vec<[f64; 3]> = v.iter().map(|p| [3.0 * p[0], 3.0 * p[1], 0.0]).collect();
         let m = RimMatch::new(&v, &f, &big, &f).expect("loops");
         assert!(m.targets(&v, 10.0).vertices.is_empty());
     }
