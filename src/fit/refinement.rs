@@ -15,8 +15,8 @@ use std::borrow::Cow;
 /// The [`IsometricRefine`] of `vertices` (in place) against the scan points the fit was drawn
 /// to (`assessed`, else all), weighted by `weights`, the landmark vertices held at their
 /// landmarks ([`LANDMARK_ANCHOR`] × the landmark weight) and the rim vertices at the rim
-/// matching's targets (`rim`, the same × the rim weight; docs/method.md "Rim matching"), without the pull of the points
-/// beyond the rim on a garment pass (`garment_pass`: the scan its free edges are judged on),
+/// matching's targets (`rim`, the same × the rim weight; docs/method.md "Rim matching"),
+/// without the pull of the points beyond the rim on a garment pass (`garment_pass`: the scan its free edges are judged on),
 /// its springs [`CARRIED_SPRING_FACTOR`] times as stiff and the vertices of the region without
 /// a fit → scan match when the schedule carried a region without scan support (`carried`, a
 /// flag per vertex or empty); `unstretched`
