@@ -81,9 +81,9 @@ pub fn clean_faces(faces: &[[u32; 3]]) -> CleanFaces {
     out
 }
 
-/// The vertices on the mesh's boundary: those of an edge that only one face uses, in
-/// increasing order.
-pub fn boundary_vertices(faces: &[[u32; 3]], n_vertices: usize) -> Vec<u32> {
+/// The mesh's boundary edges: those only one face uses, each as (lower, higher) vertex index,
+/// in increasing order.
+pub fn boundary_edges(faces: &[[u32; 3]]) -> Vec<(u32, u32)> {
     let mut edges: Vec<(u32, u32)> = faces
         .iter()
         .flat_map(|f| [(f[0], f[1]), (f[1], f[2]), (f[2], f[0])])
@@ -91,7 +91,7 @@ pub fn boundary_vertices(faces: &[[u32; 3]], n_vertices: usize) -> Vec<u32> {
         .map(|(a, b)| (a.min(b), a.max(b)))
         .collect();
     edges.sort_unstable();
-    let mut on = vec![false; n_vertices];
+    let mut once = Vec::new();
     let mut i = 0;
     while i < edges.len() {
         let mut j = i + 1;
@@ -99,10 +99,20 @@ pub fn boundary_vertices(faces: &[[u32; 3]], n_vertices: usize) -> Vec<u32> {
             j += 1;
         }
         if j - i == 1 {
-            on[edges[i].0 as usize] = true;
-            on[edges[i].1 as usize] = true;
+            once.push(edges[i]);
         }
         i = j;
+    }
+    once
+}
+
+/// The vertices on the mesh's boundary: those of an edge that only one face uses
+/// ([`boundary_edges`]), in increasing order.
+pub fn boundary_vertices(faces: &[[u32; 3]], n_vertices: usize) -> Vec<u32> {
+    let mut on = vec![false; n_vertices];
+    for (a, b) in boundary_edges(faces) {
+        on[a as usize] = true;
+        on[b as usize] = true;
     }
     (0..n_vertices as u32).filter(|&v| on[v as usize]).collect()
 }

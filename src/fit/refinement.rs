@@ -16,15 +16,15 @@ use std::borrow::Cow;
 /// to (`assessed`, else all), weighted by `weights`, the landmark vertices held at their
 /// landmarks ([`LANDMARK_ANCHOR`] × the landmark weight) and the rim vertices at the rim
 /// matching's targets (`rim`, the same × the rim weight; docs/method.md "Rim matching"),
-/// without the pull of the points beyond the rim on a garment pass (`garment_pass`: the scan its free edges are judged on),
-/// its springs [`CARRIED_SPRING_FACTOR`] times as stiff and the vertices of the region without
-/// a fit → scan match when the schedule carried a region without scan support (`carried`, a
-/// flag per vertex or empty); `unstretched`
-/// ([`UNSTRETCHED_SPREAD`](super::UNSTRETCHED_SPREAD)): [`UNSTRETCHED_STEPS`]
-/// steps at least, the hold only where the scan has no points for the fit
-/// ([`HoldWhere::Unsupported`]), or — outside a garment pass — with the hold everywhere where
-/// that turned over more than [`UNSTRETCHED_FLIPS`] of the faces. Nothing when fewer than a
-/// plane's worth of points. Returns how it ended.
+/// without the pull of the points beyond the rim on a garment pass (`garment_pass`: the scan
+/// its free edges are judged on), its springs [`CARRIED_SPRING_FACTOR`] times as stiff and the
+/// vertices of the region without a fit → scan match when the schedule carried a region
+/// without scan support (`carried`, a flag per vertex or empty); `unstretched`
+/// ([`UNSTRETCHED_SPREAD`](super::UNSTRETCHED_SPREAD)): [`UNSTRETCHED_STEPS`] steps at least,
+/// the hold only where the scan has no points for the fit ([`HoldWhere::Unsupported`]), or —
+/// outside a garment pass — with the hold everywhere where that turned over more than
+/// [`UNSTRETCHED_FLIPS`] of the faces. Nothing when fewer than a plane's worth of points.
+/// Returns how it ended.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn isometric_refinement(
     vertices: &mut [[f64; 3]],

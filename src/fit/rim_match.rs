@@ -12,9 +12,9 @@
 //! target loop's, or whose projections do not follow the rest arc length (the fit is not yet
 //! near that loop) gets no targets.
 
+use super::landmark_pull::LandmarkTargets;
 use crate::math::{vec3, Vec3};
 use rayon::prelude::*;
-use std::collections::HashMap;
 
 /// A loop's fitted rim lies along a target loop when the median distance of its vertices to it
 /// is at most this many mean template edge lengths.
@@ -105,13 +105,6 @@ pub(super) struct RimMatch {
     target: Vec<Polyline>,
 }
 
-/// The rim vertices a [`RimMatch`] placed, and their targets (in the frame of the positions
-/// it was given).
-pub(super) struct RimTargets {
-    pub(super) vertices: Vec<u32>,
-    pub(super) targets: Vec<Vec3>,
-}
-
 impl RimMatch {
     /// The loops of the template (`rest`, its rest shape) and of the target mesh, both in the
     /// fit's frame; `None` when either has no boundary loop of [`MIN_RIM_LOOP`] vertices.
@@ -138,8 +131,8 @@ impl RimMatch {
     /// Where the template's rim goes, given the fit's positions `pos` and its mean edge length
     /// `edge` (module docs): each template loop, nearest first, takes the nearest target loop
     /// no other has taken, if it passes [`RIM_REACH`], [`RIM_LENGTH_RATIO`] and
-    /// [`RIM_RESIDUAL`].
-    pub(super) fn targets(&self, pos: &[[f64; 3]], edge: f64) -> RimTargets {
+    /// [`RIM_RESIDUAL`]. The targets are in `pos`'s frame, pulled as landmarks are.
+    pub(super) fn targets(&self, pos: &[[f64; 3]], edge: f64) -> LandmarkTargets {
         // Every (template loop, target loop) pair: the fitted rim's projections.
         let pairs: Vec<(f64, usize, usize, Vec<f64>)> = (0..self.template.len())
             .flat_map(|i| (0..self.target.len()).map(move |j| (i, j)))
@@ -163,23 +156,21 @@ impl RimMatch {
             vec![false; self.template.len()],
             vec![false; self.target.len()],
         );
-        let mut out = RimTargets {
-            vertices: Vec::new(),
-            targets: Vec::new(),
-        };
+        let (mut vertices, mut targets) = (Vec::new(), Vec::new());
         for k in order {
             let (median, i, j, ref arcs) = pairs[k];
             if done[i] || taken[j] || median > RIM_REACH * edge {
                 continue;
             }
             let (lp, tl) = (&self.template[i], &self.target[j]);
-            let fitted = Polyline::new(
-                lp.vertices
-                    .iter()
-                    .map(|&v| vec3(&pos[v as usize]))
-                    .collect(),
-            );
-            let ratio = tl.length / fitted.length.max(f64::MIN_POSITIVE);
+            let n = lp.vertices.len();
+            let fitted: f64 = (0..n)
+                .map(|k| {
+                    let (a, b) = (lp.vertices[k], lp.vertices[(k + 1) % n]);
+                    (vec3(&pos[b as usize]) - vec3(&pos[a as usize])).norm()
+                })
+                .sum();
+            let ratio = tl.length / fitted.max(f64::MIN_POSITIVE);
             if !(1.0 / RIM_LENGTH_RATIO..=RIM_LENGTH_RATIO).contains(&ratio) {
                 continue;
             }
@@ -190,11 +181,11 @@ impl RimMatch {
             taken[j] = true;
             let sigma = tl.length / lp.rest.length;
             for (&v, &s) in lp.vertices.iter().zip(&lp.rest.arc) {
-                out.vertices.push(v);
-                out.targets.push(tl.at(offset + direction * sigma * s));
+                vertices.push(v);
+                targets.push(tl.at(offset + direction * sigma * s));
             }
         }
-        out
+        LandmarkTargets::in_frame(vertices, targets)
     }
 }
 
@@ -234,21 +225,8 @@ fn arc_alignment(rest: &Polyline, length: f64, arcs: &[f64]) -> Option<(f64, f64
 /// boundary vertex with other than two boundary neighbours (where two loops touch) ends the
 /// loops through it, which are left out, as are loops under [`MIN_RIM_LOOP`] vertices.
 pub(super) fn boundary_loops(faces: &[[u32; 3]], n: usize) -> Vec<Vec<u32>> {
-    let mut count: HashMap<(u32, u32), u32> = HashMap::new();
-    for f in faces {
-        for e in 0..3 {
-            let (a, b) = (f[e], f[(e + 1) % 3]);
-            *count.entry((a.min(b), a.max(b))).or_default() += 1;
-        }
-    }
     let mut next: Vec<Vec<u32>> = vec![Vec::new(); n];
-    let mut edges: Vec<(u32, u32)> = count
-        .into_iter()
-        .filter(|&(_, c)| c == 1)
-        .map(|(e, _)| e)
-        .collect();
-    edges.sort_unstable();
-    for (a, b) in edges {
+    for (a, b) in crate::mesh::boundary_edges(faces) {
         next[a as usize].push(b);
         next[b as usize].push(a);
     }

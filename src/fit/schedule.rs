@@ -372,8 +372,7 @@ impl ScheduleRun {
                 && !self.carried.contains(&true)
                 && (fine_j - 1).is_multiple_of(RIM_REFRESH)
             {
-                let t = rm.targets(&self.pos, prepared.edge_length);
-                self.rim = Some(LandmarkTargets::in_frame(t.vertices, t.targets));
+                self.rim = Some(rm.targets(&self.pos, prepared.edge_length));
             }
         }
         // The landmarks' spring on the proposal: the rings holding them see it (Eq. 4, 8).
