@@ -369,8 +369,8 @@ impl ScheduleRun {
         let fine_j = it.saturating_sub(self.rigid_iterations + self.coarse_iterations);
         if let (Phase::Fine, Some(rm)) = (phase, prepared.rim_match.as_ref()) {
             if params.schedule.rim_weight > 0.0
-                && !self.carried.contains(&true)
                 && (fine_j - 1).is_multiple_of(RIM_REFRESH)
+                && !self.carried.contains(&true)
             {
                 self.rim = Some(rm.targets(&self.pos, prepared.edge_length));
             }
