@@ -31,6 +31,7 @@ mod schedule;
 mod setup;
 mod strain_limit;
 mod support;
+mod symmetry;
 #[cfg(test)]
 mod tests;
 mod validate;

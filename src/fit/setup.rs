@@ -7,6 +7,7 @@ use super::model::TemplateTopology;
 use super::params::{FitParams, Method, Prealign, FAR_AWAY};
 use super::result::Diagnostics;
 use super::rim_match::RimMatch;
+use super::symmetry::RigidSymmetry;
 use crate::curvature::{gaussian_curvature_mesh, gaussian_curvature_points};
 use crate::error::{FoldMatchError, Result};
 use crate::knn::{morton_order, neighborhood_size, PointIndex};
@@ -54,6 +55,9 @@ pub(super) struct Prepared {
     /// vertices of each part ([`rigid_parts`]); empty for a template of one piece, on a
     /// garment-only scan, or when no schedule has a rigid phase.
     pub(super) rigid_parts: RigidParts,
+    /// The template's free axes for the rigid phase, when it has any as placed (a tube's
+    /// axis; docs/method.md "Rigid phase: a template's symmetries").
+    pub(super) symmetry: Option<RigidSymmetry>,
     /// The phases' scan samples
     /// ([`rigid_scan_sample`](crate::fit::Acceleration::rigid_scan_sample),
     /// [`coarse_scan_sample`](crate::fit::Acceleration::coarse_scan_sample)), one per stride > 1 in
@@ -251,6 +255,11 @@ impl Prepared {
         } else {
             RigidParts::default()
         };
+        let symmetry = if phases.iter().any(|p| p.0 > 0) {
+            RigidSymmetry::new(&start, &faces)
+        } else {
+            None
+        };
         let coarse_radius = if phases.iter().any(|p| p.1 > 0) {
             params.coarse_radius(m)
         } else {
@@ -357,6 +366,7 @@ impl Prepared {
             coarse_sampled,
             all_vertices,
             rigid_parts,
+            symmetry,
             scan_samples,
             scan_strides,
             edge_length,
