@@ -84,8 +84,7 @@ pub(super) fn rigid(
         _ => {
             let (c_old, c_new) = ring_centroids(all, fit_old, fit_new);
             let r = kabsch(all, fit_old, fit_new, &c_old, &c_new, fast);
-            // No turn about the template's own symmetry axes (docs/method.md "Rigid phase: a
-            // template's symmetries").
+            // No turn about the template's own symmetry axes (docs/method.md "Rigid phase").
             let r = match prepared.symmetry.as_ref() {
                 Some(symmetry) => symmetry.hold(&r, old, &prepared.faces),
                 None => r,

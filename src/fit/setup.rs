@@ -56,7 +56,7 @@ pub(super) struct Prepared {
     /// garment-only scan, or when no schedule has a rigid phase.
     pub(super) rigid_parts: RigidParts,
     /// The template's free axes for the rigid phase, when it has any as placed (a tube's
-    /// axis; docs/method.md "Rigid phase: a template's symmetries").
+    /// axis; docs/method.md "Rigid phase").
     pub(super) symmetry: Option<RigidSymmetry>,
     /// The phases' scan samples
     /// ([`rigid_scan_sample`](crate::fit::Acceleration::rigid_scan_sample),
