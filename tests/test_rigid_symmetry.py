@@ -51,3 +51,13 @@ def test_the_rigid_phase_does_not_turn_a_tube_about_its_axis(skirt):
     f_r = harness.evaluate(harness.case_arrays(skirt), res.vertices)["f_R"]
     assert f_r < 0.015, f_r
     assert np.all(np.isfinite(res.vertices))
+    # The result says the template has such an axis.
+    assert res.diagnostics["free_axes"] == 1
+
+
+def test_a_square_sheet_has_no_free_axis():
+    # A square sheet turned in its plane moves its rim off itself: the rigid phase turns it as
+    # before, and the result reports no free axis.
+    d = fm.folded_sheet()
+    res = fm.fit(d["template_vertices"], d["faces"], d["scan"])
+    assert res.diagnostics["free_axes"] == 0

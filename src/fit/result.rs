@@ -227,6 +227,12 @@ pub struct Diagnostics {
     /// it did not run (a point-cloud target, off) or matched no loop.
     #[serde(default)]
     pub rim_matched: usize,
+    /// How many axes the template turns onto itself about (a tube's own axis: 1), which the
+    /// rigid phase does not turn it about (docs/method.md "Rigid phase"): the fit's turn about
+    /// such an axis is the one it was placed with, which no scan can tell; landmarks settle
+    /// it. 0: none, or no rigid phase.
+    #[serde(default)]
+    pub free_axes: usize,
     /// The global pre-alignment ([`FitParams::prealign`](super::FitParams::prealign) `"rigid"`
     /// or `"similarity"`, docs/method.md "Global pre-alignment"); `None` when it did not run
     /// (another mode, landmarks, a template of several garments).

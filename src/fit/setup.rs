@@ -350,6 +350,7 @@ impl Prepared {
             curvature: curvature_source.into(),
             frame: Some(frame),
             schedule: "given".into(),
+            free_axes: symmetry.as_ref().map_or(0, RigidSymmetry::axes),
             ..Default::default()
         };
         Ok(Self {

@@ -28,6 +28,8 @@ pub(super) const SYMMETRY_STIFFNESS: f64 = 0.02;
 #[derive(Debug, Clone)]
 pub(super) struct RigidSymmetry {
     rim: Vec<[u32; 3]>,
+    /// How many free axes the template has as placed (1: a tube; 3: a sphere).
+    axes: usize,
 }
 
 impl RigidSymmetry {
@@ -41,12 +43,14 @@ impl RigidSymmetry {
             .flat_map(|f| [[f[0], f[1], f[2]], [f[1], f[2], f[0]], [f[2], f[0], f[1]]])
             .filter(|e| boundary.contains(&(e[0].min(e[1]), e[0].max(e[1]))))
             .collect();
-        let symmetry = Self { rim };
-        symmetry
-            .free_axes(pos, faces)
-            .iter()
-            .any(Option::is_some)
-            .then_some(symmetry)
+        let mut symmetry = Self { rim, axes: 0 };
+        symmetry.axes = symmetry.free_axes(pos, faces).iter().flatten().count();
+        (symmetry.axes > 0).then_some(symmetry)
+    }
+
+    /// How many free axes the template has as placed (1: a tube, 3: a sphere).
+    pub(super) fn axes(&self) -> usize {
+        self.axes
     }
 
     /// `r`, the rigid phase's rotation of the template at `pos`, without its part about the
@@ -175,6 +179,7 @@ mod tests {
     fn a_tube_is_free_about_its_axis_only() {
         let (pos, faces) = tube(48, 6, 1.5);
         let symmetry = RigidSymmetry::new(&pos, &faces).expect("a tube has a free axis");
+        assert_eq!(symmetry.axes(), 1);
         let axes: Vec<Vec3> = symmetry
             .free_axes(&pos, &faces)
             .into_iter()
