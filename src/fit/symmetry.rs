@@ -84,11 +84,12 @@ impl RigidSymmetry {
     fn free_axes(&self, pos: &[[f64; 3]], faces: &[[u32; 3]]) -> [Option<Vec3>; 3] {
         let mut area = 0.0;
         let mut centroid = Vec3::zeros();
+        let face_centroid =
+            |f: &[u32; 3]| f.iter().map(|&v| vec3(&pos[v as usize])).sum::<Vec3>() / 3.0;
         for f in faces {
-            let [a, b, c] = f.map(|v| vec3(&pos[v as usize]));
-            let w = 0.5 * (b - a).cross(&(c - a)).norm();
+            let w = 0.5 * crate::mesh::face_area_normal(pos, f).norm();
             area += w;
-            centroid += w * (a + b + c) / 3.0;
+            centroid += w * face_centroid(f);
         }
         if area <= 0.0 {
             return [None; 3];
@@ -97,13 +98,12 @@ impl RigidSymmetry {
         let inertia = |r: &Vec3| Mat3::identity() * r.norm_squared() - r * r.transpose();
         let (mut a_s, mut b_s) = (Mat3::zeros(), Mat3::zeros());
         for f in faces {
-            let [a, b, c] = f.map(|v| vec3(&pos[v as usize]));
-            let cross = (b - a).cross(&(c - a));
+            let cross = crate::mesh::face_area_normal(pos, f);
             let norm = cross.norm();
             if norm <= 0.0 {
                 continue;
             }
-            let r = (a + b + c) / 3.0 - centroid;
+            let r = face_centroid(f) - centroid;
             let moment = r.cross(&(cross / norm));
             a_s += 0.5 * norm * moment * moment.transpose();
             b_s += 0.5 * norm * inertia(&r);
