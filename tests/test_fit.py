@@ -855,6 +855,33 @@ def test_a_wind_frame_blown_flat_and_turned_carries_nothing():
     np.testing.assert_array_equal(turned.vertices, off.vertices)
 
 
+def test_the_scan_s_unit_does_not_change_the_similarity_fit():
+    """The flattened DiffCloth T-shirt's scan in three units (×0.5, ×2, ×1000 of the template's)
+    fitted with prealign="similarity": the same fit, up to the unit. The search starts the
+    template's own orientation as it starts the principal-frame candidates (centroids and RMS
+    radii matched); started where the template lay, at its own size, it placed the ×2 scan
+    5° from the others and that fit ended 1.3× as far from the truth."""
+    from bench import cases
+
+    why = cases.real_data_missing()
+    if why:
+        pytest.skip(why)
+    case = next(c for c in cases.real_cases(kinds=("mesh",)) if c.name == "tshirt-flattened-mesh")
+    fits = {
+        unit: fm.fit(
+            case.template_vertices,
+            case.faces,
+            unit * case.target,
+            target_faces=case.target_faces,
+            prealign="similarity",
+        )
+        for unit in (0.5, 2.0, 1000.0)
+    }
+    for unit, r in fits.items():
+        np.testing.assert_allclose(r.vertices / unit, fits[0.5].vertices / 0.5, rtol=0, atol=1e-9)
+        assert r.diagnostics["prealign"]["searched"]
+
+
 def test_the_similarity_s_scale_is_corrected_by_the_cloth_s_stretch():
     """The flattened DiffCloth T-shirt's scan given at half size: the similarity of its shape
     places the template at 0.84 of its size, and the fit from there stretched the cloth by

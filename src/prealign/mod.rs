@@ -8,7 +8,8 @@
 //!    scoring).
 //! 2. Otherwise the candidates are the 24 rotations between the two principal frames
 //!    (`axes`: every axis order and sign), each with the centroids matched and — with scale —
-//!    the RMS radii, plus the identity.
+//!    the RMS radii, plus the identity — with scale, the template's own orientation placed
+//!    as those are, so that the search does not depend on the scan's unit.
 //! 3. Every candidate is refined by trimmed ICP (`icp`) — ranking them before refining
 //!    misses the right one on folded cloth, whose principal axes are not the flat template's
 //!    (measured on a folded sheet turned 60°: the right basin was not among the 6 best
@@ -175,8 +176,22 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
     } else {
         1.0
     };
+    // With the scale free, a template that does not lie on the scan is searched from its own
+    // orientation placed as the principal-frame candidates are (centroids and RMS radii
+    // matched), so that the search does not depend on the scan's unit. (Rigidly, its basin
+    // from where it lies: from the centroids it would win the least-turn tie-break on turned
+    // scans whose right reading scores no better.)
+    let given = if placed || !scaled {
+        identity
+    } else {
+        Similarity {
+            rotation: Mat3::identity(),
+            scale,
+            translation: sa.centroid - scale * ta.centroid,
+        }
+    };
     let (refined, given_index) =
-        refined_placements(&clouds, &ta, &sa, scale, scaled, identity, placed);
+        refined_placements(&clouds, &ta, &sa, scale, scaled, given, placed);
     let (transform, score) = least_turned_near_tie(&refined);
     let readings = distinct_readings(&refined);
     let best = best_of(&refined);

@@ -319,3 +319,60 @@ fn a_template_on_part_of_its_scan_twice_the_size_is_rescaled_with_the_similarity
     assert!(got.searched && !got.transform.is_identity(), "{got:?}");
     assert!((got.transform.scale / 2.0 - 1.0).abs() < 0.15, "{got:?}");
 }
+
+#[test]
+fn the_search_does_not_depend_on_the_scan_s_unit_or_position() {
+    // A tube skirt folded sideways and turned 20° (not placed: searched), in other units and
+    // moved elsewhere: the similarity's rotation is the same whatever the unit and position,
+    // its scale and translation follow them. With the scale free, the template's own
+    // orientation is a candidate placed as the principal-frame ones are (centroids and RMS
+    // radii matched), not where the template happens to lie (as it lay, the search's results
+    // were up to 5° apart).
+    let template = skirt_tube(2000, 0.0, 21);
+    let turn = Similarity {
+        rotation: rotation([0.3, 1.0, -0.2], 20.0),
+        ..Similarity::identity()
+    };
+    let folded: Vec<[f64; 3]> = skirt_tube(3000, 0.004, 22)
+        .into_iter()
+        .map(|[x, y, z]| [x + 0.2 * (3.0 * z).sin(), y, z])
+        .collect();
+    let scan = turn.apply_all(&folded);
+    let moved = |unit: f64, shift: Vec3| -> Vec<[f64; 3]> {
+        scan.iter()
+            .map(|p| (unit * vec3(p) + shift).into())
+            .collect()
+    };
+    let base = align(&template, &moved(2.0, Vec3::zeros()), Motion::Similarity);
+    assert!(base.searched, "{base:?}");
+    for unit in [0.5, 3.0, 8.0, 1000.0] {
+        let got = align(&template, &moved(unit, Vec3::zeros()), Motion::Similarity);
+        assert!(
+            (got.transform.rotation - base.transform.rotation).norm() < 1e-9,
+            "unit {unit}: {got:?} against {base:?}"
+        );
+        let ratio = unit / 2.0;
+        assert_relative_eq!(
+            got.transform.scale / ratio,
+            base.transform.scale,
+            max_relative = 1e-9
+        );
+        assert_relative_eq!(
+            got.transform.translation / ratio,
+            base.transform.translation,
+            epsilon = 1e-9
+        );
+    }
+    for shift in [Vec3::new(0.4, 3.0, 0.0), Vec3::new(-3.0, 5.0, 2.0)] {
+        let got = align(&template, &moved(2.0, shift), Motion::Similarity);
+        assert!(
+            (got.transform.rotation - base.transform.rotation).norm() < 1e-9,
+            "shift {shift:?}: {got:?} against {base:?}"
+        );
+        assert_relative_eq!(
+            got.transform.translation - shift,
+            base.transform.translation,
+            epsilon = 1e-9
+        );
+    }
+}
