@@ -7,7 +7,10 @@ method can tell which reading the truth used, and f_R (per-vertex RMS to the tru
 right surface as wrong. :func:`symmetries` finds the readings: each proper rotation of the
 template's principal frame (the 24 of the cube), refined by rigid ICP onto the template itself,
 that lands every vertex within a quarter of the template's point spacing of another, as a
-vertex permutation. :func:`f_r_up_to` is f_R minimised over them.
+vertex permutation; and the turns about a principal axis by which a template of N segments
+around it maps onto itself (a generated or simulated tube: every N-th of a turn, which the fit
+cannot tell apart either, docs/method.md "Rigid phase"), each also combined with the former.
+:func:`f_r_up_to` is f_R minimised over them.
 """
 
 from __future__ import annotations
@@ -58,7 +61,58 @@ def symmetries(vertices: np.ndarray) -> list[np.ndarray]:
             continue
         if not any(np.array_equal(nearest, s) for s in found):
             found.append(nearest)
+    # Turns about an axis beyond the cube's, and each combined with the cube's readings (a
+    # straight tube's half turns end over end).
+    seen = {f.tobytes() for f in found}
+    cube = list(found)
+    for axis in axes.T:
+        for t in _turns_about(centred, tree, spacing, axis):
+            for c in cube:
+                s = c[t]
+                if s.tobytes() not in seen:
+                    seen.add(s.tobytes())
+                    found.append(s)
     return found
+
+
+def _rotation(axis: np.ndarray, angle: float) -> np.ndarray:
+    k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+    return np.eye(3) + np.sin(angle) * k + (1.0 - np.cos(angle)) * k @ k
+
+
+def _maps_onto_itself(centred: np.ndarray, tree: cKDTree, spacing: float, r: np.ndarray) -> np.ndarray | None:
+    d, nearest = tree.query(centred @ r.T)
+    if d.mean() > LANDS * spacing or len(np.unique(nearest)) != len(centred):
+        return None
+    return nearest
+
+
+def _turns_about(centred: np.ndarray, tree: cKDTree, spacing: float, axis: np.ndarray) -> list[np.ndarray]:
+    """The turns about a principal axis that map the template onto itself, beyond the cube's
+    quarter turns (a tube of N segments about its axis: every N-th of a turn). The candidate
+    step is the least angle between the vertices of the ring farthest from the axis (same height
+    and radius as its outermost vertex); it is kept when that turn maps every vertex onto
+    another, and then so are its multiples."""
+    height = centred @ axis
+    radial = centred - np.outer(height, axis)
+    radius = np.linalg.norm(radial, axis=1)
+    far = int(np.argmax(radius))
+    ring = np.flatnonzero(
+        (np.abs(height - height[far]) < LANDS * spacing) & (np.abs(radius - radius[far]) < LANDS * spacing)
+    )
+    if len(ring) < 3:
+        return []
+    u = radial[far] / radius[far]
+    w = np.cross(axis, u)
+    angles = np.sort(np.mod(np.arctan2(radial[ring] @ w, radial[ring] @ u), 2 * np.pi))
+    gaps = np.diff(np.r_[angles, angles[0] + 2 * np.pi])
+    n = int(round(2 * np.pi / gaps[gaps > 1e-9].min()))
+    if n < 3 or _maps_onto_itself(centred, tree, spacing, _rotation(axis, 2 * np.pi / n)) is None:
+        return []
+    turns = (
+        _maps_onto_itself(centred, tree, spacing, _rotation(axis, 2 * np.pi * j / n)) for j in range(1, n)
+    )
+    return [t for t in turns if t is not None]
 
 
 def f_r_up_to(fitted: np.ndarray, truth: np.ndarray, diagonal: float, perms: list[np.ndarray]) -> float:

@@ -44,3 +44,28 @@ def test_f_r_up_to_the_symmetries_forgives_a_symmetric_reading_only():
     assert symmetry.f_r_up_to(turned, truth, 1.0, perms) < 1e-12
     shifted = truth + [0.0, 0.0, 0.05]
     assert np.isclose(symmetry.f_r_up_to(shifted, truth, 2.0, perms), 0.025)
+
+
+def tube(segments: int, radii: list[float]) -> np.ndarray:
+    """Rings of `segments` vertices about the z axis, one ring per radius, 0.3 apart."""
+    theta = 2 * np.pi * np.arange(segments) / segments
+    return np.concatenate(
+        [np.c_[r * np.cos(theta), r * np.sin(theta), np.full(segments, 0.3 * k)] for k, r in enumerate(radii)]
+    )
+
+
+def test_a_tube_of_n_segments_has_every_nth_turn():
+    # Flared (a skirt): the 12 turns about its axis, of which the cube's rotations find only the
+    # quarter turns. Straight (a plain open cylinder): also end over end, 24.
+    flared = tube(12, [0.6, 0.7, 0.8, 0.9, 1.0])
+    perms = symmetry.symmetries(flared)
+    assert len(perms) == 12
+    assert len({p.tobytes() for p in perms}) == 12
+    for s in perms:
+        d = np.linalg.norm(flared[:, None] - flared[None], axis=2)
+        assert np.allclose(d, d[np.ix_(s, s)])
+    assert len(symmetry.symmetries(tube(12, [1.0] * 5))) == 24
+    # A bump on one ring leaves the identity alone.
+    bumped = flared.copy()
+    bumped[3] *= 2.0
+    assert len(symmetry.symmetries(bumped)) == 1
