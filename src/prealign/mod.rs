@@ -8,8 +8,9 @@
 //!    scoring).
 //! 2. Otherwise the candidates are the 24 rotations between the two principal frames
 //!    (`axes`: every axis order and sign), each with the centroids matched and — with scale —
-//!    the RMS radii, plus the identity — with scale, the template's own orientation placed
-//!    as those are, so that the search does not depend on the scan's unit.
+//!    the RMS radii, plus the identity — with scale, where refining the identity rescales the
+//!    template, the template's own orientation placed as those are, so that the search does
+//!    not depend on the scan's unit.
 //! 3. Every candidate is refined by trimmed ICP (`icp`) — ranking them before refining
 //!    misses the right one on folded cloth, whose principal axes are not the flat template's
 //!    (measured on a folded sheet turned 60°: the right basin was not among the 6 best
@@ -176,22 +177,19 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
     } else {
         1.0
     };
-    // With the scale free, a template that does not lie on the scan is searched from its own
-    // orientation placed as the principal-frame candidates are (centroids and RMS radii
-    // matched), so that the search does not depend on the scan's unit. (Rigidly, its basin
-    // from where it lies: from the centroids it would win the least-turn tie-break on turned
-    // scans whose right reading scores no better.)
-    let given = if placed || !scaled {
-        identity
-    } else {
-        Similarity {
-            rotation: Mat3::identity(),
-            scale,
-            translation: sa.centroid - scale * ta.centroid,
-        }
-    };
+    // With the scale free, a template that does not lie on the scan is also searched from its
+    // own orientation placed as the principal-frame candidates are (centroids and RMS radii
+    // matched): that start stands for the placement as given wherever refining the placement
+    // as given rescales the template (a scan in other units), so the search does not depend on
+    // the unit. (Rigidly, only from where it lies: from the centroids it would win the
+    // least-turn tie-break on turned scans whose right reading scores no better.)
+    let own = (scaled && !placed).then(|| Similarity {
+        rotation: Mat3::identity(),
+        scale,
+        translation: sa.centroid - scale * ta.centroid,
+    });
     let (refined, given_index) =
-        refined_placements(&clouds, &ta, &sa, scale, scaled, given, placed);
+        refined_placements(&clouds, &ta, &sa, scale, scaled, identity, own, placed);
     let (transform, score) = least_turned_near_tie(&refined);
     let readings = distinct_readings(&refined);
     let best = best_of(&refined);
@@ -245,7 +243,10 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
 /// trimmed ICP on the coarse samples, side by side; the distinct placements that score near
 /// the best there, and the basin of `given`, refined again on the full samples. Returns those
 /// and the index of `given`'s basin among them. When `given` is `placed` (it lies on the scan),
-/// only the candidates near it and its half turns are tried ([`PLACED_TURN`]).
+/// only the candidates near it and its half turns are tried ([`PLACED_TURN`]). `own`, when
+/// given, replaces `given` wherever `given`'s coarse basin rescales the template by [`PLACED`]
+/// or more (and is dropped otherwise).
+#[allow(clippy::too_many_arguments)]
 fn refined_placements(
     clouds: &Clouds,
     ta: &Axes,
@@ -253,6 +254,7 @@ fn refined_placements(
     scale: f64,
     scaled: bool,
     given: Similarity,
+    own: Option<Similarity>,
     placed: bool,
 ) -> (Vec<(Similarity, f64)>, usize) {
     let mut starts: Vec<Similarity> = axes::candidate_rotations(ta, sa)
@@ -271,11 +273,19 @@ fn refined_placements(
             turn >= PLACED_TURN || turn <= 180.0 - PLACED_TURN
         });
     }
+    starts.extend(own);
     starts.push(given);
-    let coarse: Vec<(Similarity, f64)> = starts
+    let mut coarse: Vec<(Similarity, f64)> = starts
         .into_par_iter()
         .map(|start| icp::refine(clouds, start, scaled, Level::Coarse))
         .collect();
+    if own.is_some() {
+        // The last two are `own`'s basin and `given`'s: one of them stands for the given.
+        let given_basin = coarse.pop().expect("the given's basin");
+        if (given_basin.0.scale - 1.0).abs() < PLACED {
+            *coarse.last_mut().expect("own's basin") = given_basin;
+        }
+    }
     let mut chosen = finalists(&coarse, sa.rms_radius);
     let given = coarse[coarse.len() - 1].0;
     let given_index = match chosen
@@ -334,7 +344,8 @@ pub fn pose_scores(
         let basin = icp::refine(&clouds, coarse, false, Level::Full).1;
         return Some((basin, basin));
     }
-    let (refined, given_index) = refined_placements(&clouds, &ta, &sa, 1.0, false, rigid, false);
+    let (refined, given_index) =
+        refined_placements(&clouds, &ta, &sa, 1.0, false, rigid, None, false);
     Some((refined[given_index].1, best_of(&refined)))
 }
 
