@@ -56,10 +56,8 @@ def symmetries(vertices: np.ndarray) -> list[np.ndarray]:
         for _ in range(ICP_ITERATIONS):
             _, nearest = tree.query(centred @ r.T)
             r = cases.umeyama(centred, centred[nearest])[1]
-        d, nearest = tree.query(centred @ r.T)
-        if d.mean() > LANDS * spacing or len(np.unique(nearest)) != len(v):
-            continue
-        if not any(np.array_equal(nearest, s) for s in found):
+        nearest = _maps_onto_itself(centred, tree, spacing, r)
+        if nearest is not None and not any(np.array_equal(nearest, s) for s in found):
             found.append(nearest)
     # Turns about an axis beyond the cube's, and each combined with the cube's readings (a
     # straight tube's half turns end over end).
@@ -75,12 +73,9 @@ def symmetries(vertices: np.ndarray) -> list[np.ndarray]:
     return found
 
 
-def _rotation(axis: np.ndarray, angle: float) -> np.ndarray:
-    k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
-    return np.eye(3) + np.sin(angle) * k + (1.0 - np.cos(angle)) * k @ k
-
-
 def _maps_onto_itself(centred: np.ndarray, tree: cKDTree, spacing: float, r: np.ndarray) -> np.ndarray | None:
+    """The vertex permutation by which the rotation `r` maps the template onto itself (every
+    vertex within :data:`LANDS` of the spacing of another, on average, one to one), or None."""
     d, nearest = tree.query(centred @ r.T)
     if d.mean() > LANDS * spacing or len(np.unique(nearest)) != len(centred):
         return None
@@ -92,7 +87,7 @@ def _turns_about(centred: np.ndarray, tree: cKDTree, spacing: float, axis: np.nd
     quarter turns (a tube of N segments about its axis: every N-th of a turn). The candidate
     step is the least angle between the vertices of the ring farthest from the axis (same height
     and radius as its outermost vertex); it is kept when that turn maps every vertex onto
-    another, and then so are its multiples."""
+    another, and then so are its multiples (the step's permutation composed)."""
     height = centred @ axis
     radial = centred - np.outer(height, axis)
     radius = np.linalg.norm(radial, axis=1)
@@ -107,12 +102,16 @@ def _turns_about(centred: np.ndarray, tree: cKDTree, spacing: float, axis: np.nd
     angles = np.sort(np.mod(np.arctan2(radial[ring] @ w, radial[ring] @ u), 2 * np.pi))
     gaps = np.diff(np.r_[angles, angles[0] + 2 * np.pi])
     n = int(round(2 * np.pi / gaps[gaps > 1e-9].min()))
-    if n < 3 or _maps_onto_itself(centred, tree, spacing, _rotation(axis, 2 * np.pi / n)) is None:
-        return []
-    turns = (
-        _maps_onto_itself(centred, tree, spacing, _rotation(axis, 2 * np.pi * j / n)) for j in range(1, n)
+    step = (
+        _maps_onto_itself(centred, tree, spacing, cases.rotation_matrix(axis, 360.0 / n)) if n >= 3 else None
     )
-    return [t for t in turns if t is not None]
+    if step is None:
+        return []
+    # The j-th turn is the step applied j times: its permutation composed j times.
+    turns = [step]
+    while len(turns) < n - 1:
+        turns.append(step[turns[-1]])
+    return turns
 
 
 def f_r_up_to(fitted: np.ndarray, truth: np.ndarray, diagonal: float, perms: list[np.ndarray]) -> float:

@@ -177,19 +177,8 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
     } else {
         1.0
     };
-    // With the scale free, a template that does not lie on the scan is also searched from its
-    // own orientation placed as the principal-frame candidates are (centroids and RMS radii
-    // matched): that start stands for the placement as given wherever refining the placement
-    // as given rescales the template (a scan in other units), so the search does not depend on
-    // the unit. (Rigidly, only from where it lies: from the centroids it would win the
-    // least-turn tie-break on turned scans whose right reading scores no better.)
-    let own = (scaled && !placed).then(|| Similarity {
-        rotation: Mat3::identity(),
-        scale,
-        translation: sa.centroid - scale * ta.centroid,
-    });
     let (refined, given_index) =
-        refined_placements(&clouds, &ta, &sa, scale, scaled, identity, own, placed);
+        refined_placements(&clouds, &ta, &sa, scale, scaled, identity, placed);
     let (transform, score) = least_turned_near_tie(&refined);
     let readings = distinct_readings(&refined);
     let best = best_of(&refined);
@@ -243,10 +232,14 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
 /// trimmed ICP on the coarse samples, side by side; the distinct placements that score near
 /// the best there, and the basin of `given`, refined again on the full samples. Returns those
 /// and the index of `given`'s basin among them. When `given` is `placed` (it lies on the scan),
-/// only the candidates near it and its half turns are tried ([`PLACED_TURN`]). `own`, when
-/// given, replaces `given` wherever `given`'s coarse basin rescales the template by [`PLACED`]
-/// or more (and is dropped otherwise).
-#[allow(clippy::too_many_arguments)]
+/// only the candidates near it and its half turns are tried ([`PLACED_TURN`]).
+///
+/// With the scale free and `given` not placed, `given`'s orientation placed as the
+/// principal-frame candidates are (centroids and RMS radii matched) is refined too, and stands
+/// for `given` wherever `given`'s coarse basin rescales the template by [`PLACED`] or more (a
+/// scan in other units): the search then does not depend on the unit. (Rigidly, only from
+/// where it lies: from the centroids it would win the least-turn tie-break on turned scans
+/// whose right reading scores no better.)
 fn refined_placements(
     clouds: &Clouds,
     ta: &Axes,
@@ -254,17 +247,19 @@ fn refined_placements(
     scale: f64,
     scaled: bool,
     given: Similarity,
-    own: Option<Similarity>,
     placed: bool,
 ) -> (Vec<(Similarity, f64)>, usize) {
+    // A rotation with the centroids matched and the template scaled by `scale`.
+    let centred = |rotation: Mat3| Similarity {
+        rotation,
+        scale,
+        translation: sa.centroid - scale * (rotation * ta.centroid),
+    };
     let mut starts: Vec<Similarity> = axes::candidate_rotations(ta, sa)
         .into_iter()
-        .map(|rotation| Similarity {
-            rotation,
-            scale,
-            translation: sa.centroid - scale * (rotation * ta.centroid),
-        })
+        .map(centred)
         .collect();
+    let own = (scaled && !placed).then(|| centred(given.rotation));
     if placed {
         // A template that lies on the scan: its own reading and its half turns (back to front,
         // upside down) only.
@@ -280,7 +275,7 @@ fn refined_placements(
         .map(|start| icp::refine(clouds, start, scaled, Level::Coarse))
         .collect();
     if own.is_some() {
-        // The last two are `own`'s basin and `given`'s: one of them stands for the given.
+        // The last two are the centred orientation's basin and `given`'s: one stands for it.
         let given_basin = coarse.pop().expect("the given's basin");
         if (given_basin.0.scale - 1.0).abs() < PLACED {
             *coarse.last_mut().expect("own's basin") = given_basin;
@@ -344,8 +339,7 @@ pub fn pose_scores(
         let basin = icp::refine(&clouds, coarse, false, Level::Full).1;
         return Some((basin, basin));
     }
-    let (refined, given_index) =
-        refined_placements(&clouds, &ta, &sa, 1.0, false, rigid, None, false);
+    let (refined, given_index) = refined_placements(&clouds, &ta, &sa, 1.0, false, rigid, false);
     Some((refined[given_index].1, best_of(&refined)))
 }
 
