@@ -39,10 +39,13 @@ import numpy as np
 
 # ---- parameters (chosen by bench/tune.py; see docs/notes/comparison-full-run.md) ------------
 
-#: CPD (all three implementations share the model and the parameters): λ (alpha) the
-#: smoothness weight, β the Gaussian kernel width in the normalized frame (target diagonal 1),
-#: w the outlier weight; EM until the σ² change is below `tol` or `maxiter`. (The
-#: packages' default α=2, β=2 is near-affine at this scale: sweep score 0.063 against 0.049.)
+#: CPD (all three implementations are given the same parameters): λ (alpha) the smoothness
+#: weight, β the Gaussian kernel's width parameter in the normalized frame (target diagonal 1),
+#: w the outlier weight; EM until the σ² change is below `tol` or `maxiter`. (The packages'
+#: default α=2, β=2 is near-affine at this scale: sweep score 0.063 against 0.049.) The same β
+#: is not the same kernel: probreg's is exp(−d²/(2β)), pycpd's and rustcpd's exp(−d²/(2β²)), so
+#: probreg runs at width √0.1 ≈ 0.32 of the diagonal and the other two at 0.1; the best-peer
+#: figures take the better of the two models per case (docs/notes/rim-matching.md).
 CPD_PARAMS = {"alpha": 512.0, "beta": 0.1, "w": 0.05, "maxiter": 150, "tol": 1e-6}
 #: rustcpd extra: rank-300 low-rank kernel (its default; exact kernel when M ≤ 300; the sweep
 #: found rank 300 equal to the exact kernel to 4 digits), exact E-step.
