@@ -1,5 +1,5 @@
 //! The landmarks inside a fit (docs/method.md "Landmarks"): their targets in the normalized
-//! frame, their pull in the rigid phase's one fit and in the coarse phase's ring fits (weighted
+//! frame, their pull in the coarse phase's ring fits (weighted
 //! pairs of Kabsch's problem), and their spring in the FoldMatch (or NRGa) iterations.
 
 use crate::landmarks::Landmarks;

@@ -310,9 +310,9 @@ pub struct FitParams {
     pub prealign: Prealign,
     /// η, the weight of the landmarks ([`crate::landmarks::Landmarks`]) against the scan,
     /// dimensionless (default [`DEFAULT_LANDMARK_WEIGHT`]; 0: the landmarks only decide the
-    /// pre-alignment). In a rigid fit — the rigid phase's one fit, or a coarse-phase vertex's
-    /// fit of its coarse ring — the landmark vertices in it pull their targets with η times
-    /// the weight of all its scan-driven pairs together; in the FoldMatch (or NRGa)
+    /// pre-alignment). In a coarse-phase vertex's fit of its coarse ring the landmark
+    /// vertices in the ring pull their targets with η times the weight of all its
+    /// scan-driven pairs together (the rigid phase fits the scan alone); in the FoldMatch (or NRGa)
     /// iterations a landmark vertex's proposal and then its update x each move to
     /// `(x + η t) / (1 + η)`, t its target: a spring that closes at least `η / (1 + η)` of the
     /// remaining gap every iteration (docs/method.md "Landmarks").

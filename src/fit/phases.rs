@@ -63,34 +63,19 @@ pub(super) fn rigid(
         None => (&prepared.all_vertices[..], old, new),
     };
     let fast = params.internal.matrix_series;
-    let (r, c_old, c_new) = match prepared.landmarks.as_ref() {
-        // The landmarks' pulls enter the one rigid fit (docs/method.md "Landmarks").
-        Some(l) if params.landmark_weight > 0.0 => {
-            let held: Vec<u32> = (0..l.vertices.len() as u32).collect();
-            l.weighted_fit(
-                all,
-                fit_old,
-                fit_new,
-                &held,
-                old,
-                params.landmark_weight,
-                fast,
-            )
-        }
-        _ if !prepared.rigid_parts.vertices.is_empty() => {
-            rigid_by_part(prepared, all, fit_old, fit_new, sample, old, fast, next);
-            return 0;
-        }
-        _ => {
-            let (c_old, c_new) = ring_centroids(all, fit_old, fit_new);
-            let r = kabsch(all, fit_old, fit_new, &c_old, &c_new, fast);
-            // No turn about the template's own symmetry axes (docs/method.md "Rigid phase").
-            let r = match prepared.symmetry.as_ref() {
-                Some(symmetry) => symmetry.hold(&r, old, &prepared.faces),
-                None => r,
-            };
-            (r, c_old, c_new)
-        }
+    // Landmarks do not enter the rigid phase: they placed the template, and a rigid motion
+    // cannot follow them onto a deformed garment; held to them (full-displacement pairs against
+    // the scan's per-iteration steps) it stalls short of the scan (docs/method.md "Landmarks").
+    if !prepared.rigid_parts.vertices.is_empty() {
+        rigid_by_part(prepared, all, fit_old, fit_new, sample, old, fast, next);
+        return 0;
+    }
+    let (c_old, c_new) = ring_centroids(all, fit_old, fit_new);
+    let r = kabsch(all, fit_old, fit_new, &c_old, &c_new, fast);
+    // No turn about the template's own symmetry axes (docs/method.md "Rigid phase").
+    let r = match prepared.symmetry.as_ref() {
+        Some(symmetry) => symmetry.hold(&r, old, &prepared.faces),
+        None => r,
     };
     next.par_iter_mut().enumerate().for_each(|(v, out)| {
         *out = transform_vertex(&r, &vec3(&old[v]), &c_old, &c_new).into();
