@@ -326,8 +326,9 @@ def fit(
         ``(template_vertex_indices, target_positions)``: template vertices whose positions on
         the scan are known (clicked, detected, marked). They decide the pre-alignment (the
         rigid fit of those vertices onto their targets moves the template first, in place of
-        ``prealign``) and pull their vertices toward the targets through every phase of the
-        fit, as hard as the setting ``landmark_weight`` says (``params={"landmark_weight": 3}``;
+        ``prealign``) and pull their vertices toward the targets while the fit deforms (its
+        first, rigid part follows the scan alone), as hard as the setting ``landmark_weight``
+        says (``params={"landmark_weight": 3}``;
         default 1; docs/guide.md "Landmarks"). An index out of range or repeated, or a
         non-finite position, raises :class:`InvalidInputError` naming the landmark.
     preset : {"default", "accurate", "fast", "paper", "tracking"}, optional

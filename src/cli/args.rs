@@ -135,7 +135,7 @@ pub struct FitCmd {
     /// Landmarks: template vertices whose positions on the scan are known, as JSON
     /// `{"vertices": [i, ...], "positions": [[x, y, z], ...]}` (a .json file) or CSV lines
     /// `index,x,y,z`. They decide the pre-alignment and pull their vertices toward the
-    /// positions through the whole fit (weight: `landmark_weight` in --params).
+    /// positions while the fit deforms (weight: `landmark_weight` in --params).
     #[arg(long, value_name = "FILE")]
     pub landmarks: Option<PathBuf>,
     /// Write ASCII PLY instead of binary.
