@@ -314,7 +314,20 @@ fn fit_from(
         result.diagnostics.prealign = prealign;
         result
     };
-    let template_vertices = placed.as_deref().unwrap_or(template_vertices);
+    // With a similarity, landmarks set the template's size too: the fit, and everything
+    // measured against the template's metric (the rest shape), start from the template so
+    // placed, in whatever unit it was given (Prepared::new's own landmark placement is then
+    // the identity).
+    let sized_by_landmarks: Option<Vec<[f64; 3]>> = landmarks
+        .filter(|_| params.prealign == Prealign::Similarity && rest.is_none())
+        .map(|l| {
+            l.alignment(template_vertices, true)
+                .apply_all(template_vertices)
+        });
+    let template_vertices = placed
+        .as_deref()
+        .or(sized_by_landmarks.as_deref())
+        .unwrap_or(template_vertices);
     // What the template's metric is measured on: the rest shape when one is given.
     let rest_shape = rest.unwrap_or(template_vertices);
     let prepared = Prepared::new(
