@@ -134,3 +134,19 @@ def test_with_the_similarity_the_template_s_unit_does_not_change_the_landmark_fi
         fits[unit] = r.vertices / unit
     np.testing.assert_allclose(fits[1000.0], fits[1.0], rtol=0, atol=1e-9 * np.ptp(v[:, 0]))
     assert rmse(fits[1.0], g) < 0.05 * np.ptp(v[:, 0])
+
+
+def test_the_template_s_given_place_does_not_change_the_landmark_fit():
+    # The landmarks place the template (their vertices' rigid fit onto their targets) and the
+    # template so placed is the fit's template and rest shape: turned and moved anywhere
+    # before, it fits the same.
+    case = fm.folded_sheet(nx=N, ny=N, scan_points=800, noise=0.0)
+    v, f, x, g = case["template_vertices"], case["faces"], case["scan"], case["ground_truth"]
+    marks = np.array([0, N - 1, N * (N - 1), N * N - 1, N // 2, N * (N // 2)])
+    a = np.radians(70.0)
+    turn = np.array([[np.cos(a), 0.0, np.sin(a)], [0.0, 1.0, 0.0], [-np.sin(a), 0.0, np.cos(a)]])
+    moved = v @ turn.T + np.array([3.0, -2.0, 5.0])
+    given = fm.fit(v, f, x, landmarks=(marks, g[marks]))
+    elsewhere = fm.fit(moved, f, x, landmarks=(marks, g[marks]))
+    np.testing.assert_allclose(elsewhere.vertices, given.vertices, rtol=0, atol=1e-9 * np.ptp(v[:, 0]))
+    assert rmse(given.vertices, g) < 0.05 * np.ptp(v[:, 0])

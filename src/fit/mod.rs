@@ -255,7 +255,7 @@ fn fit_from(
         .map(|w| (0..w.len()).filter(|&j| w[j] > 0.0).collect());
     let mut schedules = params.candidate_schedules();
     let clock = std::time::Instant::now();
-    // Landmarks, when given, decide the pre-alignment (in Prepared::new) in its place.
+    // Landmarks, when given, decide the pre-alignment in its place (below).
     let (placed, mut prealign, other) = match landmarks {
         Some(_) => (None, None, None),
         None => prealigned(template_vertices, target, kept.as_deref(), params)?,
@@ -314,19 +314,18 @@ fn fit_from(
         result.diagnostics.prealign = prealign;
         result
     };
-    // With a similarity, landmarks set the template's size too: the fit, and everything
-    // measured against the template's metric (the rest shape), start from the template so
-    // placed, in whatever unit it was given (Prepared::new's own landmark placement is then
-    // the identity).
-    let sized_by_landmarks: Option<Vec<[f64; 3]>> = landmarks
-        .filter(|_| params.prealign == Prealign::Similarity && rest.is_none())
-        .map(|l| {
-            l.alignment(template_vertices, true)
-                .apply_all(template_vertices)
-        });
+    // Landmarks place the template: the rigid fit of their vertices onto their targets, with a
+    // similarity also its size (then in whatever unit the template was given). The template so
+    // placed is the fit's template and, without a rest shape of its own, the one its metric is
+    // measured on (docs/method.md "Landmarks").
+    let placed_by_landmarks: Option<Vec<[f64; 3]>> = landmarks.map(|l| {
+        let scaled = params.prealign == Prealign::Similarity && rest.is_none();
+        l.alignment(template_vertices, scaled)
+            .apply_all(template_vertices)
+    });
     let template_vertices = placed
         .as_deref()
-        .or(sized_by_landmarks.as_deref())
+        .or(placed_by_landmarks.as_deref())
         .unwrap_or(template_vertices);
     // What the template's metric is measured on: the rest shape when one is given.
     let rest_shape = rest.unwrap_or(template_vertices);

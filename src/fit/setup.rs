@@ -89,7 +89,8 @@ impl Prepared {
     /// Validates the inputs and builds the shared state; `schedules` differ at most in their
     /// schedule fields ([`FitParams::sharp_schedule`]), the first one's structure is used.
     /// `rest`: the rest shape of the rest-shape rigidity when it is not the template itself
-    /// (same vertex count; the caller validates it).
+    /// (same vertex count; the caller validates it). With `landmarks` the template comes placed
+    /// by them (`fit_from`) and no pre-alignment moves it here.
     #[allow(clippy::too_many_arguments)] // the fit's inputs, as `fit_with_landmarks` takes them
     pub(super) fn new(
         template_vertices: &[[f64; 3]],
@@ -112,15 +113,6 @@ impl Prepared {
             validate_faces("target_faces", tf, target.len())?;
         }
         let m = template_vertices.len();
-        // Landmarks decide the pre-alignment: the rigid fit of their vertices onto their
-        // targets moves the template before anything else sees it (with a uniform scale too
-        // when `prealign` asks for a similarity).
-        let scaled = params.prealign == super::Prealign::Similarity;
-        let aligned = landmarks.map(|l| {
-            l.alignment(template_vertices, scaled)
-                .apply_all(template_vertices)
-        });
-        let template_vertices = aligned.as_deref().unwrap_or(template_vertices);
         let cleaned = clean_faces(template_faces);
         let faces = cleaned.faces;
 
@@ -156,6 +148,7 @@ impl Prepared {
         };
         let offset = centroid - scan_centroid;
         match params.prealign {
+            // Placed by the landmarks already (`fit_from`).
             _ if landmarks.is_some() => {}
             Prealign::Centroid => {
                 for p in &mut start {
