@@ -71,6 +71,58 @@ pub fn cube_rotations() -> Vec<Mat3> {
     out
 }
 
+/// Two principal variances within this fraction of the larger do not fix the axes of their
+/// plane (a square sheet, a round tube, a scan as wide as it is long): any turn about the third
+/// axis is as principal. The cube rotations sample that circle every 90° only.
+pub const TIED_VARIANCES: f64 = 0.1;
+
+/// The turns (degrees) about the distinct axis of a frame whose other two axes tie
+/// ([`TIED_VARIANCES`]) given to the best cube candidate's basin: with the cube's own quarter
+/// turns, the circle is sampled every 30°.
+pub const TIED_TURNS: [f64; 4] = [30.0, 60.0, -30.0, -60.0];
+
+impl Axes {
+    /// The principal axis whose variance stands apart when the other two tie within
+    /// [`TIED_VARIANCES`]; `None` when no two tie, or all three do.
+    pub fn tied_turn_axis(&self) -> Option<Vec3> {
+        let v = self.variances;
+        let tie =
+            |i: usize, j: usize| (v[i] - v[j]).abs() <= TIED_VARIANCES * v[i].abs().max(v[j].abs());
+        let mut apart = [(0, 1, 2), (0, 2, 1), (1, 2, 0)]
+            .into_iter()
+            .filter(|&(i, j, _)| tie(i, j))
+            .map(|(_, _, k)| k);
+        match (apart.next(), apart.next()) {
+            (Some(k), None) => Some(self.frame.column(k).into_owned()),
+            _ => None,
+        }
+    }
+}
+
+/// The rotations `base` turned about the distinct axis of each of the two frames whose other
+/// axes tie in a plane ([`Axes::tied_turn_axis`]) by [`TIED_TURNS`] (the template's turn
+/// applied first, the scan's last); empty when neither frame ties. A folded square sheet's
+/// best placement can lie 30° from every cube candidate, out of trimmed ICP's reach from them
+/// (docs/method.md "Global pre-alignment").
+pub fn tied_turns(template: &Axes, scan: &Axes, base: &[Mat3]) -> Vec<Mat3> {
+    let turns = |axis: Vec3| {
+        let axis = nalgebra::Unit::new_normalize(axis);
+        TIED_TURNS.map(|t| *nalgebra::Rotation3::from_axis_angle(&axis, t.to_radians()).matrix())
+    };
+    let mut out = Vec::new();
+    if let Some(axis) = template.tied_turn_axis() {
+        for q in turns(axis) {
+            out.extend(base.iter().map(|r| r * q));
+        }
+    }
+    if let Some(axis) = scan.tied_turn_axis() {
+        for q in turns(axis) {
+            out.extend(base.iter().map(|r| q * r));
+        }
+    }
+    out
+}
+
 /// The candidate rotations `R = F_scan · P · F_templateᵀ`, one per cube rotation `P`: each
 /// maps the template's principal frame onto the scan's with one assignment of axes and signs.
 pub fn candidate_rotations(template: &Axes, scan: &Axes) -> Vec<Mat3> {
@@ -119,5 +171,46 @@ mod tests {
             .map(|c| (c - r).norm())
             .fold(f64::INFINITY, f64::min);
         assert!(best < 1e-8, "closest candidate {best}");
+    }
+
+    /// A grid of `nx` × `ny` points of spacing 1 in the plane z = 0, turned by `r`.
+    fn grid(nx: usize, ny: usize, r: &Mat3) -> Vec<[f64; 3]> {
+        (0..nx * ny)
+            .map(|i| (r * Vec3::new((i % nx) as f64, (i / nx) as f64, 0.0)).into())
+            .collect()
+    }
+
+    #[test]
+    fn a_square_sheet_s_frame_is_tied_about_its_normal_and_gets_turned_candidates() {
+        let r = *Rotation3::from_axis_angle(&Unit::new_normalize(Vec3::new(1.0, 2.0, -1.5)), 0.9)
+            .matrix();
+        let square = principal_axes(&grid(21, 21, &r));
+        let axis = square
+            .tied_turn_axis()
+            .expect("a square's in-plane axes tie");
+        assert_relative_eq!(axis.dot(&(r * Vec3::z())).abs(), 1.0, epsilon = 1e-9);
+        // A 1 × 2 sheet's axes are all fixed; a cube of points ties all three (no turn helps).
+        let strip = principal_axes(&grid(11, 21, &r));
+        assert!(strip.tied_turn_axis().is_none());
+        let cube: Vec<[f64; 3]> = (0..1000)
+            .map(|i| [(i % 10) as f64, (i / 10 % 10) as f64, (i / 100) as f64])
+            .collect();
+        assert!(principal_axes(&cube).tied_turn_axis().is_none());
+        let base = candidate_rotations(&square, &strip);
+        let turned = tied_turns(&square, &strip, &base);
+        assert_eq!(turned.len(), 24 * TIED_TURNS.len());
+        // Each is a cube candidate turned by one of the turns about the square's normal.
+        let normal = r * Vec3::z();
+        for (k, t) in turned.iter().enumerate() {
+            let turn = Rotation3::from_matrix_unchecked(base[k % 24].transpose() * t);
+            assert_relative_eq!(
+                turn.angle().to_degrees(),
+                TIED_TURNS[k / 24].abs(),
+                epsilon = 1e-9
+            );
+            let axis = turn.axis().expect("a turn");
+            assert_relative_eq!(axis.dot(&normal).abs(), 1.0, epsilon = 1e-9);
+        }
+        assert!(tied_turns(&strip, &strip, &candidate_rotations(&strip, &strip)).is_empty());
     }
 }

@@ -7,10 +7,12 @@
 //!    kept and nothing else runs (a scan in the template's frame costs two k-d trees and one
 //!    scoring).
 //! 2. Otherwise the candidates are the 24 rotations between the two principal frames
-//!    (`axes`: every axis order and sign), each with the centroids matched and — with scale —
-//!    the RMS radii, plus the identity — with scale, where refining the identity rescales the
-//!    template, the template's own orientation placed as those are, so that the search does
-//!    not depend on the scan's unit.
+//!    (`axes`: every axis order and sign; where a frame's two variances tie, as a square
+//!    sheet's or a tube's, each also turned by 30° and 60° about its third axis, kept where
+//!    one of those reaches a basin clearly below the others'), each with the centroids matched
+//!    and — with scale — the RMS radii, plus the identity — with scale, where refining the
+//!    identity rescales the template, the template's own orientation placed as those are, so
+//!    that the search does not depend on the scan's unit.
 //! 3. Every candidate is refined by trimmed ICP (`icp`) — ranking them before refining
 //!    misses the right one on folded cloth, whose principal axes are not the flat template's
 //!    (measured on a folded sheet turned 60°: the right basin was not among the 6 best
@@ -228,7 +230,9 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
 }
 
 /// Every candidate placement of the template — the 24 rotations between the principal frames
-/// `ta` and `sa` (centroids matched, the template scaled by `scale`) and `given` — refined by
+/// `ta` and `sa` (centroids matched, the template scaled by `scale`), those turned about a tied
+/// frame's axis ([`axes::tied_turns`]) where one of them reaches a basin clearly below every
+/// other's, and `given` — refined by
 /// trimmed ICP on the coarse samples, side by side; the distinct placements that score near
 /// the best there, and the basin of `given`, refined again on the full samples. Returns those
 /// and the index of `given`'s basin among them. When `given` is `placed` (it lies on the scan),
@@ -255,30 +259,50 @@ fn refined_placements(
         scale,
         translation: sa.centroid - scale * (rotation * ta.centroid),
     };
-    let mut starts: Vec<Similarity> = axes::candidate_rotations(ta, sa)
-        .into_iter()
-        .map(centred)
-        .collect();
+    let cube = axes::candidate_rotations(ta, sa);
+    // A template that lies on the scan: its own reading and its half turns (back to front,
+    // upside down) only.
+    let near_given_or_half_turn = |s: &Similarity| {
+        let turn = s.turned_from(&given);
+        !placed || turn >= PLACED_TURN || turn <= 180.0 - PLACED_TURN
+    };
+    let starts_of = |rotations: Vec<Mat3>| -> Vec<Similarity> {
+        rotations
+            .into_iter()
+            .map(centred)
+            .filter(near_given_or_half_turn)
+            .collect()
+    };
+    let mut starts = starts_of(cube);
     let own = (scaled && !placed).then(|| centred(given.rotation));
-    if placed {
-        // A template that lies on the scan: its own reading and its half turns (back to front,
-        // upside down) only.
-        starts.retain(|s| {
-            let turn = s.turned_from(&given);
-            turn >= PLACED_TURN || turn <= 180.0 - PLACED_TURN
-        });
-    }
     starts.extend(own);
     starts.push(given);
-    let mut coarse: Vec<(Similarity, f64)> = starts
-        .into_par_iter()
-        .map(|start| icp::refine(clouds, start, scaled, Level::Coarse))
-        .collect();
+    let refine_coarse = |starts: Vec<Similarity>| -> Vec<(Similarity, f64)> {
+        starts
+            .into_par_iter()
+            .map(|start| icp::refine(clouds, start, scaled, Level::Coarse))
+            .collect()
+    };
+    let mut coarse = refine_coarse(starts);
     if own.is_some() {
         // The last two are the centred orientation's basin and `given`'s: one stands for it.
         let given_basin = coarse.pop().expect("the given's basin");
         if (given_basin.0.scale - 1.0).abs() < PLACED {
             *coarse.last_mut().expect("own's basin") = given_basin;
+        }
+    }
+    // Where a frame's axes tie in a plane, the best basin turned about that frame's axis: the
+    // cube candidates sample such a turn every 90° only. The best of those joins only where it
+    // lies clearly below every other basin ([`NEAR_TIE`]): the turns are there to reach a basin
+    // the cube candidates miss, not to add near-ties to the least-turned choice. Rigidly only:
+    // with the scale free a lower trimmed score is no such sign (a drape's scan at half size
+    // was placed 15× farther by it).
+    if !scaled {
+        let lowest = |c: &[(Similarity, f64)]| c.iter().copied().min_by(|a, b| a.1.total_cmp(&b.1));
+        let best = lowest(&coarse).expect("the given's basin at least");
+        let turned = refine_coarse(starts_of(axes::tied_turns(ta, sa, &[best.0.rotation])));
+        if let Some(reached) = lowest(&turned).filter(|t| t.1 < (1.0 - NEAR_TIE) * best.1) {
+            coarse.insert(0, reached);
         }
     }
     let mut chosen = finalists(&coarse, sa.rms_radius);
