@@ -83,7 +83,7 @@ pub const TIED_TURNS: [f64; 4] = [30.0, 60.0, -30.0, -60.0];
 
 impl Axes {
     /// The principal axis whose variance stands apart when the other two tie within
-    /// [`TIED_VARIANCES`]; `None` when no two tie, or all three do.
+    /// `TIED_VARIANCES` (10 %); `None` when no two tie, or all three do.
     pub fn tied_turn_axis(&self) -> Option<Vec3> {
         let v = self.variances;
         let tie =
