@@ -120,14 +120,21 @@ def test_landmarks_on_a_drape_do_not_hold_the_rigid_phase_below_the_scan(scene, 
     assert f_guided < 1.1 * f_without, (f_guided, f_without)
 
 
-def test_with_the_similarity_the_template_s_unit_does_not_change_the_landmark_fit():
+@pytest.fixture(scope="module")
+def marked_sheet():
+    """A generated folded sheet (template, faces, clean scan, truth) and six landmark vertices:
+    its corners and two edge midpoints."""
+    case = fm.folded_sheet(nx=N, ny=N, scan_points=800, noise=0.0)
+    v, f, x, g = case["template_vertices"], case["faces"], case["scan"], case["ground_truth"]
+    return v, f, x, g, np.array([0, N - 1, N * (N - 1), N * N - 1, N // 2, N * (N // 2)])
+
+
+def test_with_the_similarity_the_template_s_unit_does_not_change_the_landmark_fit(marked_sheet):
     # prealign="similarity" with landmarks: the landmarks' placement sets the template's size,
     # and the fit is that of the template so placed, whatever unit the scan and its landmarks
     # are in. The rest shape had been the template as given, so the same scan and landmarks
     # in millimetres fitted differently (RMS to the truth 1.18x that in the template's unit).
-    case = fm.folded_sheet(nx=N, ny=N, scan_points=800, noise=0.0)
-    v, f, x, g = case["template_vertices"], case["faces"], case["scan"], case["ground_truth"]
-    marks = np.array([0, N - 1, N * (N - 1), N * N - 1, N // 2, N * (N // 2)])
+    v, f, x, g, marks = marked_sheet
     fits = {}
     for unit in (1.0, 1000.0):
         r = fm.fit(v, f, unit * x, landmarks=(marks, unit * g[marks]), prealign="similarity")
@@ -136,13 +143,11 @@ def test_with_the_similarity_the_template_s_unit_does_not_change_the_landmark_fi
     assert rmse(fits[1.0], g) < 0.05 * np.ptp(v[:, 0])
 
 
-def test_the_template_s_given_place_does_not_change_the_landmark_fit():
+def test_the_template_s_given_place_does_not_change_the_landmark_fit(marked_sheet):
     # The landmarks place the template (their vertices' rigid fit onto their targets) and the
     # template so placed is the fit's template and rest shape: turned and moved anywhere
     # before, it fits the same.
-    case = fm.folded_sheet(nx=N, ny=N, scan_points=800, noise=0.0)
-    v, f, x, g = case["template_vertices"], case["faces"], case["scan"], case["ground_truth"]
-    marks = np.array([0, N - 1, N * (N - 1), N * N - 1, N // 2, N * (N // 2)])
+    v, f, x, g, marks = marked_sheet
     a = np.radians(70.0)
     turn = np.array([[np.cos(a), 0.0, np.sin(a)], [0.0, 1.0, 0.0], [-np.sin(a), 0.0, np.cos(a)]])
     moved = v @ turn.T + np.array([3.0, -2.0, 5.0])

@@ -12,8 +12,8 @@ def test_a_folded_square_sheet_turned_obliquely_is_placed_in_its_best_basin():
     with holes, turned 60° about an oblique axis and shifted, the best rigid placement lay 32°
     from every candidate, out of trimmed ICP's reach: the search scored 1.15× what it reaches
     from the truth's own placement, and the fit ended 2.96× the unmoved one's up to the
-    sheet's symmetries. With the candidates also turned by 30° and 60° about the sheet's
-    normal, the search reaches that basin."""
+    sheet's symmetries. With the best coarse basin also turned by ±30° and ±60° about the
+    sheet's normal, the search reaches that basin."""
     from bench import cases
     from bench import prealign as moves
 

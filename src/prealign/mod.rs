@@ -7,12 +7,12 @@
 //!    kept and nothing else runs (a scan in the template's frame costs two k-d trees and one
 //!    scoring).
 //! 2. Otherwise the candidates are the 24 rotations between the two principal frames
-//!    (`axes`: every axis order and sign; where a frame's two variances tie, as a square
-//!    sheet's or a tube's, each also turned by 30° and 60° about its third axis, kept where
-//!    one of those reaches a basin clearly below the others'), each with the centroids matched
-//!    and — with scale — the RMS radii, plus the identity — with scale, where refining the
-//!    identity rescales the template, the template's own orientation placed as those are, so
-//!    that the search does not depend on the scan's unit.
+//!    (`axes`: every axis order and sign), each with the centroids matched and — with scale —
+//!    the RMS radii, plus the identity — with scale, where refining the identity rescales the
+//!    template, the template's own orientation placed as those are, so that the search does
+//!    not depend on the scan's unit. Rigidly, where a frame's two variances tie (a square
+//!    sheet, a tube), the best coarse basin is also turned by ±30° and ±60° about that frame's
+//!    third axis, and the best of those joins where it scores clearly below every other.
 //! 3. Every candidate is refined by trimmed ICP (`icp`) — ranking them before refining
 //!    misses the right one on folded cloth, whose principal axes are not the flat template's
 //!    (measured on a folded sheet turned 60°: the right basin was not among the 6 best
@@ -230,9 +230,9 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
 }
 
 /// Every candidate placement of the template — the 24 rotations between the principal frames
-/// `ta` and `sa` (centroids matched, the template scaled by `scale`), those turned about a tied
-/// frame's axis ([`axes::tied_turns`]) where one of them reaches a basin clearly below every
-/// other's, and `given` — refined by
+/// `ta` and `sa` (centroids matched, the template scaled by `scale`) and `given`, and (rigidly)
+/// the best of their coarse basins turned about a tied frame's axis ([`axes::tied_turns`]) where
+/// that reaches a basin clearly below every other's — refined by
 /// trimmed ICP on the coarse samples, side by side; the distinct placements that score near
 /// the best there, and the basin of `given`, refined again on the full samples. Returns those
 /// and the index of `given`'s basin among them. When `given` is `placed` (it lies on the scan),
