@@ -634,7 +634,8 @@ def prealign(template_vertices: Any, target: Any, motion: str = "rigid") -> dict
     chosen by least turn, and landmarks settle it; 0 when nothing was searched). ``fit`` goes
     further when two such readings are other shapes of the template (a garment back to front,
     not a symmetric image): it fits from both and keeps the closer
-    (``diagnostics["prealign"]["fitted_readings"] == 2``)."""
+    (``diagnostics["prealign"]["fitted_readings"] == 2``; ``reading_gap``, how much farther
+    the other fit ended, below 0.04: the scan did not tell them apart)."""
     if motion not in ("rigid", "similarity"):
         raise InvalidParameterError(f'parameter motion = {motion!r}: must be "rigid" or "similarity"')
     return _core.prealign_transform(

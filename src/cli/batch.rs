@@ -354,6 +354,9 @@ pub(super) fn log_file(ui: &Ui, done: usize, total: usize, entry: &FileReport) {
                     reasons.join("; ")
                 ));
             }
+            if let Some(note) = entry.reading_note() {
+                ui.detail(format_args!("{head} {}: {note}", entry.name));
+            }
         }
         Status::Error => ui.error(format_args!(
             "{head} {}: {}",

@@ -223,6 +223,9 @@ fn fit(cmd: &FitCmd, ctx: &Context) -> i32 {
                     reasons.join("; ")
                 ));
             }
+            if let Some(note) = entry.reading_note() {
+                ui.info(format_args!("note: {note}"));
+            }
             exit_code::OK
         }
         Status::Interrupted => {

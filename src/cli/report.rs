@@ -150,6 +150,27 @@ impl FileReport {
         )
     }
 
+    /// A note for a fit whose pre-alignment fitted two readings of the template that its scan
+    /// does not tell apart (`diagnostics.prealign.reading_gap` below
+    /// [`READING_MARGIN`](crate::fit::READING_MARGIN)): the fit may be back to front, and
+    /// landmarks settle it (docs/method.md "Global pre-alignment"). `None` otherwise.
+    pub fn reading_note(&self) -> Option<String> {
+        let gap = self
+            .diagnostics
+            .as_ref()?
+            .get("prealign")?
+            .get("reading_gap")?
+            .as_f64()?;
+        (gap < crate::fit::READING_MARGIN).then(|| {
+            format!(
+                "the template fits this scan about as closely turned to another reading (the \
+                 two fits' scan distances {:.1} % apart): a nearly symmetric garment may be back \
+                 to front; three or more landmarks settle it (--landmarks)",
+                100.0 * gap.abs()
+            )
+        })
+    }
+
     /// The verdict and every figure of the fit's quality, for a log line (empty without
     /// one); the module docs of [`crate::quality`] define the figures.
     pub fn quality_note(&self) -> String {
@@ -331,4 +352,37 @@ pub fn write_json(path: &Path, value: &impl Serialize) -> Result<(), String> {
         w.write_all(b"\n")
     })
     .map_err(|e| e.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn with_gap(gap: Option<f64>) -> FileReport {
+        let mut r = FileReport::pending("a", Path::new("a.ply"), Path::new("a.fit.ply"));
+        r.diagnostics = Some(serde_json::json!({
+            "prealign": { "fitted_readings": 2, "reading_gap": gap },
+        }));
+        r
+    }
+
+    #[test]
+    fn a_fit_whose_two_readings_tie_gets_a_note_and_one_clearly_closer_does_not() {
+        let note = with_gap(Some(0.012))
+            .reading_note()
+            .expect("a tie is noted");
+        assert!(
+            note.contains("1.2 %") && note.contains("--landmarks"),
+            "{note}"
+        );
+        // The other reading closer, by less than the margin that would have taken it.
+        assert!(with_gap(Some(-0.02)).reading_note().is_some());
+        assert!(with_gap(Some(crate::fit::READING_MARGIN + 0.01))
+            .reading_note()
+            .is_none());
+        assert!(with_gap(None).reading_note().is_none());
+        let mut plain = with_gap(None);
+        plain.diagnostics = None;
+        assert!(plain.reading_note().is_none());
+    }
 }

@@ -741,21 +741,33 @@ fn fit_readings(
         let fit_to_scan = r.residuals.iter().sum::<f64>() / r.residuals.len().max(1) as f64;
         fit_to_scan / r.quality.scan_diagonal + r.quality.scan_to_fit
     };
-    let mut best: Option<FitResult> = None;
+    let mut best: Option<(FitResult, f64)> = None;
+    let mut other = f64::NAN;
     for (part, placement) in placements.into_iter().enumerate() {
         let fitted = placed_fit.run(placement, part, prealign, observer)?;
         let stopped = fitted.diagnostics.stopped_by_callback;
-        if best
-            .as_ref()
-            .is_none_or(|b| closeness(&fitted) < (1.0 - READING_MARGIN) * closeness(b))
-        {
-            best = Some(fitted);
+        let distance = closeness(&fitted);
+        match &best {
+            Some((_, kept)) if distance >= (1.0 - READING_MARGIN) * kept => other = distance,
+            _ => {
+                if let Some((_, kept)) = &best {
+                    other = *kept;
+                }
+                best = Some((fitted, distance));
+            }
         }
         if stopped {
             break;
         }
     }
-    Ok(best.expect("two placements"))
+    let (mut kept, distance) = best.expect("two placements");
+    // Both fitted and both measured: how far the other one ended from the kept one.
+    if other.is_finite() && distance > 0.0 {
+        if let Some(figures) = kept.diagnostics.prealign.as_mut() {
+            figures.reading_gap = Some(other / distance - 1.0);
+        }
+    }
+    Ok(kept)
 }
 
 /// A fit of the template from a placement the pre-alignment found (the similarity's probe, a
@@ -875,6 +887,7 @@ fn prealigned(
             (true, _) => 1,
         },
         scale_stretch: 1.0,
+        reading_gap: None,
     };
     Ok((
         moved.then(|| alignment.transform.apply_all(template_vertices)),

@@ -273,6 +273,15 @@ pub struct PrealignFigures {
     /// when it lay more than 3 % from 1 (docs/method.md "Global pre-alignment"); 1 otherwise.
     #[serde(default = "one")]
     pub scale_stretch: f64,
+    /// When two readings were fitted (`fitted_readings` 2): how much farther from the scan the
+    /// fit from the other reading ended than the fit kept, as a share of the kept fit's distance
+    /// (each fit's mean fit → scan plus scan → fit distance, every vertex counted). Below
+    /// [`READING_MARGIN`](crate::fit::READING_MARGIN), including below 0 (the other reading lay
+    /// closer, by too little to replace the least turned one), the scan does not tell the two
+    /// apart: a nearly symmetric garment may be back to front, and landmarks settle it
+    /// (docs/method.md "Global pre-alignment"). `None` when one reading was fitted.
+    #[serde(default)]
+    pub reading_gap: Option<f64>,
 }
 
 fn one() -> f64 {
