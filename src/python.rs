@@ -326,7 +326,7 @@ fn params_from(py: Python<'_>, given: Option<&Bound<'_, PyDict>>) -> PyResult<Fi
 
 /// Fits a template to a target; see `foldmatch_rs.fit`.
 #[pyfunction]
-#[pyo3(signature = (template_vertices, template_faces, target, target_faces, params, callback=None, threads=None, target_weights=None, landmark_vertices=None, landmark_positions=None))]
+#[pyo3(signature = (template_vertices, template_faces, target, target_faces, params, callback=None, threads=None, target_weights=None, landmark_vertices=None, landmark_positions=None, target_normals=None))]
 #[allow(clippy::too_many_arguments)]
 fn fit_raw<'py>(
     py: Python<'py>,
@@ -340,9 +340,14 @@ fn fit_raw<'py>(
     target_weights: Option<PyReadonlyArray1<'py, f64>>,
     landmark_vertices: Option<PyReadonlyArray1<'py, i64>>,
     landmark_positions: Option<PyReadonlyArray2<'py, f64>>,
+    target_normals: Option<PyReadonlyArray2<'py, f64>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let threads = threads_arg(threads.as_ref())?;
     let params = params::from_dict(py, params)?;
+    let normals = match &target_normals {
+        Some(n) => Some(points("target_normals", n)?),
+        None => None,
+    };
     let tv = points("template_vertices", &template_vertices)?;
     let x = points("target", &target)?;
     let tf = faces("template_faces", &template_faces, tv.len())?;
@@ -405,12 +410,13 @@ fn fit_raw<'py>(
         compute(py, threads, |cancel| {
             let mut observer = |p: &Progress| step(cancel, p);
             let landmarks = landmarks.as_ref();
-            fit::fit_with_landmarks(
+            fit::fit_with_normals(
                 tv,
                 &tf,
                 x,
                 xf.as_deref(),
                 weights,
+                normals,
                 landmarks,
                 &params,
                 &mut observer,
@@ -616,6 +622,7 @@ fn _foldmatch_rs(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(params::param_reference, m)?)?;
     m.add_function(wrap_pyfunction!(meshes::read_mesh, m)?)?;
     m.add_function(wrap_pyfunction!(meshes::read_weights, m)?)?;
+    m.add_function(wrap_pyfunction!(meshes::read_normals, m)?)?;
     m.add_function(wrap_pyfunction!(fit_raw, m)?)?;
     m.add_function(wrap_pyfunction!(stages::knn_query, m)?)?;
     m.add_function(wrap_pyfunction!(stages::nbody_step, m)?)?;

@@ -290,6 +290,7 @@ def fit(
     *,
     target_faces: Any = None,
     target_weights: Any = None,
+    target_normals: Any = None,
     landmarks: Any = None,
     preset: Optional[str] = None,
     iterations: Optional[int] = None,
@@ -322,6 +323,14 @@ def fit(
         fits exactly as the masked scan). A ``.npy`` path is read; another string names a
         vertex property of the target's PLY file (``"confidence"``). Wrong length, negative,
         NaN or all-zero weights raise :class:`InvalidParameterError`.
+    target_normals : (N, 3) float or True, optional
+        The scan's own normals, as a scanner writes them (their length and sign do not matter);
+        ``True`` takes the target's: a ``.ply`` path's ``nx ny nz``, an Open3D point cloud's
+        ``normals``. They are the planes of the final isometric refinement's fit → scan term,
+        in place of the plane of each point's 12 nearest scan points (docs/guide.md "Scan
+        normals"; the ``"tracking"`` preset uses the fit's own normals and ignores them). A
+        wrong count, a non-finite or zero normal raise :class:`InvalidInputError` /
+        :class:`InvalidParameterError`.
     landmarks : tuple of (L,) int and (L, 3) float, optional
         ``(template_vertex_indices, target_positions)``: template vertices whose positions on
         the scan are known (clicked, detected, marked). They decide the pre-alignment (the
@@ -399,13 +408,15 @@ def fit(
         raise InvalidInputError("template_faces: missing (pass faces, a mesh object or a mesh file)")
     x, xf = _inputs.mesh(target, target_faces, "target")
     weights = _inputs.weights(target_weights, len(x), target)
+    normals = _inputs.normals(target_normals, len(x), target)
     lm_vertices, lm_positions = _inputs.landmarks(landmarks)
     values = settings.to_dict()
+    scan = (weights, lm_vertices, lm_positions, normals)
     if _progress.wanted(progress):
         with _progress.Bar(settings.iterations, callback) as bar:
-            raw = _core.fit_raw(tv, tf, x, xf, values, bar, threads, weights, lm_vertices, lm_positions)
+            raw = _core.fit_raw(tv, tf, x, xf, values, bar, threads, *scan)
     else:
-        raw = _core.fit_raw(tv, tf, x, xf, values, callback, threads, weights, lm_vertices, lm_positions)
+        raw = _core.fit_raw(tv, tf, x, xf, values, callback, threads, *scan)
     return _result(raw, tf, settings)
 
 

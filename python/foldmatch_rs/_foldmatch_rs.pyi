@@ -16,6 +16,7 @@ __all__ = [
     "param_reference",
     "read_mesh",
     "read_weights",
+    "read_normals",
     "fit_raw",
     "knn_query",
     "nbody_step",
@@ -48,6 +49,7 @@ def param_names() -> list[str]: ...
 def param_reference() -> list[dict[str, Any]]: ...
 def read_mesh(path: str, property: Optional[str] = None) -> tuple[_F64, _I64, Optional[_F64]]: ...
 def read_weights(path: str) -> _F64: ...
+def read_normals(path: str) -> Optional[_F64]: ...
 def fit_raw(
     template_vertices: _F64,
     template_faces: _I64,
@@ -59,6 +61,7 @@ def fit_raw(
     target_weights: Optional[_F64] = None,
     landmark_vertices: Optional[_I64] = None,
     landmark_positions: Optional[_F64] = None,
+    target_normals: Optional[_F64] = None,
 ) -> dict[str, Any]: ...
 def knn_query(
     points: _F64, queries: _F64, k: int, threads: Optional[int] = None

@@ -91,6 +91,31 @@ def weights(w: Any, n: int, target: Any) -> Optional[np.ndarray]:
     return a
 
 
+def normals(value: Any, n: int, target: Any) -> Optional[np.ndarray]:
+    """``target_normals`` as a contiguous ``(n, 3)`` float64 array (the checks of values are the
+    core's: finite, non-zero). ``True`` takes the target's own: a ``.ply`` path's ``nx ny nz``,
+    or an Open3D point cloud's or mesh's normals."""
+    if value is None or value is False:
+        return None
+    if value is True:
+        if is_path(target):
+            value = _core.read_normals(os.fspath(target))
+            where = f"{os.fspath(target)} has no vertex normals (nx ny nz)"
+        elif hasattr(target, "has_normals") and target.has_normals():  # Open3D PointCloud
+            value = target.normals
+        elif hasattr(target, "has_vertex_normals") and target.has_vertex_normals():  # Open3D mesh
+            value = target.vertex_normals
+        else:
+            value = None
+            where = "the target carries no normals (a .ply path with nx ny nz, or an Open3D point cloud)"
+        if value is None:
+            raise InvalidInputError(f"target_normals=True: {where}; pass them as an (N, 3) array")
+    a = points(value, "target_normals")
+    if len(a) != n:
+        raise InvalidInputError(f"target_normals: {len(a)} normals, need one per scan point ({n})")
+    return a
+
+
 def landmarks(value: Any) -> tuple[Optional[np.ndarray], Optional[np.ndarray]]:
     """``landmarks=(indices, positions)`` as a contiguous ``(L,)`` int64 array and an
     ``(L, 3)`` float64 array (the checks of values — range, duplicates, finiteness — are the

@@ -132,6 +132,11 @@ pub struct FitCmd {
     /// segmenter's `label` or a scanner's `confidence`; any scalar type), as --scan-weights.
     #[arg(long, value_name = "NAME")]
     pub scan_weights_property: Option<String>,
+    /// Use the scan's own vertex normals (PLY `nx ny nz`, as a scanner writes them) as the
+    /// planes of the final isometric refinement, in place of each point's plane of its 12
+    /// nearest points (docs/guide.md "Scan normals"). A scan without normals is an error.
+    #[arg(long)]
+    pub scan_normals: bool,
     /// Landmarks: template vertices whose positions on the scan are known, as JSON
     /// `{"vertices": [i, ...], "positions": [[x, y, z], ...]}` (a .json file) or CSV lines
     /// `index,x,y,z`. They decide the pre-alignment and pull their vertices toward the
@@ -191,6 +196,10 @@ pub struct BatchCmd {
     /// e.g. `label` or `confidence`): finite, >= 0, 0 removes the point.
     #[arg(long, value_name = "NAME")]
     pub scan_weights_property: Option<String>,
+    /// Use every scan's own vertex normals (PLY `nx ny nz`), as `fit --scan-normals`; a scan
+    /// without them fails (and the batch goes on).
+    #[arg(long, conflicts_with = "scheduler")]
+    pub scan_normals: bool,
     /// Run the fits on a Dask cluster: `local` (worker processes on this machine) or the
     /// address of a running scheduler (tcp://host:8786). Only from the Python package with Dask
     /// beside it (`python -m foldmatch_rs`, `pip install 'dask[distributed]'`); see

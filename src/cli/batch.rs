@@ -548,6 +548,7 @@ pub fn batch(cmd: &BatchCmd, ctx: &Context) -> i32 {
                     garment_mask: cmd
                         .garment_masks
                         .then(|| garment_mask_path(&setup.outputs[i])),
+                    scan_normals: cmd.scan_normals,
                 };
                 let outcome = runner.run(&job);
                 let finished = done.fetch_add(1, Ordering::SeqCst) + 1;
@@ -705,6 +706,7 @@ pub fn sequence(cmd: &SequenceCmd, ctx: &Context) -> i32 {
             garment_mask: cmd
                 .garment_masks
                 .then(|| garment_mask_path(&setup.outputs[i])),
+            scan_normals: false,
         };
         let before = tracker.lock().map_or(i, |t| t.frames());
         let mut outcome = runner.run(&job);

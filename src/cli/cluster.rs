@@ -574,6 +574,7 @@ impl FileFitter {
             // `--preview` conflicts with `--scheduler` (args.rs): previews are local only.
             preview: None,
             garment_mask: None,
+            scan_normals: false,
         }
     }
 

@@ -88,6 +88,7 @@ fn run(cmd: &DemoCmd, ctx: &Context) -> Result<i32, String> {
         preview: Some(preview_path.clone()),
         garment_mask: None,
         landmarks: None,
+        scan_normals: false,
     });
     let report = FitReport {
         foldmatch_version: env!("CARGO_PKG_VERSION"),

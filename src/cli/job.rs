@@ -6,7 +6,7 @@ use super::report::{FileReport, ScanWeightsReport, Status};
 use super::ui::{Ui, Verbosity};
 use crate::error::FoldMatchError;
 use crate::fit::{
-    deformation_model, fit_with_landmarks, validate_weights, FitParams, Progress, TemplateTopology,
+    deformation_model, fit_with_normals, validate_weights, FitParams, Progress, TemplateTopology,
     Workspace,
 };
 use crate::io::{fitted_mesh, read_mesh, read_npy, read_ply_property, write_mesh, MeshData};
@@ -186,6 +186,8 @@ pub struct Job<'a> {
     /// Also write the scan points the fit took for the garment into this `.npy` mask
     /// (`fit --garment-mask`; not staged: `fit` writes in place).
     pub garment_mask: Option<PathBuf>,
+    /// Fit with the scan's own vertex normals (`--scan-normals`; a scan without them fails).
+    pub scan_normals: bool,
 }
 
 impl Job<'_> {
@@ -350,6 +352,16 @@ impl Runner<'_> {
             !interrupt::requested()
         };
         let target_faces = (!scan.faces.is_empty()).then_some(scan.faces.as_slice());
+        let normals = match (job.scan_normals, &scan.normals) {
+            (false, _) => None,
+            (true, Some(n)) => Some(n.as_slice()),
+            (true, None) => {
+                return Err(format!(
+                    "{}: --scan-normals: the scan has no vertex normals (nx ny nz)",
+                    job.scan.display()
+                ))
+            }
+        };
         let fit_started = Instant::now();
         let result = match job.tracker {
             Some(tracker) => {
@@ -370,12 +382,13 @@ impl Runner<'_> {
                 Ok(frame.result)
             }
             None => self.pool.install(|| {
-                fit_with_landmarks(
+                fit_with_normals(
                     start,
                     &template.faces,
                     &scan.vertices,
                     target_faces,
                     weights.as_deref(),
+                    normals,
                     job.landmarks,
                     self.params,
                     &mut observer,

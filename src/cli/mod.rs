@@ -203,6 +203,7 @@ fn fit(cmd: &FitCmd, ctx: &Context) -> i32 {
         ),
         preview: cmd.preview.clone(),
         garment_mask: cmd.garment_mask.clone(),
+        scan_normals: cmd.scan_normals,
         landmarks: landmarks.as_ref(),
     });
     let entry = &outcome.report;

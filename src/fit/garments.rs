@@ -108,6 +108,7 @@ pub(super) fn fit_garments(
     target: &[[f64; 3]],
     target_faces: Option<&[[u32; 3]]>,
     target_weights: Option<&[f64]>,
+    target_normals: Option<&[[f64; 3]]>,
     landmarks: Option<&Landmarks>,
     params: &FitParams,
     observer: &mut (dyn FnMut(&Progress) -> bool + Send),
@@ -123,6 +124,7 @@ pub(super) fn fit_garments(
             target,
             target_faces,
             target_weights,
+            target_normals,
             landmarks,
             FitRole::default(),
             params,
@@ -200,6 +202,7 @@ pub(super) fn fit_garments(
             target,
             target_faces,
             target_weights,
+            target_normals,
             landmarks.as_ref(),
             FitRole {
                 several: true,

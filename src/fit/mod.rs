@@ -151,6 +151,40 @@ pub fn fit_with_landmarks(
     params: &FitParams,
     observer: &mut (dyn FnMut(&Progress) -> bool + Send),
 ) -> Result<FitResult> {
+    fit_with_normals(
+        template_vertices,
+        template_faces,
+        target,
+        target_faces,
+        target_weights,
+        None,
+        landmarks,
+        params,
+        observer,
+    )
+}
+
+/// [`fit_with_landmarks`] with the scan's own normals (`target_normals`, one per scan point, as
+/// a scanner writes them: PLY `nx ny nz`; `None`: none). They are the planes of the isometric
+/// refinement's fit → scan term ([`Schedule::isometric_plane`] `"scan"`, the default), in place
+/// of each point's plane of its 12 nearest scan points; their sign does not matter. Normals of
+/// the wrong count, not finite or of zero length are refused ([`FoldMatchError::Parameter`]
+/// naming the first bad row). docs/method.md "Isometric refinement".
+#[allow(clippy::too_many_arguments)]
+pub fn fit_with_normals(
+    template_vertices: &[[f64; 3]],
+    template_faces: &[[u32; 3]],
+    target: &[[f64; 3]],
+    target_faces: Option<&[[u32; 3]]>,
+    target_weights: Option<&[f64]>,
+    target_normals: Option<&[[f64; 3]]>,
+    landmarks: Option<&Landmarks>,
+    params: &FitParams,
+    observer: &mut (dyn FnMut(&Progress) -> bool + Send),
+) -> Result<FitResult> {
+    if let Some(n) = target_normals {
+        validate_normals(n, target.len())?;
+    }
     garments::fit_garments(
         template_vertices,
         None,
@@ -158,6 +192,7 @@ pub fn fit_with_landmarks(
         target,
         target_faces,
         target_weights,
+        target_normals,
         landmarks,
         params,
         observer,
@@ -202,6 +237,7 @@ pub fn fit_anchored(
         target_faces,
         target_weights,
         None,
+        None,
         params,
         observer,
     )
@@ -234,6 +270,7 @@ fn fit_from(
     target: &[[f64; 3]],
     target_faces: Option<&[[u32; 3]]>,
     target_weights: Option<&[f64]>,
+    target_normals: Option<&[[f64; 3]]>,
     landmarks: Option<&Landmarks>,
     role: FitRole<'_>,
     params: &FitParams,
@@ -270,6 +307,7 @@ fn fit_from(
         target,
         target_faces,
         target_weights,
+        target_normals,
         role,
         params,
     };
@@ -520,6 +558,7 @@ fn fit_from(
             &prepared,
             target,
             target_weights,
+            target_normals,
             assessed,
             landmarks,
             rim.as_ref(),
@@ -661,6 +700,7 @@ fn fit_from(
             target,
             target_faces,
             Some(weights),
+            target_normals,
             landmarks,
             FitRole {
                 garment: true,
@@ -779,6 +819,7 @@ struct PlacedFit<'a> {
     target: &'a [[f64; 3]],
     target_faces: Option<&'a [[u32; 3]]>,
     target_weights: Option<&'a [f64]>,
+    target_normals: Option<&'a [[f64; 3]]>,
     role: FitRole<'a>,
     params: &'a FitParams,
 }
@@ -804,6 +845,7 @@ impl PlacedFit<'_> {
             self.target,
             self.target_faces,
             self.target_weights,
+            self.target_normals,
             None,
             self.role,
             &inner,
@@ -921,6 +963,31 @@ pub fn validate_weights(weights: &[f64], points: usize) -> Result<()> {
             name,
             "all zero",
             "at least one scan point needs a positive weight",
+        ));
+    }
+    Ok(())
+}
+
+/// Checks scan normals: one per scan point, finite, of non-zero length (their length and sign
+/// are not used).
+pub fn validate_normals(normals: &[[f64; 3]], points: usize) -> Result<()> {
+    let name = "target_normals";
+    if normals.len() != points {
+        return Err(FoldMatchError::parameter(
+            name,
+            format!("{} normals", normals.len()),
+            &format!("need one normal per scan point ({points})"),
+        ));
+    }
+    let bad = |n: &[f64; 3]| {
+        let length = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+        !(length.is_finite() && length > 0.0)
+    };
+    if let Some(j) = normals.iter().position(bad) {
+        return Err(FoldMatchError::parameter(
+            &format!("{name}[{j}]"),
+            format!("{:?}", normals[j]),
+            "a normal must be finite and of non-zero length",
         ));
     }
     Ok(())

@@ -16,7 +16,8 @@ use std::borrow::Cow;
 /// to (`assessed`, else all), weighted by `weights`, the landmark vertices held at their
 /// landmarks ([`LANDMARK_ANCHOR`] × the landmark weight) and the rim vertices at the rim
 /// matching's targets (`rim`, the same × the rim weight; docs/method.md "Rim matching"),
-/// without the pull of the points beyond the rim on a garment pass (`garment_pass`: the scan
+/// with the scan's own normals as its planes where the user gave them (`normals`, indexed
+/// as `target`), without the pull of the points beyond the rim on a garment pass (`garment_pass`: the scan
 /// its free edges are judged on), its springs [`CARRIED_SPRING_FACTOR`] times as stiff and the
 /// vertices of the region without a fit → scan match when the schedule carried a region
 /// without scan support (`carried`, a flag per vertex or empty); `unstretched`
@@ -33,6 +34,7 @@ pub(super) fn isometric_refinement(
     prepared: &Prepared,
     target: &[[f64; 3]],
     weights: Option<&[f64]>,
+    normals: Option<&[[f64; 3]]>,
     assessed: Option<&[usize]>,
     landmarks: Option<&Landmarks>,
     rim: Option<&Landmarks>,
@@ -60,6 +62,11 @@ pub(super) fn isometric_refinement(
         None => w.iter().step_by(stride).copied().collect(),
     });
     let point_weights = point_weights.filter(|w| w.iter().any(|&x| x > 0.0));
+    let point_normals: Option<Vec<[f64; 3]>> = normals.map(|n| match assessed {
+        _ if whole => n.to_vec(),
+        Some(kept) => kept.iter().step_by(stride).map(|&j| n[j]).collect(),
+        None => n.iter().step_by(stride).copied().collect(),
+    });
     if points.len() < 12 {
         return Refinement::None;
     }
@@ -67,6 +74,9 @@ pub(super) fn isometric_refinement(
     let mut refine =
         IsometricRefine::new(rest, faces, incidence, &points, point_weights.as_deref())
             .with_plane_normal(params.schedule.isometric_plane);
+    if let Some(n) = point_normals {
+        refine = refine.with_scan_normals(n);
+    }
     if let Some(l) = landmarks {
         let weight = LANDMARK_ANCHOR * params.landmark_weight;
         refine = refine.with_anchors(&l.vertices, &l.positions, weight);

@@ -36,6 +36,16 @@ pub(super) fn read_mesh<'py>(
     ))
 }
 
+/// The vertex normals of a mesh or point cloud file (PLY `nx ny nz`), `None` when it has none.
+#[pyfunction]
+pub(super) fn read_normals(
+    py: Python<'_>,
+    path: PathBuf,
+) -> PyResult<Option<Bound<'_, PyArray2<f64>>>> {
+    let mesh = compute(py, None, |_| crate::io::read_mesh(&path))?.map_err(to_pyerr)?;
+    Ok(mesh.normals.map(|n| array2(py, n)))
+}
+
 /// A one-dimensional NumPy `.npy` file (per-point scan weights) as float64.
 #[pyfunction]
 pub(super) fn read_weights(py: Python<'_>, path: PathBuf) -> PyResult<Bound<'_, PyArray1<f64>>> {

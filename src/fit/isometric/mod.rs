@@ -92,7 +92,8 @@ pub struct IsometricRefine<'a> {
     scan: &'a [[f64; 3]],
     weights: Option<&'a [f64]>,
     scan_index: PointIndex,
-    /// The scan's normals, computed when a run first needs them ([`PlaneNormal::Scan`]).
+    /// The scan's normals, given ([`IsometricRefine::with_scan_normals`]) or computed when a
+    /// run first needs them ([`PlaneNormal::Scan`]).
     normals: OnceLock<Vec<[f64; 3]>>,
     /// Whose normal the fit → scan plane takes.
     plane_normal: PlaneNormal,
@@ -288,7 +289,22 @@ impl<'a> IsometricRefine<'a> {
         self
     }
 
-    /// The scan's normals: each point's plane of its 12 nearest points (computed once).
+    /// The scan's own normals (one per scan point, as a scanner writes them; normalized here,
+    /// their sign does not matter) in place of the planes of their 12 nearest points.
+    pub fn with_scan_normals(self, normals: Vec<[f64; 3]>) -> Self {
+        let unit = normals
+            .into_iter()
+            .map(|n| {
+                let n = crate::math::vec3(&n);
+                <[f64; 3]>::from(n / n.norm())
+            })
+            .collect();
+        let _ = self.normals.set(unit);
+        self
+    }
+
+    /// The scan's normals: the given ones, else each point's plane of its 12 nearest points
+    /// (computed once).
     fn scan_normals(&self) -> &[[f64; 3]] {
         self.normals.get_or_init(|| {
             let (scan, index) = (self.scan, &self.scan_index);

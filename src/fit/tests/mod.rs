@@ -639,6 +639,7 @@ fn rigid_phase_moves_each_piece_by_its_own_rigid_motion_on_a_dressed_scan() {
             None,
             None,
             None,
+            None,
             super::FitRole::default(),
             &params,
             &mut |_| true,
