@@ -38,6 +38,42 @@ def test_landmarks_settle_a_turn_the_scan_cannot_show(sheet):
     assert guided.params["landmark_weight"] == fm.DEFAULT_PARAMS["landmark_weight"] == 1.0
 
 
+def test_one_landmark_chooses_among_the_search_s_readings(sheet):
+    """One or two landmarks fix no orientation by themselves: the pre-alignment's search places
+    the template (here in one of the square sheet's four readings, which the scan cannot tell
+    apart), and the landmark chooses the reading that puts it at its target. Moved by its
+    translation alone, as before, the template stayed turned."""
+    v, f, truth = sheet
+    corner = np.array([N - 1])
+    guided = fm.fit(v, f, truth, landmarks=(corner, truth[corner]), iterations=30)
+    assert rmse(guided.vertices, truth) < 0.01 * np.ptp(v[:, 0])
+    # Without a search there is nothing to choose from: the translation alone.
+    unsearched = fm.fit(v, f, truth, landmarks=(corner, truth[corner]), iterations=30, prealign="centroid")
+    assert rmse(unsearched.vertices, truth) > 0.2 * np.ptp(v[:, 0])
+
+
+def test_two_landmarks_settle_a_garment_turned_back_to_front():
+    """The real T-shirt's point scan turned 180° about the vertical: without landmarks its two
+    readings tie and the fit ends back to front (f_R 0.37); with a landmark on the front of the
+    chest and one at the hem it ends within 1.25× the unturned fit, and given z-up the two
+    landmarks keep the search's placement (docs/method.md "Landmarks")."""
+    from bench import cases, prealign
+
+    why = cases.real_data_missing()
+    if why:
+        pytest.skip(why)
+    case = next(c for c in cases.real_cases(kinds=("points",)) if c.name == "vto-tshirt-0000-pts")
+    t, f = case.template_vertices, case.faces
+    unmoved = rmse(fm.fit(t, f, case.target).vertices, case.ground_truth)
+    c = t.mean(0)
+    chosen = np.array([int(np.argmax(t[:, 2] - c[2])), int(np.argmin(t[:, 1]))])
+    for move in ("turn180", "zup"):
+        m = prealign.moved(case, prealign.RIGID[move])
+        g = m["ground_truth"]
+        r = fm.fit(t, f, m["target"], landmarks=(chosen, g[chosen]))
+        assert rmse(r.vertices, g) < 1.25 * unmoved, (move, rmse(r.vertices, g), unmoved)
+
+
 def test_landmark_vertices_end_near_their_targets_and_the_weight_sets_how_near(sheet):
     v, f, _ = sheet
     width = np.ptp(v[:, 0])

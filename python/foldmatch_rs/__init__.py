@@ -333,9 +333,11 @@ def fit(
         :class:`InvalidParameterError`.
     landmarks : tuple of (L,) int and (L, 3) float, optional
         ``(template_vertex_indices, target_positions)``: template vertices whose positions on
-        the scan are known (clicked, detected, marked). They decide the pre-alignment (the
-        rigid fit of those vertices onto their targets moves the template first, in place of
-        ``prealign``) and pull their vertices toward the targets while the fit deforms (its
+        the scan are known (clicked, detected, marked). They decide the pre-alignment (three or
+        more: the rigid fit of those vertices onto their targets moves the template first, in
+        place of ``prealign``; one or two: they choose among the search's placements the one
+        that puts them nearest, e.g. which side of a T-shirt is the front) and pull their
+        vertices toward the targets while the fit deforms (its
         first, rigid part follows the scan alone), as hard as the setting ``landmark_weight``
         says (``params={"landmark_weight": 3}``;
         default 1; docs/guide.md "Landmarks"). An index out of range or repeated, or a

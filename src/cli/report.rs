@@ -165,7 +165,7 @@ impl FileReport {
             format!(
                 "the template fits this scan about as closely turned to another reading (the \
                  two fits' scan distances {:.1} % apart): a nearly symmetric garment may be back \
-                 to front; three or more landmarks settle it (--landmarks)",
+                 to front; a landmark or two off its symmetry plane settle it (--landmarks)",
                 100.0 * gap.abs()
             )
         })

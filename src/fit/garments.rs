@@ -263,9 +263,10 @@ fn placed_whole(
 ) -> Result<Vec<[f64; 3]>> {
     let scaled = params.prealign == super::Prealign::Similarity;
     if let Some(l) = landmarks {
-        return Ok(l
-            .alignment(template_vertices, scaled)
-            .apply_all(template_vertices));
+        return Ok(
+            super::landmark_placement(template_vertices, target, kept, l, params, scaled)
+                .apply_all(template_vertices),
+        );
     }
     if params.prealign == super::Prealign::Centroid {
         let mean = |p: &[[f64; 3]]| {

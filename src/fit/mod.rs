@@ -135,8 +135,10 @@ pub fn fit_weighted(
 
 /// [`fit_weighted`] with landmarks (`landmarks`, `None`: none): template vertices whose
 /// positions on the scan are known ([`Landmarks`], validated against the template by
-/// [`Landmarks::new`]). They decide the pre-alignment — the rigid fit of the landmark vertices
-/// onto their targets moves the template first, in place of [`FitParams::prealign`] — and
+/// [`Landmarks::new`]). They decide the pre-alignment — three or more (not on a line): the
+/// rigid fit of the landmark vertices onto their targets moves the template first, in place of
+/// [`FitParams::prealign`]; fewer: they choose among the search's placements
+/// ([`crate::prealign::align_by_landmarks`]) — and
 /// pull their vertices toward the targets through every phase, with
 /// [`FitParams::landmark_weight`] (docs/method.md "Landmarks"). A landmark whose vertex is not
 /// in the template is refused ([`FoldMatchError::Landmark`]).
@@ -356,11 +358,22 @@ fn fit_from(
     // similarity also its size (then in whatever unit the template was given). The template so
     // placed is the fit's template and, without a rest shape of its own, the one its metric is
     // measured on (docs/method.md "Landmarks").
-    let placed_by_landmarks: Option<Vec<[f64; 3]>> = landmarks.map(|l| {
-        let scaled = params.prealign == Prealign::Similarity && rest.is_none();
-        l.alignment(template_vertices, scaled)
+    // (A garment pass starts where the first fit started; landmarks that fix no orientation
+    // chose that start among the search's placements, and their centroid would move it.)
+    let placed_by_landmarks: Option<Vec<[f64; 3]>> = landmarks
+        .filter(|l| !role.garment || l.fix_orientation(template_vertices))
+        .map(|l| {
+            let scaled = params.prealign == Prealign::Similarity && rest.is_none();
+            landmark_placement(
+                template_vertices,
+                target,
+                kept.as_deref(),
+                l,
+                params,
+                scaled,
+            )
             .apply_all(template_vertices)
-    });
+        });
     let template_vertices = placed
         .as_deref()
         .or(placed_by_landmarks.as_deref())
@@ -966,6 +979,40 @@ pub fn validate_weights(weights: &[f64], points: usize) -> Result<()> {
         ));
     }
     Ok(())
+}
+
+/// Where landmarks place the template (docs/method.md "Landmarks"): three or more, not on a
+/// line, by the rigid fit (with `scaled`, the similarity) of their vertices onto their targets;
+/// fewer, with a searching pre-alignment ([`FitParams::prealign`] `Rigid` or `Similarity`), at
+/// the search's placement that puts them nearest their targets
+/// ([`crate::prealign::align_by_landmarks`], on the scan points that remain, `kept`); else by
+/// the translation of their centroid.
+pub(crate) fn landmark_placement(
+    template_vertices: &[[f64; 3]],
+    target: &[[f64; 3]],
+    kept: Option<&[usize]>,
+    landmarks: &Landmarks,
+    params: &FitParams,
+    scaled: bool,
+) -> crate::prealign::Similarity {
+    let searched = matches!(params.prealign, Prealign::Rigid | Prealign::Similarity);
+    if landmarks.fix_orientation(template_vertices) || !searched {
+        return landmarks.alignment(template_vertices, scaled);
+    }
+    let remaining: Option<Vec<[f64; 3]>> = kept.map(|k| k.iter().map(|&j| target[j]).collect());
+    let motion = if scaled {
+        crate::prealign::Motion::Similarity
+    } else {
+        crate::prealign::Motion::Rigid
+    };
+    crate::prealign::align_by_landmarks(
+        template_vertices,
+        remaining.as_deref().unwrap_or(target),
+        motion,
+        &landmarks.on(template_vertices),
+        &landmarks.positions,
+    )
+    .unwrap_or_else(|| landmarks.alignment(template_vertices, scaled))
 }
 
 /// Checks scan normals: one per scan point, finite, of non-zero length (their length and sign

@@ -11,6 +11,23 @@ pub use crate::prealign::Similarity;
 /// line (or a point) and fix no rotation.
 const COLLINEAR: f64 = 1e-9;
 
+/// Whether points in correspondence at `from` fix a rotation: three or more, not on a line.
+pub fn fixes_rotation(from: &[[f64; 3]]) -> bool {
+    if from.len() < 3 {
+        return false;
+    }
+    let n = from.len() as f64;
+    let centroid = from.iter().fold(Vec3::zeros(), |a, p| a + vec3(p)) / n;
+    let mut spread = Mat3::zeros();
+    for p in from {
+        let a = vec3(p) - centroid;
+        spread += a * a.transpose();
+    }
+    let mut eig = spread.symmetric_eigenvalues().as_slice().to_vec();
+    eig.sort_by(|a, b| b.total_cmp(a));
+    eig[0] > 0.0 && eig[1] > COLLINEAR * eig[0]
+}
+
 /// The motion minimizing `Σ ‖T(from_i) − to_i‖²` over rotations and translations (and, with
 /// `scale`, uniform scales): Umeyama's closed form. With fewer than three pairs, or points of
 /// `from` on a line, the rotation is undetermined and only the centroids' translation is
@@ -25,17 +42,7 @@ pub fn fit_similarity(from: &[[f64; 3]], to: &[[f64; 3]], scale: bool) -> Simila
         translation: c_to - c_from,
         ..Similarity::identity()
     };
-    if from.len() < 3 {
-        return translation_only;
-    }
-    let mut spread = Mat3::zeros();
-    for p in from {
-        let a = vec3(p) - c_from;
-        spread += a * a.transpose();
-    }
-    let mut eig = spread.symmetric_eigenvalues().as_slice().to_vec();
-    eig.sort_by(|a, b| b.total_cmp(a));
-    if eig[0] <= 0.0 || eig[1] <= COLLINEAR * eig[0] {
+    if !fixes_rotation(from) {
         return translation_only;
     }
     let pairs: Vec<([f64; 3], [f64; 3])> = from.iter().copied().zip(to.iter().copied()).collect();

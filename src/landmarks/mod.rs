@@ -1,13 +1,14 @@
 //! Landmarks: template vertices whose positions on the scan are known (a user's clicks, a
 //! detector's keypoints, a marker's position), given as `(vertex index, target position)`
 //! pairs. They decide the global pre-alignment ([`align::fit_similarity`]: the rigid fit of
-//! the landmark vertices onto their targets) and act as soft constraints through every phase
-//! of the fit (docs/method.md "Landmarks").
+//! the landmark vertices onto their targets; one or two choose among the search's placements,
+//! [`crate::prealign::align_by_landmarks`]) and act as soft constraints through every phase of
+//! the fit (docs/method.md "Landmarks").
 
 pub mod align;
 
 use crate::error::{FoldMatchError, Result};
-pub use align::{fit_similarity, Similarity};
+pub use align::{fit_similarity, fixes_rotation, Similarity};
 
 /// Validated landmarks: distinct template vertex indices, each with a finite target position
 /// in the scan's coordinates.
@@ -84,12 +85,22 @@ impl Landmarks {
     /// ([`fit_similarity`]; with fewer than three landmarks, or three on a line, the
     /// translation of their centroid alone).
     pub fn alignment(&self, template: &[[f64; 3]], scale: bool) -> Similarity {
-        let from: Vec<[f64; 3]> = self
-            .vertices
+        fit_similarity(&self.on(template), &self.positions, scale)
+    }
+
+    /// The landmark vertices' positions in `template`.
+    pub fn on(&self, template: &[[f64; 3]]) -> Vec<[f64; 3]> {
+        self.vertices
             .iter()
             .map(|&v| template[v as usize])
-            .collect();
-        fit_similarity(&from, &self.positions, scale)
+            .collect()
+    }
+
+    /// Whether the landmarks fix the template's orientation by themselves: three or more, not
+    /// on a line ([`fixes_rotation`]). Fewer choose among the pre-alignment's placements
+    /// instead ([`crate::prealign::align_by_landmarks`]).
+    pub fn fix_orientation(&self, template: &[[f64; 3]]) -> bool {
+        fixes_rotation(&self.on(template))
     }
 }
 

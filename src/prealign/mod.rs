@@ -229,6 +229,64 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
     }
 }
 
+/// The placement of `template` onto `scan` that a few landmarks choose (fewer than three, or
+/// on a line: they fix no orientation themselves, docs/method.md "Landmarks"): of the placements
+/// the search refines from the 24 principal-frame rotations and the placement as given
+/// (searched whatever the scene or the placement as given): the search's own choice (the least
+/// turned of the near-ties) unless another placement scoring within [`COARSE_MARGIN`] of the
+/// best puts the landmark vertices `from` (template coordinates) nearer their targets `to` by
+/// [`LANDMARK_GAIN`] (the sum of squared distances), then the nearest such. A scan turned back
+/// to front fits a garment's two readings alike; a landmark off its symmetry plane says which
+/// is right. `None` when the template or the scan cannot be searched (fewer than three points,
+/// or no spread).
+pub fn align_by_landmarks(
+    template: &[[f64; 3]],
+    scan: &[[f64; 3]],
+    motion: Motion,
+    from: &[[f64; 3]],
+    to: &[[f64; 3]],
+) -> Option<Similarity> {
+    if template.len() < 3 || scan.len() < 3 {
+        return None;
+    }
+    let (ta, sa) = (principal_axes(template), principal_axes(scan));
+    if !(ta.rms_radius > 0.0 && sa.rms_radius > 0.0) {
+        return None;
+    }
+    let clouds = Clouds::new(template, scan);
+    let scaled = motion == Motion::Similarity;
+    let scale = if scaled {
+        sa.rms_radius / ta.rms_radius
+    } else {
+        1.0
+    };
+    let identity = Similarity::identity();
+    let (refined, _) = refined_placements(&clouds, &ta, &sa, scale, scaled, identity, false);
+    let best = best_of(&refined);
+    let miss = |t: &Similarity| -> f64 {
+        from.iter()
+            .zip(to)
+            .map(|(p, q)| (crate::math::vec3(&t.apply(p)) - crate::math::vec3(q)).norm_squared())
+            .sum()
+    };
+    let (chosen, _) = least_turned_near_tie(&refined);
+    let nearest = refined
+        .iter()
+        .filter(|(_, score)| *score <= best * (1.0 + COARSE_MARGIN))
+        .map(|(t, _)| (*t, miss(t)))
+        .min_by(|a, b| a.1.total_cmp(&b.1));
+    Some(match nearest {
+        Some((t, m)) if m < LANDMARK_GAIN * miss(&chosen) => t,
+        _ => chosen,
+    })
+}
+
+/// Landmarks that fix no orientation move the search's choice to another of its placements
+/// only when it puts them this much nearer their targets (sum of squared distances): the
+/// other reading of a garment turned back to front misses them by its size, a nearby basin of
+/// the same reading by little ([`align_by_landmarks`]).
+pub const LANDMARK_GAIN: f64 = 0.5;
+
 /// Every candidate placement of the template — the 24 rotations between the principal frames
 /// `ta` and `sa` (centroids matched, the template scaled by `scale`) and `given`, and (rigidly)
 /// the best of their coarse basins turned about a tied frame's axis ([`axes::tied_turns`]) where
