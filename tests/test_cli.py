@@ -109,6 +109,28 @@ def test_a_tiny_fit(tmp_path, case):
     assert f"element vertex {len(case['template_vertices'])}" in header
 
 
+def test_a_closed_stderr_loses_the_log_not_the_run(tmp_path, case):
+    """`foldmatch fit ... 2>&1 | head`: once the reader has quit, writing the log fails; the fit
+    still runs, writes its output and exits with its own status, not a panic's (101)."""
+    read, write = os.pipe()
+    os.close(read)
+    try:
+        out = subprocess.run(
+            [sys.executable, "-m", "foldmatch_rs", "fit", "template.ply", "scan.ply", "-o", "fitted.ply"]
+            + ["--iterations", "3"],
+            check=False,
+            cwd=tmp_path,
+            env=ENV,
+            stdout=subprocess.DEVNULL,
+            stderr=write,
+            timeout=120,
+        )
+    finally:
+        os.close(write)
+    assert out.returncode == 0
+    assert (tmp_path / "fitted.ply").stat().st_size > 0
+
+
 def test_errors_name_the_file_and_exit_with_1(tmp_path, case):
     out = run("fit", "template.ply", "missing.ply", "-o", "o.ply", cwd=tmp_path)
     assert out.returncode == 1

@@ -9,6 +9,7 @@ use super::{exit_code, Context};
 use crate::io::{write_mesh, MeshData};
 use crate::metrics::{evaluate, Metrics, MetricsInput, MetricsParams};
 use crate::synthetic::{folded_sheet, SheetSpec};
+use std::io::Write;
 
 /// Runs `demo`.
 pub fn demo(cmd: &DemoCmd, ctx: &Context) -> i32 {
@@ -131,20 +132,29 @@ fn print_figures(
     report: &super::report::FileReport,
     params: &crate::fit::FitParams,
 ) {
+    // A closed stdout (a reader that quit) loses the lines; `println!` would panic.
+    macro_rules! say {
+        () => {{
+            let _ = writeln!(std::io::stdout());
+        }};
+        ($($arg:tt)*) => {{
+            let _ = writeln!(std::io::stdout(), $($arg)*);
+        }};
+    }
     let n = cmd.size;
-    println!(
+    say!(
         "FoldMatch demo: a {n}×{n} sheet template ({} vertices, {} faces) and a folded, rotated,",
         n * n,
         faces.len()
     );
-    println!(
+    say!(
         "offset scan of it ({} points, noise {}% of the width).",
         cmd.scan_points,
         cmd.noise * 100.0
     );
-    println!();
-    println!("                                   before        after");
-    let row = |label: &str, b: f64, a: f64| println!("  {label:<28} {b:>10.5}  → {a:>10.5}");
+    say!();
+    say!("                                   before        after");
+    let row = |label: &str, b: f64, a: f64| say!("  {label:<28} {b:>10.5}  → {a:>10.5}");
     row(
         "RMSE to ground truth",
         before.rmse.unwrap_or(f64::NAN),
@@ -162,8 +172,8 @@ fn print_figures(
         before.scan_to_fit_mean,
         after.scan_to_fit_mean,
     );
-    println!();
-    println!(
+    say!();
+    say!(
         "  fitted in {:.2} s ({} iterations, method {})",
         report.seconds.unwrap_or(f64::NAN),
         report.iterations.unwrap_or(0),
@@ -172,7 +182,7 @@ fn print_figures(
             .and_then(|v| v.as_str().map(String::from))
             .unwrap_or_default()
     );
-    println!(
+    say!(
         "  wrote {}: template.ply, scan.ply, ground_truth.ply, fitted.ply (wrinkle-vector field), preview.png, report.json",
         cmd.output.display()
     );

@@ -6,6 +6,7 @@ use super::report::write_json;
 use super::{exit_code, Context};
 use crate::fit::validate_weights;
 use crate::metrics::{evaluate_weighted, MetricsInput, MetricsParams};
+use std::io::Write;
 
 /// Runs `eval`.
 pub fn eval(cmd: &EvalCmd, ctx: &Context) -> i32 {
@@ -72,7 +73,8 @@ fn run(cmd: &EvalCmd, ctx: &Context) -> Result<(), String> {
         .install(|| evaluate_weighted(&input, weights.as_deref(), &params))
         .map_err(|e| e.to_string())?;
     let json = serde_json::to_string_pretty(&metrics).map_err(|e| e.to_string())?;
-    println!("{json}");
+    // A closed stdout (a reader that quit) loses the figures; `println!` would panic.
+    let _ = writeln!(std::io::stdout().lock(), "{json}");
     if let Some(path) = &cmd.output {
         write_json(path, &metrics)?;
         ctx.ui.info(format_args!("wrote {}", path.display()));

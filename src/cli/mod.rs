@@ -42,6 +42,7 @@ use clap::error::ErrorKind;
 use job::{Job, Runner, ScanWeights, Template};
 use report::{write_json, FitReport, Status};
 use std::ffi::OsString;
+use std::io::Write;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use ui::{Ui, Verbosity};
 
@@ -94,7 +95,10 @@ where
     let _guard = interrupt::Guard::start();
     let outcome = catch_unwind(AssertUnwindSafe(|| dispatch(&cli, verbosity)));
     outcome.unwrap_or_else(|_| {
-        eprintln!("error: internal error (a bug: please report it with the command line)");
+        let _ = writeln!(
+            std::io::stderr(),
+            "error: internal error (a bug: please report it with the command line)"
+        );
         exit_code::FATAL
     })
 }

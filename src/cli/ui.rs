@@ -4,6 +4,7 @@
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::fmt::Display;
 use std::io::IsTerminal;
+use std::io::Write;
 use std::time::Duration;
 
 /// How much to print.
@@ -46,9 +47,14 @@ impl Ui {
     }
 
     fn line(&self, text: &str) {
+        // A closed stderr (a pipe whose reader quit: `foldmatch batch ... 2>&1 | head`) loses
+        // the line; `eprintln!` would panic.
+        let write = || {
+            let _ = writeln!(std::io::stderr().lock(), "{text}");
+        };
         match &self.bars {
-            Some(multi) => multi.suspend(|| eprintln!("{text}")),
-            None => eprintln!("{text}"),
+            Some(multi) => multi.suspend(write),
+            None => write(),
         }
     }
 
