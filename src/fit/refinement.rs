@@ -17,8 +17,8 @@ use std::borrow::Cow;
 /// landmarks ([`LANDMARK_ANCHOR`] × the landmark weight) and the rim vertices at the rim
 /// matching's targets (`rim`, the same × the rim weight; docs/method.md "Rim matching"),
 /// with the scan's own normals as its planes where the user gave them (`normals`, indexed
-/// as `target`), without the pull of the points beyond the rim on a garment pass (`garment_pass`: the scan
-/// its free edges are judged on), its springs [`CARRIED_SPRING_FACTOR`] times as stiff and the
+/// as `target`), without the pull of the points beyond the rim on a garment pass
+/// (`garment_pass`: the scan its free edges are judged on), its springs [`CARRIED_SPRING_FACTOR`] times as stiff and the
 /// vertices of the region without a fit → scan match when the schedule carried a region
 /// without scan support (`carried`, a flag per vertex or empty); `unstretched`
 /// ([`UNSTRETCHED_SPREAD`](super::UNSTRETCHED_SPREAD)): [`UNSTRETCHED_STEPS`] steps at least,
