@@ -152,14 +152,8 @@ pub(super) fn fit_garments(
     let kept: Option<Vec<usize>> = target_weights
         .filter(|w| w.contains(&0.0))
         .map(|w| (0..w.len()).filter(|&j| w[j] > 0.0).collect());
-    let remaining: Vec<[f64; 3]>;
-    let live: &[[f64; 3]] = match &kept {
-        Some(k) => {
-            remaining = k.iter().map(|&j| target[j]).collect();
-            &remaining
-        }
-        None => target,
-    };
+    let live = super::kept_points(target, kept.as_deref());
+    let live: &[[f64; 3]] = &live;
     // Placed as a whole: the pre-alignment (or the landmarks' rigid fit) moves every garment
     // by one motion, and each garment's fit starts from there.
     let placed = placed_whole(

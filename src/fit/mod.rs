@@ -794,28 +794,22 @@ fn fit_readings(
         let fit_to_scan = r.residuals.iter().sum::<f64>() / r.residuals.len().max(1) as f64;
         fit_to_scan / r.quality.scan_diagonal + r.quality.scan_to_fit
     };
-    let mut best: Option<(FitResult, f64)> = None;
-    let mut other = f64::NAN;
+    // Each fit with its distance (one when the observer stopped the first).
+    let mut fits: Vec<(FitResult, f64)> = Vec::with_capacity(2);
     for (part, placement) in placements.into_iter().enumerate() {
         let fitted = placed_fit.run(placement, part, prealign, observer)?;
         let stopped = fitted.diagnostics.stopped_by_callback;
         let distance = closeness(&fitted);
-        match &best {
-            Some((_, kept)) if distance >= (1.0 - READING_MARGIN) * kept => other = distance,
-            _ => {
-                if let Some((_, kept)) = &best {
-                    other = *kept;
-                }
-                best = Some((fitted, distance));
-            }
-        }
+        fits.push((fitted, distance));
         if stopped {
             break;
         }
     }
-    let (mut kept, distance) = best.expect("two placements");
-    // Both fitted and both measured: how far the other one ended from the kept one.
-    if other.is_finite() && distance > 0.0 {
+    let replaced = fits.len() == 2 && fits[1].1 < (1.0 - READING_MARGIN) * fits[0].1;
+    let other = fits.get(usize::from(!replaced)).map(|f| f.1);
+    let (mut kept, distance) = fits.swap_remove(usize::from(replaced));
+    // Both fitted: how far the other one ended from the kept one.
+    if let Some(other) = other.filter(|o| o.is_finite() && distance > 0.0) {
         if let Some(figures) = kept.diagnostics.prealign.as_mut() {
             figures.reading_gap = Some(other / distance - 1.0);
         }
@@ -917,8 +911,8 @@ fn prealigned(
     };
     crate::mesh::validate_points("template_vertices", template_vertices)?;
     crate::mesh::validate_points("target", target)?;
-    let remaining: Option<Vec<[f64; 3]>> = kept.map(|k| k.iter().map(|&j| target[j]).collect());
-    let scan = remaining.as_deref().unwrap_or(target);
+    let scan = kept_points(target, kept);
+    let scan = &scan[..];
     if motion == crate::prealign::Motion::Rigid {
         let ratio =
             crate::metrics::bbox_diagonal(template_vertices) / crate::metrics::bbox_diagonal(scan);
@@ -996,23 +990,36 @@ pub(crate) fn landmark_placement(
     scaled: bool,
 ) -> crate::prealign::Similarity {
     let searched = matches!(params.prealign, Prealign::Rigid | Prealign::Similarity);
-    if landmarks.fix_orientation(template_vertices) || !searched {
-        return landmarks.alignment(template_vertices, scaled);
+    let from = landmarks.on(template_vertices);
+    let fitted = || crate::landmarks::fit_similarity(&from, &landmarks.positions, scaled);
+    if crate::landmarks::fixes_rotation(&from) || !searched {
+        return fitted();
     }
-    let remaining: Option<Vec<[f64; 3]>> = kept.map(|k| k.iter().map(|&j| target[j]).collect());
     let motion = if scaled {
         crate::prealign::Motion::Similarity
     } else {
         crate::prealign::Motion::Rigid
     };
+    let scan = kept_points(target, kept);
     crate::prealign::align_by_landmarks(
         template_vertices,
-        remaining.as_deref().unwrap_or(target),
+        &scan,
         motion,
-        &landmarks.on(template_vertices),
+        &from,
         &landmarks.positions,
     )
-    .unwrap_or_else(|| landmarks.alignment(template_vertices, scaled))
+    .unwrap_or_else(fitted)
+}
+
+/// The scan points that remain: those of `kept` (indices into `target`), else all of them.
+pub(crate) fn kept_points<'a>(
+    target: &'a [[f64; 3]],
+    kept: Option<&[usize]>,
+) -> std::borrow::Cow<'a, [[f64; 3]]> {
+    match kept {
+        Some(k) => k.iter().map(|&j| target[j]).collect(),
+        None => std::borrow::Cow::Borrowed(target),
+    }
 }
 
 /// Checks scan normals: one per scan point, finite, of non-zero length (their length and sign

@@ -62,8 +62,8 @@ pub(super) fn isometric_refinement(
         None => w.iter().step_by(stride).copied().collect(),
     });
     let point_weights = point_weights.filter(|w| w.iter().any(|&x| x > 0.0));
-    let point_normals: Option<Vec<[f64; 3]>> = normals.map(|n| match assessed {
-        _ if whole => n.to_vec(),
+    let point_normals: Option<Cow<[[f64; 3]]>> = normals.map(|n| match assessed {
+        _ if whole => Cow::Borrowed(n),
         Some(kept) => kept.iter().step_by(stride).map(|&j| n[j]).collect(),
         None => n.iter().step_by(stride).copied().collect(),
     });
@@ -74,7 +74,7 @@ pub(super) fn isometric_refinement(
     let mut refine =
         IsometricRefine::new(rest, faces, incidence, &points, point_weights.as_deref())
             .with_plane_normal(params.schedule.isometric_plane);
-    if let Some(n) = point_normals {
+    if let Some(n) = &point_normals {
         refine = refine.with_scan_normals(n);
     }
     if let Some(l) = landmarks {

@@ -149,14 +149,9 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
         readings: 0,
         alternative: None,
     };
-    if template.len() < 3 || scan.len() < 3 {
+    let Some((ta, sa, clouds)) = searchable(template, scan) else {
         return unchanged(f64::NAN);
-    }
-    let (ta, sa) = (principal_axes(template), principal_axes(scan));
-    if !(ta.rms_radius > 0.0 && sa.rms_radius > 0.0) {
-        return unchanged(f64::NAN);
-    }
-    let clouds = Clouds::new(template, scan);
+    };
     let (identity_score, identity_forward) = clouds.scores(&identity);
     // In a scene larger than the garment (a dressed body), most scan points are not the
     // garment's and the scan → template direction says nothing of the placement: a template
@@ -174,11 +169,7 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
     // ([`SEARCH_GAIN`]): a garment whose front and back differ a little can lie within
     // [`PLACED`] back to front.
     let placed = identity_score <= PLACED * sa.rms_radius;
-    let scale = if scaled {
-        sa.rms_radius / ta.rms_radius
-    } else {
-        1.0
-    };
+    let scale = start_scale(&ta, &sa, scaled);
     let (refined, given_index) =
         refined_placements(&clouds, &ta, &sa, scale, scaled, identity, placed);
     let (transform, score) = least_turned_near_tie(&refined);
@@ -246,20 +237,9 @@ pub fn align_by_landmarks(
     from: &[[f64; 3]],
     to: &[[f64; 3]],
 ) -> Option<Similarity> {
-    if template.len() < 3 || scan.len() < 3 {
-        return None;
-    }
-    let (ta, sa) = (principal_axes(template), principal_axes(scan));
-    if !(ta.rms_radius > 0.0 && sa.rms_radius > 0.0) {
-        return None;
-    }
-    let clouds = Clouds::new(template, scan);
+    let (ta, sa, clouds) = searchable(template, scan)?;
     let scaled = motion == Motion::Similarity;
-    let scale = if scaled {
-        sa.rms_radius / ta.rms_radius
-    } else {
-        1.0
-    };
+    let scale = start_scale(&ta, &sa, scaled);
     let identity = Similarity::identity();
     let (refined, _) = refined_placements(&clouds, &ta, &sa, scale, scaled, identity, false);
     let best = best_of(&refined);
@@ -279,6 +259,25 @@ pub fn align_by_landmarks(
         Some((t, m)) if m < LANDMARK_GAIN * miss(&chosen) => t,
         _ => chosen,
     })
+}
+
+/// The principal frames of `template` and `scan` and their matching samples, when both can be
+/// searched: three points or more, with a spread.
+fn searchable(template: &[[f64; 3]], scan: &[[f64; 3]]) -> Option<(Axes, Axes, Clouds)> {
+    if template.len() < 3 || scan.len() < 3 {
+        return None;
+    }
+    let (ta, sa) = (principal_axes(template), principal_axes(scan));
+    (ta.rms_radius > 0.0 && sa.rms_radius > 0.0).then(|| (ta, sa, Clouds::new(template, scan)))
+}
+
+/// The scale the search's candidates start at: the RMS radii matched with the scale free, else 1.
+fn start_scale(ta: &Axes, sa: &Axes, scaled: bool) -> f64 {
+    if scaled {
+        sa.rms_radius / ta.rms_radius
+    } else {
+        1.0
+    }
 }
 
 /// Landmarks that fix no orientation move the search's choice to another of its placements

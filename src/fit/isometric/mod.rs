@@ -291,11 +291,11 @@ impl<'a> IsometricRefine<'a> {
 
     /// The scan's own normals (one per scan point, as a scanner writes them; normalized here,
     /// their sign does not matter) in place of the planes of their 12 nearest points.
-    pub fn with_scan_normals(self, normals: Vec<[f64; 3]>) -> Self {
+    pub fn with_scan_normals(self, normals: &[[f64; 3]]) -> Self {
         let unit = normals
-            .into_iter()
+            .iter()
             .map(|n| {
-                let n = crate::math::vec3(&n);
+                let n = crate::math::vec3(n);
                 <[f64; 3]>::from(n / n.norm())
             })
             .collect();
