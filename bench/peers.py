@@ -334,11 +334,11 @@ METHODS: dict[str, dict[str, Any]] = {
         "modules": ["probreg"],
         "pip": ["probreg"],
         "family": "cpd",
-        "max_mn": 4.0e6,
-        "max_m": 2000,
-        "groups": ("quick", "small"),
+        "max_mn": 4.5e6,
+        "max_m": 2100,
+        "groups": ("quick", "small", "sim"),
         "note": "dense (3M×3N) Kronecker products, ~2.5 s per iteration at "
-        "M=1.7K: the small generated cases only",
+        "M=1.7K: the small generated and simulated cases only",
     },
     "nricp_amberg": {
         "label": "NRICP (Amberg)",

@@ -25,6 +25,7 @@
 
 #[cfg(feature = "cli")]
 pub mod cli;
+pub mod cpd;
 pub mod curvature;
 pub mod deformation;
 pub mod error;

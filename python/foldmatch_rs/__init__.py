@@ -103,7 +103,10 @@ class FitResult:
     params : FitParams
         Every setting used.
     diagnostics : dict
-        Facts about the run: K, ring size, removed faces, (ω₀Δt)², curvature source, frame.
+        Facts about the run: K, ring size, removed faces, (ω₀Δt)², curvature source, frame;
+        ``prealign`` (what the global pre-alignment found) and ``coherent`` (the coherent
+        candidate, when it ran: ``kept``, both fits' ``fit_to_scan`` and ``scan_to_fit``,
+        docs/method.md "Coherent candidate").
     quality : dict
         Does the fit look right: ``verdict`` (``"ok"`` or ``"suspicious"``), ``reasons`` and
         the figures behind them, none of which needs ground truth (see :func:`assess`; the

@@ -365,6 +365,17 @@ class FitParams(Mapping[str, Any]):
         fine phase and the isometric refinement (docs/method.md "Rim matching"): a fit slid or
         swirled along the target's surface is placed by where the cloth ends. 0: off.
         """
+    @property
+    def coherent_gate(self) -> float:
+        """A fit of a scan of the garment alone (no garment passes, landmarks or rest shape) whose
+        edges spread at least this much (the verdict's `edge_distortion`) gets a second,
+        coherent candidate: the template moved onto the scan by Coherent Point Drift (a smooth
+        motion field that does not lock onto the nearest surface), fitted again from there with
+        that shape as its rest shape, and kept when it lies closer to the scan in both directed
+        distances (docs/method.md "Coherent candidate"). Large drapes, heaps and flags whose
+        template must stretch far from its rest shape are placed better so; the candidate costs
+        its Coherent Point Drift and a second fit where it runs. 0: off.
+        """
 
     # ---- Acceleration
     @property

@@ -14,6 +14,7 @@
 //! All per-vertex buffers are allocated once per fit ([`Workspace`]).
 
 mod attraction;
+mod coherent;
 mod free_edges;
 mod garment_cut;
 mod garment_refit;
@@ -23,6 +24,7 @@ mod landmark_pull;
 mod model;
 mod params;
 mod phases;
+mod placement;
 mod presets;
 mod refinement;
 mod result;
@@ -46,19 +48,22 @@ pub use params::{
     AUTO_COARSE_RINGS_MAX, CARRIED_SPRING_FACTOR, CARRY_BAND, CARRY_FAR_EDGES, CARRY_MIN_BEHIND,
     CARRY_MIN_DEPTH, CARRY_MIN_SHARE, CARRY_SURPLUS, COARSE_RINGS_REFERENCE_VERTICES,
     COARSE_SCAN_MAX_AUTO_STRIDE, COARSE_SCAN_POINTS_PER_VERTEX, DEFAULT_CARRY_UNSUPPORTED,
-    DEFAULT_ISOMETRIC_HOLD, DEFAULT_ISOMETRIC_ITERATIONS, DEFAULT_ISOMETRIC_WEIGHT,
-    DEFAULT_ITERATIONS, DEFAULT_KEEP_MARGIN, DEFAULT_KNN_SLACK, DEFAULT_K_MAX,
-    DEFAULT_LANDMARK_WEIGHT, DEFAULT_RHO, DEFAULT_RIM_WEIGHT, DEFAULT_STRAIN_LIMIT,
+    DEFAULT_COHERENT_GATE, DEFAULT_ISOMETRIC_HOLD, DEFAULT_ISOMETRIC_ITERATIONS,
+    DEFAULT_ISOMETRIC_WEIGHT, DEFAULT_ITERATIONS, DEFAULT_KEEP_MARGIN, DEFAULT_KNN_SLACK,
+    DEFAULT_K_MAX, DEFAULT_LANDMARK_WEIGHT, DEFAULT_RHO, DEFAULT_RIM_WEIGHT, DEFAULT_STRAIN_LIMIT,
     DEFAULT_TWO_WAY_RIM, DEFAULT_TWO_WAY_TRUST, FAR_AWAY, FAST_ITERATIONS, FAST_TWO_WAY,
     MAX_SCAN_SAMPLE, PAPER_ITERATIONS, PAPER_K_MAX, PAPER_RHO, RIGID_SCAN_POINTS_PER_VERTEX,
     SCHEDULE_NAMES, SIZE_MISMATCH, TRACKING_ISOMETRIC_ITERATIONS, TRACKING_ITERATIONS,
     TRACKING_REST_RIGIDITY, TRACKING_STRAIN_LIMIT, UNSTRETCHED_FLIPS, UNSTRETCHED_SMOOTHING,
     UNSTRETCHED_SPREAD, UNSTRETCHED_STEPS,
 };
+pub(crate) use placement::landmark_placement;
+pub use placement::READING_MARGIN;
+use placement::{fit_readings, prealigned, PlacedFit};
 pub use refinement::{LANDMARK_ANCHOR, REFINE_POINTS_PER_VERTEX};
 pub use result::{
-    ComponentFigures, Diagnostics, FitResult, IterationRecord, PrealignFigures, Progress,
-    StageTimes,
+    CoherentFigures, ComponentFigures, Diagnostics, FitResult, IterationRecord, PrealignFigures,
+    Progress, StageTimes,
 };
 pub use schedule::{keeps_start, select_schedule};
 
@@ -259,6 +264,9 @@ pub(crate) struct FitRole<'a> {
     /// user's `target_weights` (`None`: every point) — on which its free edges are judged: a
     /// point of weight 0 is removed, unlike the skin that the refit's own weights leave out.
     pub(crate) user_scan: Option<&'a [[f64; 3]]>,
+    /// The template the verdict measures the fit against when its rest shape is another (the
+    /// coherent candidate's, [`coherent`]); `None`: the rest shape.
+    pub(crate) judged_on: Option<&'a [[f64; 3]]>,
 }
 
 /// The fit of one garment ([`garments::fit_garments`] splits a template of several): from
@@ -303,6 +311,18 @@ fn fit_from(
     // fit from it says by how much its cloth had to stretch (docs/method.md "Global
     // pre-alignment"). After such a probe the fits that follow report the second half of the
     // progress.
+    // A fit far from its rest shape gets a second candidate from a coherent start, once the
+    // fit it follows is chosen (docs/method.md "Coherent candidate").
+    let candidate = coherent::Candidate {
+        eligible: !role.garment && !role.several && rest.is_none() && landmarks.is_none(),
+        template_faces,
+        target,
+        target_faces,
+        target_weights,
+        target_normals,
+        kept: kept.as_deref(),
+        params,
+    };
     let placed_fit = PlacedFit {
         rest,
         template_faces,
@@ -321,7 +341,7 @@ fn fit_from(
             let settled =
                 off <= crate::prealign::SCALE_SETTLED || off > crate::prealign::SCALE_TRUSTED;
             if probe.diagnostics.stopped_by_callback || (other.is_none() && settled) {
-                return Ok(probe);
+                return candidate.after(probe, &p, observer);
             }
             if settled {
                 (Some(p), other, true)
@@ -347,7 +367,8 @@ fn fit_from(
     if let (Some(placed), Some(other)) = (&placed, &other) {
         // Two readings of other shapes that rigid scores cannot tell apart (a garment turned
         // back to front): each fitted, the one closer to the scan kept.
-        return fit_readings([placed, other], &placed_fit, prealign, observer);
+        let (kept, reading) = fit_readings([placed, other], &placed_fit, prealign, observer)?;
+        return candidate.after(kept, [placed, other][reading], observer);
     }
     // The pre-alignment's figures go into the result's diagnostics, whichever fit returns.
     let with_prealign = |mut result: FitResult| {
@@ -608,9 +629,17 @@ fn fit_from(
         Some(r) => PoseSource::Reference(r),
         None => PoseSource::Search,
     };
+    // The template the verdict measures against, when it is not the rest shape.
+    let judged_edges = role
+        .judged_on
+        .map(|j| crate::metrics::EdgeLengths::new(j, &prepared.faces));
+    let (judged, judged_edges) = match (role.judged_on, &judged_edges) {
+        (Some(j), Some(e)) => (j, e),
+        _ => (rest_shape, &rest_edges),
+    };
     let assessment = crate::quality::assess_points_with(
         &crate::quality::AssessInput {
-            template_vertices: rest_shape,
+            template_vertices: judged,
             faces: &prepared.faces,
             fitted_vertices: &vertices,
             scan: target,
@@ -619,7 +648,7 @@ fn fit_from(
         &crate::quality::VerdictThresholds::default(),
         Some(crate::quality::KnownMesh {
             two_rings,
-            edges: &rest_edges,
+            edges: judged_edges,
             scan_nearest,
             pose,
             carried: (!kept_start && !winner.carried.is_empty()).then_some(&winner.carried[..]),
@@ -672,6 +701,12 @@ fn fit_from(
         }
         r
     };
+    if !refit && candidate.gated(&chosen) {
+        // The template where this fit started, which is its rest shape.
+        return candidate
+            .after(chosen, rest_shape, observer)
+            .map(with_prealign);
+    }
     if !refit || kept_start || chosen.diagnostics.stopped_by_callback {
         return Ok(with_prealign(settled(chosen)));
     }
@@ -777,93 +812,6 @@ fn fit_from(
     Ok(with_prealign(last))
 }
 
-/// The fits from two placements of the template (the pre-alignment's readings, in the
-/// scan's frame), without a pre-alignment of their own; the second replaces the first when its
-/// fit lies closer to the scan by [`READING_MARGIN`] (the sum of the two directed distances,
-/// every vertex counted), returned with `prealign`'s figures. Each reports its half of the
-/// progress.
-fn fit_readings(
-    placements: [&[[f64; 3]]; 2],
-    placed_fit: &PlacedFit<'_>,
-    prealign: Option<PrealignFigures>,
-    observer: &mut (dyn FnMut(&Progress) -> bool + Send),
-) -> Result<FitResult> {
-    // Over every vertex: a reading must not win by the vertices it carried (the verdict's
-    // own fit → scan distance leaves those out).
-    let closeness = |r: &FitResult| {
-        let fit_to_scan = r.residuals.iter().sum::<f64>() / r.residuals.len().max(1) as f64;
-        fit_to_scan / r.quality.scan_diagonal + r.quality.scan_to_fit
-    };
-    // Each fit with its distance (one when the observer stopped the first).
-    let mut fits: Vec<(FitResult, f64)> = Vec::with_capacity(2);
-    for (part, placement) in placements.into_iter().enumerate() {
-        let fitted = placed_fit.run(placement, part, prealign, observer)?;
-        let stopped = fitted.diagnostics.stopped_by_callback;
-        let distance = closeness(&fitted);
-        fits.push((fitted, distance));
-        if stopped {
-            break;
-        }
-    }
-    let replaced = fits.len() == 2 && fits[1].1 < (1.0 - READING_MARGIN) * fits[0].1;
-    let other = fits.get(usize::from(!replaced)).map(|f| f.1);
-    let (mut kept, distance) = fits.swap_remove(usize::from(replaced));
-    // Both fitted: how far the other one ended from the kept one.
-    if let Some(other) = other.filter(|o| o.is_finite() && distance > 0.0) {
-        if let Some(figures) = kept.diagnostics.prealign.as_mut() {
-            figures.reading_gap = Some(other / distance - 1.0);
-        }
-    }
-    Ok(kept)
-}
-
-/// A fit of the template from a placement the pre-alignment found (the similarity's probe, a
-/// reading): `fit_from` without a pre-alignment of its own, one half of the progress, its
-/// result with the caller's parameters and the pre-alignment's figures.
-struct PlacedFit<'a> {
-    rest: Option<&'a [[f64; 3]]>,
-    template_faces: &'a [[u32; 3]],
-    target: &'a [[f64; 3]],
-    target_faces: Option<&'a [[u32; 3]]>,
-    target_weights: Option<&'a [f64]>,
-    target_normals: Option<&'a [[f64; 3]]>,
-    role: FitRole<'a>,
-    params: &'a FitParams,
-}
-
-impl PlacedFit<'_> {
-    /// The fit from `placement`, reporting half `part` (0 or 1) of the progress, with
-    /// `prealign`'s figures.
-    fn run(
-        &self,
-        placement: &[[f64; 3]],
-        part: usize,
-        prealign: Option<PrealignFigures>,
-        observer: &mut (dyn FnMut(&Progress) -> bool + Send),
-    ) -> Result<FitResult> {
-        let mut inner = self.params.clone();
-        inner.prealign = Prealign::None;
-        let total = self.params.iterations;
-        let mut half = |p: &Progress| observer(&p.of_parts(part, 2, total));
-        let mut fitted = fit_from(
-            placement,
-            self.rest,
-            self.template_faces,
-            self.target,
-            self.target_faces,
-            self.target_weights,
-            self.target_normals,
-            None,
-            self.role,
-            &inner,
-            &mut half,
-        )?;
-        fitted.params = self.params.clone();
-        fitted.diagnostics.prealign = prealign;
-        Ok(fitted)
-    }
-}
-
 /// Schedule selection's comparison of the candidates' fits (in the user's frame).
 struct Comparison {
     /// The chosen candidate.
@@ -876,76 +824,6 @@ struct Comparison {
     spreads: Vec<f64>,
     /// Each candidate's nearest vertex of every compared scan point.
     nearest: Vec<schedule::ScanNearest>,
-}
-
-/// The template as the pre-alignment moved it (`None`: as given), what the search found
-/// (`None`: it did not run), and the template placed by the other reading to fit from too
-/// ([`crate::prealign::Alignment::alternative`]).
-type Placement = (
-    Option<Vec<[f64; 3]>>,
-    Option<PrealignFigures>,
-    Option<Vec<[f64; 3]>>,
-);
-
-/// The other reading's fit replaces the first (the least turned) only when it lies closer to
-/// the scan by this share: a garment fitted back to front can wrap its scan as closely (0.2–1.2
-/// % closer than the right reading on the bent-over T-shirt, a folded one and a square sheet
-/// of the harness), the right reading of a garment turned 90° lies 5–24 % closer than the
-/// wrong one (`bench/prealign.py`; docs/notes/prealign-readings.md).
-pub const READING_MARGIN: f64 = 0.04;
-
-/// The template moved by the global pre-alignment of [`FitParams::prealign`] (`Rigid`,
-/// `Similarity`: [`crate::prealign::align`] onto the scan points that remain), so that the fit,
-/// and its result, are in the scan's frame as given (`None` when the template stays as given),
-/// and what the search found (`None` when it did not run).
-fn prealigned(
-    template_vertices: &[[f64; 3]],
-    target: &[[f64; 3]],
-    kept: Option<&[usize]>,
-    params: &FitParams,
-) -> Result<Placement> {
-    let motion = match params.prealign {
-        Prealign::Rigid => crate::prealign::Motion::Rigid,
-        Prealign::Similarity => crate::prealign::Motion::Similarity,
-        Prealign::None | Prealign::Centroid => return Ok((None, None, None)),
-    };
-    crate::mesh::validate_points("template_vertices", template_vertices)?;
-    crate::mesh::validate_points("target", target)?;
-    let scan = kept_points(target, kept);
-    let scan = &scan[..];
-    if motion == crate::prealign::Motion::Rigid {
-        let ratio =
-            crate::metrics::bbox_diagonal(template_vertices) / crate::metrics::bbox_diagonal(scan);
-        if !(1.0 / SIZE_MISMATCH..=SIZE_MISMATCH).contains(&ratio) {
-            return Err(FoldMatchError::SizeMismatch { ratio });
-        }
-    }
-    let alignment = crate::prealign::align(template_vertices, scan, motion);
-    let moved = !alignment.transform.is_identity();
-    let figures = PrealignFigures {
-        searched: alignment.searched,
-        moved,
-        identity_score: alignment.identity_score,
-        score: alignment.score,
-        best_score: alignment.best_score,
-        readings_placed: [Some(alignment.transform), alignment.alternative],
-        readings: alignment.readings,
-        fitted_readings: match (alignment.searched, alignment.alternative) {
-            (false, _) => 0,
-            (true, Some(_)) if moved => 2,
-            (true, _) => 1,
-        },
-        scale_stretch: 1.0,
-        reading_gap: None,
-    };
-    Ok((
-        moved.then(|| alignment.transform.apply_all(template_vertices)),
-        Some(figures),
-        alignment
-            .alternative
-            .filter(|_| moved)
-            .map(|t| t.apply_all(template_vertices)),
-    ))
 }
 
 /// Checks scan weights: one per scan point, finite, non-negative, not all zero.
@@ -973,42 +851,6 @@ pub fn validate_weights(weights: &[f64], points: usize) -> Result<()> {
         ));
     }
     Ok(())
-}
-
-/// Where landmarks place the template (docs/method.md "Landmarks"): three or more, not on a
-/// line, by the rigid fit (with `scaled`, the similarity) of their vertices onto their targets;
-/// fewer, with a searching pre-alignment ([`FitParams::prealign`] `Rigid` or `Similarity`), at
-/// the search's placement that puts them nearest their targets
-/// ([`crate::prealign::align_by_landmarks`], on the scan points that remain, `kept`); else by
-/// the translation of their centroid.
-pub(crate) fn landmark_placement(
-    template_vertices: &[[f64; 3]],
-    target: &[[f64; 3]],
-    kept: Option<&[usize]>,
-    landmarks: &Landmarks,
-    params: &FitParams,
-    scaled: bool,
-) -> crate::prealign::Similarity {
-    let searched = matches!(params.prealign, Prealign::Rigid | Prealign::Similarity);
-    let from = landmarks.on(template_vertices);
-    let fitted = || crate::landmarks::fit_similarity(&from, &landmarks.positions, scaled);
-    if crate::landmarks::fixes_rotation(&from) || !searched {
-        return fitted();
-    }
-    let motion = if scaled {
-        crate::prealign::Motion::Similarity
-    } else {
-        crate::prealign::Motion::Rigid
-    };
-    let scan = kept_points(target, kept);
-    crate::prealign::align_by_landmarks(
-        template_vertices,
-        &scan,
-        motion,
-        &from,
-        &landmarks.positions,
-    )
-    .unwrap_or_else(fitted)
 }
 
 /// The scan points that remain: those of `kept` (indices into `target`), else all of them.

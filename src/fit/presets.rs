@@ -36,6 +36,7 @@ impl FitParams {
         p.schedule.strain_limit = 0.0;
         p.schedule.carry_unsupported = 0.0;
         p.schedule.rim_weight = 0.0;
+        p.schedule.coherent_gate = 0.0;
         p.readings.regularization = Regularization::AffineInvariant;
         p.prealign = Prealign::None;
         p
@@ -72,6 +73,8 @@ impl FitParams {
         p.iterations = TRACKING_ITERATIONS;
         // Every frame starts where the last one ended: placed already.
         p.prealign = Prealign::None;
+        // A frame is anchored to its sequence's rest shape, not to a coherent one.
+        p.schedule.coherent_gate = 0.0;
         p
     }
 
@@ -150,6 +153,8 @@ impl FitParams {
             .without_isometric_refinement();
         p.schedule.two_way = FAST_TWO_WAY;
         p.iterations = FAST_ITERATIONS;
+        // One fit: no coherent candidate.
+        p.schedule.coherent_gate = 0.0;
         p
     }
 

@@ -237,6 +237,28 @@ pub struct Diagnostics {
     /// or `"similarity"`, docs/method.md "Global pre-alignment"); `None` when it did not run
     /// (another mode, landmarks, a template of several garments).
     pub prealign: Option<PrealignFigures>,
+    /// The coherent candidate ([`Schedule::coherent_gate`](super::Schedule::coherent_gate),
+    /// docs/method.md "Coherent candidate"), when it ran.
+    #[serde(default)]
+    pub coherent: Option<CoherentFigures>,
+}
+
+/// What the coherent candidate found: both fits' directed distances (each ÷ the scan's
+/// bounding-box diagonal, as the verdict's), and which was kept.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct CoherentFigures {
+    /// The first fit's `edge_distortion`, which reached the gate.
+    pub edge_distortion: f64,
+    /// The first fit's, then the candidate's, fit → scan distance.
+    pub fit_to_scan: [f64; 2],
+    /// The first fit's, then the candidate's, scan → fit distance.
+    pub scan_to_fit: [f64; 2],
+    /// Whether the candidate was kept (closer to the scan in both directions).
+    pub kept: bool,
+    /// The Coherent Point Drift's EM iterations.
+    pub cpd_iterations: usize,
+    /// Seconds the candidate took (its Coherent Point Drift and its fit).
+    pub seconds: f64,
 }
 
 /// What the global pre-alignment found ([`crate::prealign::align`]).

@@ -157,6 +157,7 @@ impl FitParams {
             ),
             ("isometric_hold", self.schedule.isometric_hold, NON_NEGATIVE),
             ("rim_weight", self.schedule.rim_weight, NON_NEGATIVE),
+            ("coherent_gate", self.schedule.coherent_gate, NON_NEGATIVE),
             (
                 "carry_unsupported",
                 self.schedule.carry_unsupported,

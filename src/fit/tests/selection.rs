@@ -9,13 +9,14 @@ fn fast_preset_is_one_schedule_between_the_given_and_the_sharp() {
     let default = FitParams::default();
     let sharp = default.sharp_schedule();
     // The sharp schedule's phases and constant softening, a two-way weight between the two,
-    // 100 iterations and no refinement.
+    // 100 iterations, no refinement and no coherent candidate.
     assert_eq!(fast, {
         let mut p = sharp.clone();
         p.schedule.two_way = FAST_TWO_WAY;
         p.iterations = FAST_ITERATIONS;
         p.schedule.isometric_iterations = 0;
         p.schedule.isometric_hold = 0.0;
+        p.schedule.coherent_gate = 0.0;
         p
     });
     assert!(

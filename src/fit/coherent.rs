@@ -1,0 +1,106 @@
+//! The coherent candidate (docs/method.md "Coherent candidate"): a fit of a scan of the
+//! garment alone that ended far from its rest shape — its edges spread by at least
+//! [`Schedule::coherent_gate`](super::Schedule::coherent_gate), the verdict's
+//! `edge_distortion` — is fitted a second time. The template, where the first fit started, is
+//! moved onto the scan by non-rigid Coherent Point Drift (Myronenko & Song 2010,
+//! [`crate::cpd`]): one smooth motion field over the whole garment, which places a drape, a
+//! heap or a flag as a whole instead of letting each region lock onto the nearest surface. The
+//! fit from there, with the moved shape as its rest shape (its metric is the one the drape
+//! needs), is kept when it lies closer to the scan than the first fit in both directed
+//! distances; its verdict is measured against the template as given, as the first fit's.
+
+use super::{
+    fit_from, kept_points, CoherentFigures, FitParams, FitResult, FitRole, Method, Prealign,
+    Progress,
+};
+use crate::cpd::{coherent_point_drift, CpdParams};
+use crate::error::Result;
+
+/// The first fit's inputs that its candidate fits again (all in the user's frame).
+pub(super) struct Candidate<'a> {
+    /// Whether the fit may have a candidate: a scan of the garment alone, no landmarks, no
+    /// rest shape of its own (not a garment pass or a tracked frame).
+    pub eligible: bool,
+    pub template_faces: &'a [[u32; 3]],
+    pub target: &'a [[f64; 3]],
+    pub target_faces: Option<&'a [[u32; 3]]>,
+    pub target_weights: Option<&'a [f64]>,
+    pub target_normals: Option<&'a [[f64; 3]]>,
+    /// The scan points of positive weight (`None`: all).
+    pub kept: Option<&'a [usize]>,
+    pub params: &'a FitParams,
+}
+
+impl Candidate<'_> {
+    /// Whether `first`, a finished fit of the FoldMatch method, gets a candidate: it is eligible
+    /// and spread its edges past the gate.
+    pub(super) fn gated(&self, first: &FitResult) -> bool {
+        let gate = self.params.schedule.coherent_gate;
+        self.eligible
+            && gate > 0.0
+            && self.params.method == Method::FoldMatch
+            && !first.diagnostics.stopped_by_callback
+            && !first.diagnostics.kept_start
+            && first.quality.edge_distortion >= gate
+    }
+
+    /// `first` (fitted from `start`, the placed template, which is its rest shape), or, when it
+    /// is [`gated`](Self::gated), the coherent candidate if that lies closer to the scan in both
+    /// directed distances; either with [`CoherentFigures`] in its diagnostics when the
+    /// candidate ran. The candidate's fit reports its progress to `observer` as a fit of its
+    /// own (from iteration 1 again); when the observer stops it, `first` is returned, marked
+    /// stopped.
+    pub(super) fn after(
+        &self,
+        mut first: FitResult,
+        start: &[[f64; 3]],
+        observer: &mut (dyn FnMut(&Progress) -> bool + Send),
+    ) -> Result<FitResult> {
+        if !self.gated(&first) {
+            return Ok(first);
+        }
+        let clock = std::time::Instant::now();
+        let scan = kept_points(self.target, self.kept);
+        let cpd = coherent_point_drift(start, &scan, &CpdParams::default());
+        let mut inner = self.params.clone();
+        inner.prealign = Prealign::None;
+        inner.schedule.coherent_gate = 0.0;
+        let mut second = fit_from(
+            &cpd.points,
+            None,
+            self.template_faces,
+            self.target,
+            self.target_faces,
+            self.target_weights,
+            self.target_normals,
+            None,
+            FitRole {
+                judged_on: Some(start),
+                ..FitRole::default()
+            },
+            &inner,
+            observer,
+        )?;
+        let stopped = second.diagnostics.stopped_by_callback;
+        let (a, b) = (&first.quality, &second.quality);
+        let kept = !stopped && b.fit_to_scan < a.fit_to_scan && b.scan_to_fit < a.scan_to_fit;
+        let figures = CoherentFigures {
+            edge_distortion: a.edge_distortion,
+            fit_to_scan: [a.fit_to_scan, b.fit_to_scan],
+            scan_to_fit: [a.scan_to_fit, b.scan_to_fit],
+            kept,
+            cpd_iterations: cpd.iterations,
+            seconds: clock.elapsed().as_secs_f64(),
+        };
+        let mut chosen = if kept {
+            second.params = self.params.clone();
+            second.diagnostics.prealign = first.diagnostics.prealign;
+            second
+        } else {
+            first.diagnostics.stopped_by_callback |= stopped;
+            first
+        };
+        chosen.diagnostics.coherent = Some(figures);
+        Ok(chosen)
+    }
+}
