@@ -222,6 +222,9 @@ fn fit(cmd: &FitCmd, ctx: &Context) -> i32 {
                 entry.seconds.unwrap_or(0.0)
             ));
             ui.detail(entry.quality_note());
+            if let Some(note) = entry.coherent_note() {
+                ui.detail(note);
+            }
             if let Some(reasons) = entry.suspicious_reasons() {
                 ui.warn(format_args!(
                     "the fit looks wrong (quality verdict suspicious): {}",

@@ -171,6 +171,28 @@ impl FileReport {
         })
     }
 
+    /// What the coherent candidate did (`diagnostics.coherent`, docs/method.md "Coherent
+    /// candidate"), for a log line; `None` when it did not run.
+    pub fn coherent_note(&self) -> Option<String> {
+        let c = self.diagnostics.as_ref()?.get("coherent")?;
+        let pair = |k: &str| -> Option<(f64, f64)> {
+            let v = c.get(k)?.as_array()?;
+            Some((v.first()?.as_f64()?, v.get(1)?.as_f64()?))
+        };
+        let (f0, f1) = pair("fit_to_scan")?;
+        let (s0, s1) = pair("scan_to_fit")?;
+        let kept = c.get("kept")?.as_bool()?;
+        let spread = c.get("edge_distortion")?.as_f64()?;
+        let gain = 100.0 * (1.0 - (f1 + s1) / (f0 + s0));
+        Some(format!(
+            "coherent candidate (the first fit's edges spread {spread:.2}, at or above \
+             coherent_gate): {}, its scan distances {:.1} % {} than the first fit's",
+            if kept { "kept" } else { "not kept" },
+            gain.abs(),
+            if gain >= 0.0 { "smaller" } else { "larger" }
+        ))
+    }
+
     /// The verdict and every figure of the fit's quality, for a log line (empty without
     /// one); the module docs of [`crate::quality`] define the figures.
     pub fn quality_note(&self) -> String {
@@ -384,5 +406,28 @@ mod tests {
         let mut plain = with_gap(None);
         plain.diagnostics = None;
         assert!(plain.reading_note().is_none());
+    }
+
+    #[test]
+    fn the_coherent_candidate_is_noted_with_its_gain_when_it_ran() {
+        let mut r = with_gap(None);
+        r.diagnostics = Some(serde_json::json!({
+            "coherent": { "edge_distortion": 1.25, "fit_to_scan": [0.01, 0.009],
+                          "scan_to_fit": [0.01, 0.009], "kept": true,
+                          "cpd_iterations": 20, "seconds": 0.5 },
+        }));
+        let note = r.coherent_note().expect("it ran");
+        assert!(note.contains("kept") && note.contains("10.0 % smaller") && note.contains("1.25"));
+        r.diagnostics = Some(serde_json::json!({
+            "coherent": { "edge_distortion": 1.3, "fit_to_scan": [0.01, 0.009],
+                          "scan_to_fit": [0.01, 0.012], "kept": false,
+                          "cpd_iterations": 20, "seconds": 0.5 },
+        }));
+        let note = r.coherent_note().expect("it ran");
+        assert!(
+            note.contains("not kept") && note.contains("5.0 % larger"),
+            "{note}"
+        );
+        assert!(with_gap(Some(0.1)).coherent_note().is_none());
     }
 }
