@@ -39,7 +39,7 @@ mod tests;
 mod validate;
 
 pub use attraction::{DRESSED_TRUST_FACTOR, GARMENT_FRAME_RATIO};
-pub use coherent::COHERENT_MARGIN;
+pub use coherent::{COHERENT_MARGIN, COHERENT_MAX_UNSUPPORTED};
 pub use garments::GARMENT_MIN_SHARE;
 pub use isometric::{HoldWhere, IsometricRefine, PlaneNormal, SpringScale, Springs};
 pub use model::{deformation_model, TemplateTopology, Workspace};
