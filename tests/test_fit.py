@@ -513,8 +513,9 @@ def test_selection_keeps_the_closer_schedule_or_on_a_near_tie_the_less_stretched
     own."""
     v, f, x = case["template_vertices"], case["faces"], case["scan"]
     # From the placement as given (the margins below pick both schedules from there); the
-    # schedules alone (the candidates are compared before the isometric refinement).
-    alone = dict(isometric_iterations=0)
+    # schedules alone (the candidates are compared before the isometric refinement, and
+    # before any coherent candidate, docs/method.md "Coherent candidate").
+    alone = dict(isometric_iterations=0, coherent_gate=0.0)
     chosen = fm.fit(v, f, x, iterations=30, prealign="none", params=alone)
     given = fm.fit(v, f, x, iterations=30, prealign="none", params=dict(selection="single", **alone))
     sharp = fm.fit(
@@ -728,7 +729,8 @@ def test_carry_unsupported_keeps_the_back_of_a_one_sided_scan():
 def test_fast_preset_is_one_schedule_between_the_default_s_two(case):
     """preset="fast" runs one schedule: the default's parameters with the sharp candidate's
     phases and constant softening and a two-way weight of 3 (between the candidates' 1 and
-    4.5), without the isometric refinement; the same fit as asking for those parameters, and
+    4.5), without the isometric refinement or the coherent candidate; the same fit as asking for
+    those parameters, and
     not either candidate's fit."""
     v, f, x = case["template_vertices"], case["faces"], case["scan"]
     r = fm.fit(v, f, x, preset="fast", iterations=30)
@@ -741,6 +743,7 @@ def test_fast_preset_is_one_schedule_between_the_default_s_two(case):
         "iterations": 30,
         "isometric_iterations": 0,
         "isometric_hold": 0.0,
+        "coherent_gate": 0.0,
     }
     assert r.params == {**fm.DEFAULT_PARAMS, **mine}
     np.testing.assert_array_equal(r.vertices, fm.fit(v, f, x, params=mine).vertices)
