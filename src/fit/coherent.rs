@@ -10,10 +10,8 @@
 //! distances, their sum by [`COHERENT_MARGIN`]; its verdict is measured against the template as
 //! given, as the first fit's.
 
-use super::{
-    fit_from, kept_points, CoherentFigures, FitParams, FitResult, FitRole, Method, Prealign,
-    Progress,
-};
+use super::placement::PlacedFit;
+use super::{kept_points, CoherentFigures, FitResult, Method, Progress};
 use crate::cpd::{coherent_point_drift, CpdParams};
 use crate::error::Result;
 
@@ -33,30 +31,29 @@ pub const COHERENT_MARGIN: f64 = 0.04;
 /// 13–15 % (docs/notes/coherent-candidate.md).
 pub const COHERENT_MAX_UNSUPPORTED: f64 = 0.05;
 
-/// The first fit's inputs that its candidate fits again (all in the user's frame).
-pub(super) struct Candidate<'a> {
-    /// Whether the fit may have a candidate: a scan of the garment alone, no landmarks, no
-    /// rest shape of its own (not a garment pass or a tracked frame).
+/// The first fit, as its candidate fits the template again (in the user's frame).
+pub(super) struct Candidate<'p, 'a> {
+    /// Whether the fit's inputs allow a candidate: no landmarks, no rest shape of its own (not
+    /// a tracked frame), not a garment pass or one garment of several.
     pub eligible: bool,
-    pub template_faces: &'a [[u32; 3]],
-    pub target: &'a [[f64; 3]],
-    pub target_faces: Option<&'a [[u32; 3]]>,
-    pub target_weights: Option<&'a [f64]>,
-    pub target_normals: Option<&'a [[f64; 3]]>,
+    /// The first fit's scan, rest shape, role and parameters.
+    pub fit: &'p PlacedFit<'a>,
     /// The scan points of positive weight (`None`: all).
     pub kept: Option<&'a [usize]>,
-    pub params: &'a FitParams,
 }
 
-impl Candidate<'_> {
-    /// Whether `first`, a finished fit of the FoldMatch method, gets a candidate: it is eligible,
+impl Candidate<'_, '_> {
+    /// Whether `first`, a finished fit of the FoldMatch method, gets a candidate: its inputs are
+    /// eligible, it fitted a scan of the garment alone (not one set for garment passes),
     /// spread its edges past the gate and found scan support for all but
     /// [`COHERENT_MAX_UNSUPPORTED`] of its vertices.
     pub(super) fn gated(&self, first: &FitResult) -> bool {
-        let gate = self.params.schedule.coherent_gate;
+        let params = self.fit.params;
+        let gate = params.schedule.coherent_gate;
         self.eligible
             && gate > 0.0
-            && self.params.method == Method::FoldMatch
+            && params.method == Method::FoldMatch
+            && !first.diagnostics.dressed
             && !first.diagnostics.stopped_by_callback
             && !first.diagnostics.kept_start
             && first.quality.edge_distortion >= gate
@@ -79,27 +76,9 @@ impl Candidate<'_> {
             return Ok(first);
         }
         let clock = std::time::Instant::now();
-        let scan = kept_points(self.target, self.kept);
+        let scan = kept_points(self.fit.target, self.kept);
         let cpd = coherent_point_drift(start, &scan, &CpdParams::default());
-        let mut inner = self.params.clone();
-        inner.prealign = Prealign::None;
-        inner.schedule.coherent_gate = 0.0;
-        let mut second = fit_from(
-            &cpd.points,
-            None,
-            self.template_faces,
-            self.target,
-            self.target_faces,
-            self.target_weights,
-            self.target_normals,
-            None,
-            FitRole {
-                judged_on: Some(start),
-                ..FitRole::default()
-            },
-            &inner,
-            observer,
-        )?;
+        let mut second = self.fit.fit(&cpd.points, Some(start), observer)?;
         let stopped = second.diagnostics.stopped_by_callback;
         let (a, b) = (&first.quality, &second.quality);
         let kept = !stopped
@@ -116,7 +95,6 @@ impl Candidate<'_> {
             seconds: clock.elapsed().as_secs_f64(),
         };
         let mut chosen = if kept {
-            second.params = self.params.clone();
             second.diagnostics.prealign = first.diagnostics.prealign;
             second
         } else {

@@ -329,6 +329,7 @@ fn assemble(
     diagnostics.duplicate_faces.clear();
     diagnostics.isolated_vertices = 0;
     diagnostics.garment_refit_points = 0;
+    diagnostics.dressed = false;
     diagnostics.stage_seconds = Default::default();
     diagnostics.wall_seconds = [0.0; 3];
     diagnostics.knn_queries = 0;
@@ -360,6 +361,7 @@ fn assemble(
         diagnostics.stopped_by_callback |= d.stopped_by_callback;
         diagnostics.kept_start &= d.kept_start;
         diagnostics.garment_refit_points += d.garment_refit_points;
+        diagnostics.dressed |= d.dressed;
         diagnostics.stage_seconds.add(&d.stage_seconds);
         for (total, part) in diagnostics.wall_seconds.iter_mut().zip(d.wall_seconds) {
             *total += part;

@@ -312,18 +312,6 @@ fn fit_from(
     // fit from it says by how much its cloth had to stretch (docs/method.md "Global
     // pre-alignment"). After such a probe the fits that follow report the second half of the
     // progress.
-    // A fit far from its rest shape gets a second candidate from a coherent start, once the
-    // fit it follows is chosen (docs/method.md "Coherent candidate").
-    let candidate = coherent::Candidate {
-        eligible: !role.garment && !role.several && rest.is_none() && landmarks.is_none(),
-        template_faces,
-        target,
-        target_faces,
-        target_weights,
-        target_normals,
-        kept: kept.as_deref(),
-        params,
-    };
     let placed_fit = PlacedFit {
         rest,
         template_faces,
@@ -333,6 +321,13 @@ fn fit_from(
         target_normals,
         role,
         params,
+    };
+    // A fit far from its rest shape gets a second candidate from a coherent start, once the
+    // fit it follows is chosen (docs/method.md "Coherent candidate").
+    let candidate = coherent::Candidate {
+        eligible: !role.garment && !role.several && rest.is_none() && landmarks.is_none(),
+        fit: &placed_fit,
+        kept: kept.as_deref(),
     };
     let (placed, other, probed) = match (placed, params.prealign) {
         (Some(p), Prealign::Similarity) => {
@@ -683,6 +678,7 @@ fn fit_from(
         chosen.params = params.clone();
     }
     chosen.diagnostics.kept_start = kept_start;
+    chosen.diagnostics.dressed = refit;
     chosen.diagnostics.refinement = refinement.name().to_owned();
     chosen.diagnostics.rim_matched = rim_matched;
     let finish = clock.elapsed().as_secs_f64() - setup - iterations;
@@ -702,7 +698,7 @@ fn fit_from(
         }
         r
     };
-    if !refit && candidate.gated(&chosen) {
+    if candidate.gated(&chosen) {
         // The template where this fit started, which is its rest shape.
         return candidate
             .after(chosen, rest_shape, observer)
@@ -810,6 +806,7 @@ fn fit_from(
             Some(&points),
         );
     }
+    last.diagnostics.dressed = true;
     Ok(with_prealign(last))
 }
 

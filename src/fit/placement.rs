@@ -64,21 +64,19 @@ pub(super) struct PlacedFit<'a> {
 }
 
 impl PlacedFit<'_> {
-    /// The fit from `placement`, reporting half `part` (0 or 1) of the progress, with
-    /// `prealign`'s figures.
-    pub(super) fn run(
+    /// The fit from `placement` (`judged_on`: the template its verdict measures it against
+    /// when not its rest shape, [`FitRole::judged_on`]), reporting to `observer` as a fit of
+    /// its own, with the caller's parameters.
+    pub(super) fn fit(
         &self,
         placement: &[[f64; 3]],
-        part: usize,
-        prealign: Option<PrealignFigures>,
+        judged_on: Option<&[[f64; 3]]>,
         observer: &mut (dyn FnMut(&Progress) -> bool + Send),
     ) -> Result<FitResult> {
         let mut inner = self.params.clone();
         inner.prealign = Prealign::None;
         // Its caller decides on the coherent candidate, once it has chosen among such fits.
         inner.schedule.coherent_gate = 0.0;
-        let total = self.params.iterations;
-        let mut half = |p: &Progress| observer(&p.of_parts(part, 2, total));
         let mut fitted = fit_from(
             placement,
             self.rest,
@@ -88,11 +86,29 @@ impl PlacedFit<'_> {
             self.target_weights,
             self.target_normals,
             None,
-            self.role,
+            FitRole {
+                judged_on: judged_on.or(self.role.judged_on),
+                ..self.role
+            },
             &inner,
-            &mut half,
+            observer,
         )?;
         fitted.params = self.params.clone();
+        Ok(fitted)
+    }
+
+    /// The fit from `placement`, reporting half `part` (0 or 1) of the progress, with
+    /// `prealign`'s figures.
+    pub(super) fn run(
+        &self,
+        placement: &[[f64; 3]],
+        part: usize,
+        prealign: Option<PrealignFigures>,
+        observer: &mut (dyn FnMut(&Progress) -> bool + Send),
+    ) -> Result<FitResult> {
+        let total = self.params.iterations;
+        let mut half = |p: &Progress| observer(&p.of_parts(part, 2, total));
+        let mut fitted = self.fit(placement, None, &mut half)?;
         fitted.diagnostics.prealign = prealign;
         Ok(fitted)
     }

@@ -180,6 +180,11 @@ pub struct Diagnostics {
     /// ([`garment_refit`](super::Schedule::garment_refit)); 0 when there was none.
     #[serde(default)]
     pub garment_refit_points: usize,
+    /// Whether the fit took its scan for one that holds more than the garment (skin, hair,
+    /// another garment; docs/method.md "Scans of dressed people") and was set for the garment
+    /// passes ([`garment_refit`](super::Schedule::garment_refit)), whether or not they ran.
+    #[serde(default)]
+    pub dressed: bool,
     /// Per connected component of the template, when it has several (garments, each fitted on
     /// its own; docs/dressed.md "Several garments at once"): its figures against the scan;
     /// empty for a template of one piece.
