@@ -138,7 +138,8 @@ def test_the_default_fits_the_shirt_of_a_dressed_scan_almost_as_without_the_body
     # Taken for a dressed scan (set for the garment passes) only where the body is there and
     # the passes are on; such a fit never gets the coherent candidate (CPD would draw the
     # template onto the body too).
-    assert whole.diagnostics["dressed"] and not free.diagnostics["dressed"] and not once.diagnostics["dressed"]
+    assert whole.diagnostics["dressed"]
+    assert not free.diagnostics["dressed"] and not once.diagnostics["dressed"]
     assert whole.diagnostics["coherent"] is None
     # The fit's own segmentation: the points of its last pass, nearly all the shirt's and
     # nearly no skin (measured 99.7 % of the shirt, 0.7 % skin); none without a refit.
