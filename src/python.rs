@@ -410,17 +410,13 @@ fn fit_raw<'py>(
         compute(py, threads, |cancel| {
             let mut observer = |p: &Progress| step(cancel, p);
             let landmarks = landmarks.as_ref();
-            fit::fit_with_normals(
-                tv,
-                &tf,
-                x,
-                xf.as_deref(),
+            let extras = fit::ScanExtras {
+                faces: xf.as_deref(),
                 weights,
                 normals,
                 landmarks,
-                &params,
-                &mut observer,
-            )
+            };
+            fit::fit_scan(tv, &tf, x, &extras, &params, &mut observer)
         })?
     };
     if let Some(e) = callback_error {

@@ -1,7 +1,7 @@
-//! Scan weights (`fit_weighted`, issue "Scans of dressed people"), the two-way trust radius and
+//! Scan weights (`ScanExtras::weights`, issue "Scans of dressed people"), the two-way trust radius and
 //! the rim rule, against cases whose answer is known exactly.
 
-use foldmatch::fit::{fit_simple, fit_weighted, FitParams, FitResult};
+use foldmatch::fit::{fit_scan, fit_simple, FitParams, FitResult, ScanExtras};
 use foldmatch::nbody::{
     gravitational_force, pair_force, weighted_gravitational_force, NBodyParams, ReverseAttraction,
     TwoWay, TwoWayPull,
@@ -34,7 +34,11 @@ fn params() -> FitParams {
 
 fn weighted(w: Option<&[f64]>) -> foldmatch::Result<FitResult> {
     let (v, f, x) = case();
-    fit_weighted(&v, &f, &x, None, w, &params(), &mut |_| true)
+    let extras = ScanExtras {
+        weights: w,
+        ..ScanExtras::default()
+    };
+    fit_scan(&v, &f, &x, &extras, &params(), &mut |_| true)
 }
 
 #[test]

@@ -6,8 +6,8 @@ use super::report::{FileReport, ScanWeightsReport, Status};
 use super::ui::{Ui, Verbosity};
 use crate::error::FoldMatchError;
 use crate::fit::{
-    deformation_model, fit_with_normals, validate_weights, FitParams, Progress, TemplateTopology,
-    Workspace,
+    deformation_model, fit_scan, validate_weights, FitParams, Progress, ScanExtras,
+    TemplateTopology, Workspace,
 };
 use crate::io::{fitted_mesh, read_mesh, read_npy, read_ply_property, write_mesh, MeshData};
 use crate::landmarks::Landmarks;
@@ -382,14 +382,16 @@ impl Runner<'_> {
                 Ok(frame.result)
             }
             None => self.pool.install(|| {
-                fit_with_normals(
+                fit_scan(
                     start,
                     &template.faces,
                     &scan.vertices,
-                    target_faces,
-                    weights.as_deref(),
-                    normals,
-                    job.landmarks,
+                    &ScanExtras {
+                        faces: target_faces,
+                        weights: weights.as_deref(),
+                        normals,
+                        landmarks: job.landmarks,
+                    },
                     self.params,
                     &mut observer,
                 )

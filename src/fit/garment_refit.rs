@@ -181,7 +181,7 @@ pub(super) fn rim_outward(vertices: &[[f64; 3]], faces: &[[u32; 3]]) -> Vec<[f64
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fit::{fit_anchored, fit_simple, fit_weighted, FitParams};
+    use crate::fit::{fit_anchored, fit_scan, fit_simple, FitParams, ScanExtras};
     use crate::synthetic::grid_sheet;
 
     /// A 1 × 1 sheet in z = 0 (9 × 9 vertices, edge 0.125).
@@ -327,12 +327,14 @@ mod tests {
             weights[41 * 41 + 41 * 12..].iter().all(|&w| w == 0.0),
             "the far plane"
         );
-        let again = fit_weighted(
+        let again = fit_scan(
             &template,
             &faces,
             &scan,
-            None,
-            Some(&weights),
+            &ScanExtras {
+                weights: Some(&weights),
+                ..ScanExtras::default()
+            },
             &second,
             &mut |_| true,
         )
@@ -419,12 +421,14 @@ mod tests {
             "the far plane is the body's"
         );
         let (_, second) = first_and_second(&params);
-        let third = fit_weighted(
+        let third = fit_scan(
             &template,
             &faces,
             &scan,
-            None,
-            Some(&cut),
+            &ScanExtras {
+                weights: Some(&cut),
+                ..ScanExtras::default()
+            },
             &second,
             &mut |_| true,
         )
@@ -442,12 +446,14 @@ mod tests {
         if crate::fit::garment_cut::settled(&cut, &again) {
             assert_eq!(full.vertices, third.vertices);
         } else {
-            let fourth = fit_weighted(
+            let fourth = fit_scan(
                 &template,
                 &faces,
                 &scan,
-                None,
-                Some(&again),
+                &ScanExtras {
+                    weights: Some(&again),
+                    ..ScanExtras::default()
+                },
                 &second,
                 &mut |_| true,
             )

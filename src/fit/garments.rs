@@ -492,7 +492,7 @@ fn merged_snapshots(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fit::{fit, fit_with_landmarks};
+    use crate::fit::{fit, fit_scan, ScanExtras};
     use crate::synthetic::grid_sheet;
 
     /// Two `n × n` sheets of 1 × 1 side by side (x ∈ [−1.3, −0.3] and [0.3, 1.3]) as one
@@ -605,8 +605,11 @@ mod tests {
         let target = [0.8, 0.1, -0.05];
         let l = Landmarks::new(&[121], &[target], v.len()).unwrap();
         let params = FitParams::default();
-        let r =
-            fit_with_landmarks(&v, &f, &x, None, None, Some(&l), &params, &mut |_| true).unwrap();
+        let extras = ScanExtras {
+            landmarks: Some(&l),
+            ..ScanExtras::default()
+        };
+        let r = fit_scan(&v, &f, &x, &extras, &params, &mut |_| true).unwrap();
         let gap = crate::math::dist2(&r.vertices[121], &target).sqrt();
         assert!(gap < 0.02, "landmark vertex {:?}", r.vertices[121]);
         let free = fit(&v, &f, &x, None, &params, &mut |_| true).unwrap();

@@ -159,7 +159,7 @@ fn holders(vertices: &[u32], coarse_levels: &[Neighborhoods]) -> Vec<Vec<(u32, V
 
 #[cfg(test)]
 mod tests {
-    use super::super::{fit_simple, fit_with_landmarks, FitParams};
+    use super::super::{fit_scan, fit_simple, FitParams, ScanExtras};
     use super::LandmarkTargets;
     use crate::landmarks::Landmarks;
     use crate::math::dist2;
@@ -177,7 +177,11 @@ mod tests {
         params: &FitParams,
     ) -> Vec<[f64; 3]> {
         let mut observer = |_: &_| true;
-        fit_with_landmarks(v, f, x, None, None, Some(landmarks), params, &mut observer)
+        let extras = ScanExtras {
+            landmarks: Some(landmarks),
+            ..ScanExtras::default()
+        };
+        fit_scan(v, f, x, &extras, params, &mut observer)
             .unwrap()
             .vertices
     }

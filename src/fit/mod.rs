@@ -78,11 +78,42 @@ use schedule::{drive, median_scan_distance, selection_distance, weighted_median,
 use setup::Prepared;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
+/// What may come with a scan besides its points, each `None` by default (docs/method.md).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct ScanExtras<'a> {
+    /// The scan's faces when it is a mesh: curvature from the mesh, rim matching onto its
+    /// boundary (docs/method.md "Rim matching").
+    pub faces: Option<&'a [[u32; 3]]>,
+    /// A non-negative weight per scan point. A point's weight scales its pull in Eq. 2's
+    /// neighbourhood mean (a weighted mean), in the two-way attraction and in schedule
+    /// selection's scan distance; a point of weight 0 is removed before anything else (the
+    /// normalized frame, K and the curvature are those of the points that remain), so a 0/1
+    /// segmentation mask fits exactly as the masked scan would, and equal weights fit exactly
+    /// as no weights. Weights of the wrong length, negative, not finite or all zero are refused
+    /// ([`FoldMatchError::Parameter`] naming the first bad index).
+    pub weights: Option<&'a [f64]>,
+    /// The scan's own normals, one per scan point, as a scanner writes them (PLY `nx ny nz`):
+    /// the planes of the isometric refinement's fit → scan term ([`Schedule::isometric_plane`]
+    /// `"scan"`, the default), in place of each point's plane of its 12 nearest scan points;
+    /// their sign does not matter. Normals of the wrong count, not finite or of zero length are
+    /// refused ([`FoldMatchError::Parameter`] naming the first bad row). docs/method.md
+    /// "Isometric refinement".
+    pub normals: Option<&'a [[f64; 3]]>,
+    /// Template vertices whose positions on the scan are known ([`Landmarks`], validated
+    /// against the template by [`Landmarks::new`]). They decide the pre-alignment — three or
+    /// more (not on a line): the rigid fit of the landmark vertices onto their targets moves
+    /// the template first, in place of [`FitParams::prealign`]; fewer: they choose among the
+    /// search's placements ([`crate::prealign::align_by_landmarks`]) — and pull their vertices
+    /// toward the targets through every phase, with [`FitParams::landmark_weight`]
+    /// (docs/method.md "Landmarks"). A landmark whose vertex is not in the template is refused
+    /// ([`FoldMatchError::Landmark`]).
+    pub landmarks: Option<&'a Landmarks>,
+}
+
 /// Fits the template to the target.
 ///
 /// * `template_vertices` (M), `template_faces` (T) — the template mesh;
-/// * `target` (N) — the scan points; `target_faces` — its faces when it is a mesh (used for
-///   curvature only);
+/// * `target` (N) — the scan points; `target_faces` — its faces when it is a mesh;
 /// * `observer` — called after every iteration; returning `false` stops the fit, which then
 ///   returns what it has (with `diagnostics.stopped_by_callback`).
 ///
@@ -90,7 +121,8 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 /// schedule; [`Selection::ScanDistanceWide`]: also the gentle one) the candidates are fitted
 /// side by side, in lockstep (each iteration of every run concurrently, then one progress
 /// report, so progress counts ξ iterations and a stop applies to all), sharing the setup; the
-/// fit closest to the scan is returned.
+/// fit closest to the scan is returned. [`fit_scan`] takes the scan's weights, normals and
+/// landmarks as well.
 pub fn fit(
     template_vertices: &[[f64; 3]],
     template_faces: &[[u32; 3]],
@@ -99,98 +131,31 @@ pub fn fit(
     params: &FitParams,
     observer: &mut (dyn FnMut(&Progress) -> bool + Send),
 ) -> Result<FitResult> {
-    fit_weighted(
+    let extras = ScanExtras {
+        faces: target_faces,
+        ..ScanExtras::default()
+    };
+    fit_scan(
         template_vertices,
         template_faces,
         target,
-        target_faces,
-        None,
+        &extras,
         params,
         observer,
     )
 }
 
-/// [`fit`] with a non-negative weight per scan point (`target_weights`, `None`: every weight
-/// 1). A point's weight scales its pull in Eq. 2's neighbourhood mean (a weighted mean), in
-/// the two-way attraction and in schedule selection's scan distance; a point of weight 0 is
-/// removed before anything else (the normalized frame, K and the curvature are those of the
-/// points that remain), so a 0/1 segmentation mask fits exactly as the masked scan would, and
-/// equal weights fit exactly as no weights. Weights of the wrong length, negative, not
-/// finite or all zero are refused ([`FoldMatchError::Parameter`] naming the first bad index).
-#[allow(clippy::too_many_arguments)]
-pub fn fit_weighted(
+/// [`fit`] with whatever comes with the scan ([`ScanExtras`]: its faces, weights, normals and
+/// landmarks).
+pub fn fit_scan(
     template_vertices: &[[f64; 3]],
     template_faces: &[[u32; 3]],
     target: &[[f64; 3]],
-    target_faces: Option<&[[u32; 3]]>,
-    target_weights: Option<&[f64]>,
+    extras: &ScanExtras<'_>,
     params: &FitParams,
     observer: &mut (dyn FnMut(&Progress) -> bool + Send),
 ) -> Result<FitResult> {
-    fit_with_landmarks(
-        template_vertices,
-        template_faces,
-        target,
-        target_faces,
-        target_weights,
-        None,
-        params,
-        observer,
-    )
-}
-
-/// [`fit_weighted`] with landmarks (`landmarks`, `None`: none): template vertices whose
-/// positions on the scan are known ([`Landmarks`], validated against the template by
-/// [`Landmarks::new`]). They decide the pre-alignment — three or more (not on a line): the
-/// rigid fit of the landmark vertices onto their targets moves the template first, in place of
-/// [`FitParams::prealign`]; fewer: they choose among the search's placements
-/// ([`crate::prealign::align_by_landmarks`]) — and
-/// pull their vertices toward the targets through every phase, with
-/// [`FitParams::landmark_weight`] (docs/method.md "Landmarks"). A landmark whose vertex is not
-/// in the template is refused ([`FoldMatchError::Landmark`]).
-#[allow(clippy::too_many_arguments)]
-pub fn fit_with_landmarks(
-    template_vertices: &[[f64; 3]],
-    template_faces: &[[u32; 3]],
-    target: &[[f64; 3]],
-    target_faces: Option<&[[u32; 3]]>,
-    target_weights: Option<&[f64]>,
-    landmarks: Option<&Landmarks>,
-    params: &FitParams,
-    observer: &mut (dyn FnMut(&Progress) -> bool + Send),
-) -> Result<FitResult> {
-    fit_with_normals(
-        template_vertices,
-        template_faces,
-        target,
-        target_faces,
-        target_weights,
-        None,
-        landmarks,
-        params,
-        observer,
-    )
-}
-
-/// [`fit_with_landmarks`] with the scan's own normals (`target_normals`, one per scan point, as
-/// a scanner writes them: PLY `nx ny nz`; `None`: none). They are the planes of the isometric
-/// refinement's fit → scan term ([`Schedule::isometric_plane`] `"scan"`, the default), in place
-/// of each point's plane of its 12 nearest scan points; their sign does not matter. Normals of
-/// the wrong count, not finite or of zero length are refused ([`FoldMatchError::Parameter`]
-/// naming the first bad row). docs/method.md "Isometric refinement".
-#[allow(clippy::too_many_arguments)]
-pub fn fit_with_normals(
-    template_vertices: &[[f64; 3]],
-    template_faces: &[[u32; 3]],
-    target: &[[f64; 3]],
-    target_faces: Option<&[[u32; 3]]>,
-    target_weights: Option<&[f64]>,
-    target_normals: Option<&[[f64; 3]]>,
-    landmarks: Option<&Landmarks>,
-    params: &FitParams,
-    observer: &mut (dyn FnMut(&Progress) -> bool + Send),
-) -> Result<FitResult> {
-    if let Some(n) = target_normals {
+    if let Some(n) = extras.normals {
         validate_normals(n, target.len())?;
     }
     garments::fit_garments(
@@ -198,16 +163,16 @@ pub fn fit_with_normals(
         None,
         template_faces,
         target,
-        target_faces,
-        target_weights,
-        target_normals,
-        landmarks,
+        extras.faces,
+        extras.weights,
+        extras.normals,
+        extras.landmarks,
         params,
         observer,
     )
 }
 
-/// [`fit_weighted`] of a warm-started frame (docs/method.md "Tracking"): the fit starts from
+/// [`fit`] with scan weights ([`ScanExtras::weights`]) of a warm-started frame (docs/method.md "Tracking"): the fit starts from
 /// `start` (the previous frame's fit, or a prediction from it) while everything that refers to
 /// the template's metric refers to `rest`, the template as given — the rest shape of the
 /// rest-shape rigidity ([`Schedule::rest_rigidity`]), the edge spread of schedule selection

@@ -91,7 +91,7 @@ impl Prepared {
     /// `rest`: the rest shape of the rest-shape rigidity when it is not the template itself
     /// (same vertex count; the caller validates it). With `landmarks` the template comes placed
     /// by them (`fit_from`) and no pre-alignment moves it here.
-    #[allow(clippy::too_many_arguments)] // the fit's inputs, as `fit_with_landmarks` takes them
+    #[allow(clippy::too_many_arguments)] // the fit's inputs, as `fit_scan` takes them
     pub(super) fn new(
         template_vertices: &[[f64; 3]],
         rest: Option<&[[f64; 3]]>,

@@ -255,7 +255,7 @@ impl Tracker {
     }
 
     /// Fits the next frame (`target`, with optional faces and per-point weights as
-    /// [`crate::fit::fit_weighted`] takes them). Errors are the fit's; the frame then counts
+    /// [`crate::fit::ScanExtras::weights`] are for a fit). Errors are the fit's; the frame then counts
     /// as skipped ([`Tracker::skip`]).
     pub fn step(
         &mut self,
