@@ -31,14 +31,20 @@ from bench.verdict import split_of
 HERE = pathlib.Path(__file__).resolve().parent
 
 
-def unseen_share(truth: np.ndarray, scan: np.ndarray) -> float:
-    """Share of the truth's vertices farther than 2 scan spacings from every scan point."""
+def seen_vertices(truth: np.ndarray, scan: np.ndarray) -> np.ndarray:
+    """Which of the truth's vertices lie within 2 scan spacings (the median distance between
+    neighbouring scan points) of a scan point."""
     import foldmatch_rs as fm
 
     _, d2 = fm.knn(scan, scan, 2)
     spacing = float(np.median(np.sqrt(d2[:, 1])))
     _, d2 = fm.knn(scan, truth, 1)
-    return float(np.mean(np.sqrt(d2[:, 0]) > 2 * spacing))
+    return np.sqrt(d2[:, 0]) <= 2 * spacing
+
+
+def unseen_share(truth: np.ndarray, scan: np.ndarray) -> float:
+    """Share of the truth's vertices farther than 2 scan spacings from every scan point."""
+    return float(1 - np.mean(seen_vertices(truth, scan)))
 
 
 def half_scan(case) -> np.ndarray:

@@ -2,7 +2,7 @@
 half-scan figure; docs/notes/partial-scans.md "What the seen half determines").
 
 For every case of ``bench.partial``: the truth's vertices the rig saw (within two scan spacings
-of its half scan, as ``partial.unseen_share`` counts them) are fixed at the truth, and the
+of its half scan, ``partial.seen_vertices``) are fixed at the truth, and the
 others are placed by the as-rigid-as-possible deformation of the template (Sorkine & Alexa
 2007, cotangent weights, 30 local/global rounds from the template's rigid fit onto the seen
 vertices) — the completion that keeps the template's shape where nothing is seen. Its f_R is
@@ -23,6 +23,7 @@ import sys
 import numpy as np
 
 from bench import partial, variants
+from bench.cases import umeyama
 
 ROUNDS = 30
 
@@ -82,22 +83,10 @@ def arap_completion(rest: np.ndarray, faces: np.ndarray, start: np.ndarray, fixe
 
 
 def rigid_onto(a: np.ndarray, b: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """``points`` moved by the rigid motion that best takes ``a`` onto ``b`` (Kabsch)."""
-    ca, cb = a.mean(0), b.mean(0)
-    u, _, vt = np.linalg.svd((a - ca).T @ (b - cb))
-    d = np.sign(np.linalg.det(vt.T @ u.T))
-    rot = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
-    return (points - ca) @ rot.T + cb
-
-
-def seen_vertices(truth: np.ndarray, half: np.ndarray) -> np.ndarray:
-    """The truth's vertices within two scan spacings of the half scan (``partial.unseen_share``)."""
-    import foldmatch_rs as fm
-
-    _, d2 = fm.knn(half, half, 2)
-    spacing = float(np.median(np.sqrt(d2[:, 1])))
-    _, d2 = fm.knn(half, truth, 1)
-    return np.sqrt(d2[:, 0]) <= 2 * spacing
+    """``points`` moved by the rigid motion that best takes ``a`` onto ``b`` (the rotation of
+    ``cases.umeyama``, its scale left at 1)."""
+    _, rot, _ = umeyama(a, b)
+    return (points - a.mean(0)) @ rot.T + b.mean(0)
 
 
 def main() -> int:
@@ -117,7 +106,7 @@ def main() -> int:
                 continue
             x, f, truth = case.template_vertices, case.faces, case.ground_truth
             half = partial.half_scan(case)
-            seen = seen_vertices(truth, half)
+            seen = partial.seen_vertices(truth, half)
 
             def f_r(v: np.ndarray, case=case) -> float:
                 e = fm.evaluate(case.template_vertices, case.faces, v, case.target, case.ground_truth)

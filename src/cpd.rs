@@ -2,7 +2,7 @@
 //! Point Drift", IEEE TPAMI 32(12)): the template's points are the centroids of a Gaussian
 //! mixture, moved by the smooth displacement field `v = G W` (`G` the Gaussian kernel of width
 //! β over the template's points as given), and fitted to the scan by EM. It is the coherent
-//! start of the default fit (docs/method.md "Coherent start"): a global, smooth motion that
+//! candidate of the default fit (docs/method.md "Coherent candidate"): a global, smooth motion that
 //! does not lock onto the nearest surface, from which the FoldMatch fit starts a second time.
 //!
 //! Memory is O((M + N) r), with no M × N matrix:
@@ -20,6 +20,7 @@
 //! diagonal 1), where the parameters are given. The EM stops when σ² changes by less than
 //! [`CpdParams::tolerance`], as probreg's `registration_cpd` does.
 
+use crate::normalize::Frame;
 use nalgebra::{DMatrix, SymmetricEigen};
 use rayon::prelude::*;
 
@@ -84,15 +85,10 @@ pub fn coherent_point_drift(
     scan: &[[f64; 3]],
     params: &CpdParams,
 ) -> CpdResult {
-    let (centre, scale) = normalized_frame(scan);
-    let to_frame =
-        |p: &[f64; 3]| -> [f64; 3] { std::array::from_fn(|a| (p[a] - centre[a]) / scale) };
-    let all_y: Vec<[f64; 3]> = template.iter().map(to_frame).collect();
+    let frame = Frame::of_target(scan);
+    let all_y = frame.forward(template);
     let y: Vec<[f64; 3]> = every_kth(&all_y, params.max_points);
-    let x: Vec<[f64; 3]> = every_kth(scan, params.max_points)
-        .iter()
-        .map(to_frame)
-        .collect();
+    let x = frame.forward(&every_kth(scan, params.max_points));
     let beta2 = params.kernel_width * params.kernel_width;
     let landmarks = farthest_points(&y, params.rank.max(1));
     let basis = NystromBasis::new(&y, &landmarks, beta2);
@@ -111,8 +107,8 @@ pub fn coherent_point_drift(
         q = sigma2;
     }
     // The field at every template point: v(z) = Σ_m G(z, y_m) w_m ≈ F(z) Fᵀ W.
-    let moved_all: Vec<[f64; 3]> = if y.len() == all_y.len() {
-        em.moved.clone()
+    let mut points: Vec<[f64; 3]> = if y.len() == all_y.len() {
+        std::mem::take(&mut em.moved)
     } else {
         let f_all = basis.features(&all_y);
         let v = &f_all * &em.a;
@@ -120,31 +116,12 @@ pub fn coherent_point_drift(
             .map(|m| std::array::from_fn(|c| all_y[m][c] + v[(m, c)]))
             .collect()
     };
-    let points = moved_all
-        .iter()
-        .map(|p| std::array::from_fn(|a| p[a] * scale + centre[a]))
-        .collect();
+    frame.inverse_in_place(&mut points);
     CpdResult {
         points,
         iterations,
         sigma2,
     }
-}
-
-/// The scan's centroid and bounding-box diagonal (1 for a single point).
-fn normalized_frame(scan: &[[f64; 3]]) -> ([f64; 3], f64) {
-    let n = scan.len().max(1) as f64;
-    let mut centre = [0.0; 3];
-    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-    for p in scan {
-        for a in 0..3 {
-            centre[a] += p[a] / n;
-            lo[a] = lo[a].min(p[a]);
-            hi[a] = hi[a].max(p[a]);
-        }
-    }
-    let diagonal = (0..3).map(|a| (hi[a] - lo[a]).powi(2)).sum::<f64>().sqrt();
-    (centre, if diagonal > 0.0 { diagonal } else { 1.0 })
 }
 
 /// Every k-th point, k the least that leaves at most `max` (all of them when they fit).

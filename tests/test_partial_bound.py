@@ -9,7 +9,7 @@ import pytest
 
 pytest.importorskip("scipy", reason="bench/partial_bound.py needs scipy (requirements-dev.txt)")
 
-from bench import partial_bound  # noqa: E402
+from bench import partial, partial_bound  # noqa: E402
 
 
 def rotation(axis: np.ndarray, angle: float) -> np.ndarray:
@@ -46,6 +46,6 @@ def test_the_rigid_fit_and_the_seen_vertices():
     np.testing.assert_allclose(partial_bound.rigid_onto(rest, moved, rest), moved, atol=1e-9)
     # the truth's vertices near a half scan are seen, the others not
     half = moved[moved[:, 0] < np.median(moved[:, 0])]
-    seen = partial_bound.seen_vertices(moved, half)
+    seen = partial.seen_vertices(moved, half)
     assert seen[moved[:, 0] < np.median(moved[:, 0])].all()
     assert not seen[moved[:, 0] > np.quantile(moved[:, 0], 0.8)].any()

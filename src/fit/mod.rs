@@ -172,11 +172,12 @@ pub fn fit_scan(
     )
 }
 
-/// [`fit`] with scan weights ([`ScanExtras::weights`]) of a warm-started frame (docs/method.md "Tracking"): the fit starts from
-/// `start` (the previous frame's fit, or a prediction from it) while everything that refers to
-/// the template's metric refers to `rest`, the template as given — the rest shape of the
-/// rest-shape rigidity ([`Schedule::rest_rigidity`]), the edge spread of schedule selection
-/// and the quality verdict's edge distortion, flipped and collapsed faces. So a sequence is
+/// [`fit`] with scan weights ([`ScanExtras::weights`]) of a warm-started frame (docs/method.md
+/// "Tracking"): the fit starts from `start` (the previous frame's fit, or a prediction from it)
+/// while everything that refers to the template's metric refers to `rest`, the template as
+/// given — the rest shape of the rest-shape rigidity ([`Schedule::rest_rigidity`]), the edge
+/// spread of schedule selection and the quality verdict's edge distortion, flipped and
+/// collapsed faces. So a sequence is
 /// anchored to its template instead of to a previous fit, and a drifting frame is judged
 /// against the template. `rest` must have `start`'s vertex count
 /// ([`FoldMatchError::Shape`]) and finite coordinates.
