@@ -111,6 +111,16 @@ def frames(name: str = "sim-flag") -> list[tuple[int, np.ndarray, np.ndarray]]:
     return [(first + i * EVERY, recorded[i], faces) for i in range(len(recorded))]
 
 
+def chart(name: str) -> np.ndarray:
+    """The sequence's sheet in its flat rest state as (M, 2) coordinates (its two largest
+    principal axes): where a scanner's mesh of a frame is triangulated (bench/tracking.py
+    ``--scans mesh``)."""
+    rest, _ = sim_cloth.rest_mesh(SEQUENCES[name].scene)
+    centred = rest - rest.mean(axis=0)
+    axes = np.linalg.svd(centred, full_matrices=False)[2]
+    return centred @ axes[:2].T
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--force", action="store_true", help="simulate again even when stored")

@@ -16,6 +16,12 @@ fitted on its own from the template by ``fm.fit``'s default, timed in the same r
 printed too; frame 0's single fit alone, which starts on its own truth and so refreshes almost
 no correspondence, is printed for reference).
 
+``--scans mesh`` (simulated sequences) gives every frame as a scanner's mesh instead of a point
+cloud: the same number of area-uniform samples, triangulated in the cloth's flat rest chart
+(so the scan ends where its samples end, inside the true rim by up to a spacing, as a
+scanner's mesh does), then the same noise. A mesh frame's boundary places the fit's rim
+(docs/method.md "Rim matching"), which a point cloud has not.
+
 ``--mode chained`` runs what ``foldmatch sequence`` did before tracking: each frame fitted by
 ``fm.fit`` with the previous fit as its template (no rest shape, no flags).
 
@@ -74,6 +80,34 @@ def noisy_scan(vertices: np.ndarray, faces: np.ndarray, seed: int) -> np.ndarray
     return pts + rng.normal(scale=REAL_NOISE * bbox_diagonal(vertices), size=pts.shape)
 
 
+def scanner_mesh(
+    vertices: np.ndarray, faces: np.ndarray, chart: np.ndarray, seed: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """A scanner's mesh of a sheet (``--scans mesh``): the harness's ``-pts`` samples, each also
+    placed in ``chart`` (the sheet's flat rest coordinates, (M, 2)) by its barycentric
+    coordinates, Delaunay-triangulated there (the hull's slivers, longer than four sample
+    spacings, dropped), then the same noise; (points, triangles)."""
+    from scipy.spatial import Delaunay
+
+    rng = np.random.default_rng(seed)
+    a, b, c = (vertices[faces[:, k]] for k in range(3))
+    area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    fi = rng.choice(len(faces), size=REAL_POINTS, p=area / area.sum())
+    r1, r2 = rng.random(REAL_POINTS), rng.random(REAL_POINTS)
+    flip = r1 + r2 > 1
+    r1[flip], r2[flip] = 1 - r1[flip], 1 - r2[flip]
+    # The points as sample_surface places them (the same draws: noisy_scan's very points).
+    points = a[fi] + r1[:, None] * (b[fi] - a[fi]) + r2[:, None] * (c[fi] - a[fi])
+    ca, cb, cc = (chart[faces[fi, k]] for k in range(3))
+    flat = ca + r1[:, None] * (cb - ca) + r2[:, None] * (cc - ca)
+    triangles = Delaunay(flat).simplices
+    longest = np.linalg.norm(flat[triangles] - flat[np.roll(triangles, 1, axis=1)], axis=2).max(axis=1)
+    spacing = np.sqrt(np.prod(np.ptp(flat, axis=0)) / REAL_POINTS)
+    triangles = triangles[longest < 4 * spacing]
+    points = points + rng.normal(scale=REAL_NOISE * bbox_diagonal(vertices), size=points.shape)
+    return points, triangles.astype(np.int64)
+
+
 def edge_index(faces: np.ndarray) -> np.ndarray:
     """The mesh's undirected edges, once each."""
     e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
@@ -99,25 +133,41 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     frames = frames_of(args.sequence, args.every, args.limit)
     template, faces = frames[0][1], frames[0][2]
     edges = edge_index(faces)
-    scans = [noisy_scan(v, f, seed=1000 + number) for number, v, f in frames]
+    scan_faces: list[np.ndarray | None] = [None] * len(frames)
+    if args.scans == "mesh":
+        if not args.sequence.startswith("sim-"):
+            raise SystemExit("--scans mesh: only the simulated sequences have a flat rest chart")
+        from . import sim_sequence
+
+        chart = sim_sequence.chart(args.sequence)
+        meshes = [scanner_mesh(v, f, chart, seed=1000 + number) for number, v, f in frames]
+        scans, scan_faces = [m[0] for m in meshes], [m[1] for m in meshes]
+    else:
+        scans = [noisy_scan(v, f, seed=1000 + number) for number, v, f in frames]
     settings = dict(kv.split("=", 1) for kv in args.set)
     params = {k: json.loads(v) for k, v in settings.items()}
 
     # The alternative to tracking: the default's single fit of every frame from the template.
     single_times, single_frs = [], []
-    for (_, truth, _), scan in zip(frames, scans):
+    for (_, truth, _), scan, scan_f in zip(frames, scans, scan_faces):
         started = time.perf_counter()
-        single = fm.fit(template, faces, scan, threads=args.threads)
+        single = fm.fit(template, faces, scan, target_faces=scan_f, threads=args.threads)
         single_times.append(time.perf_counter() - started)
         single_frs.append(100 * f_r(single.vertices, truth, scan))
     single_seconds = float(np.mean(single_times))
 
     rows = []
     if args.mode == "track":
+        import trimesh
+
+        given = [
+            scan if scan_f is None else trimesh.Trimesh(scan, scan_f, process=False)
+            for scan, scan_f in zip(scans, scan_faces)
+        ]
         stream = fm.track(
             template,
             faces,
-            scans,
+            given,
             preset=args.preset,
             iterations=args.iterations,
             params=params or None,
@@ -126,7 +176,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             threads=args.threads,
         )
     else:
-        stream = chained(fm, template, faces, scans, args, params)
+        stream = chained(fm, template, faces, list(zip(scans, scan_faces)), args, params)
     clock = time.perf_counter()
     for (number, truth, _), scan, result in zip(frames, scans, stream):
         now = time.perf_counter()
@@ -154,6 +204,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     per_frame = float(np.mean([r["seconds"] for r in rows]))
     summary = {
         "sequence": args.sequence,
+        "scans": args.scans,
         "frames": [r["frame"] for r in rows],
         "mode": args.mode,
         "first_f_R_pct": rows[0]["f_R_pct"],
@@ -207,17 +258,19 @@ def chained(
     fm: Any,
     template: np.ndarray,
     faces: np.ndarray,
-    scans: list[np.ndarray],
+    scans: list[tuple[np.ndarray, np.ndarray | None]],
     args: argparse.Namespace,
     params: dict[str, Any],
 ) -> Any:
-    """Each frame fitted with the previous fit as its template (no rest shape)."""
+    """Each frame (points, faces or None) fitted with the previous fit as its template (no
+    rest shape)."""
     previous = template
-    for scan in scans:
+    for scan, scan_faces in scans:
         result = fm.fit(
             previous,
             faces,
             scan,
+            target_faces=scan_faces,
             preset=args.preset,
             iterations=args.iterations,
             params=params or None,
@@ -232,6 +285,12 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--sequence", default="iter0", choices=SEQUENCES)
     ap.add_argument("--every", type=int, default=1, help="every k-th frame of the sequence (default 1)")
     ap.add_argument("--limit", type=int, default=None, help="at most this many frames")
+    ap.add_argument(
+        "--scans",
+        default="points",
+        choices=["points", "mesh"],
+        help="the frames as noisy point clouds (default) or as a scanner's meshes (simulated sequences)",
+    )
     ap.add_argument("--mode", default="track", choices=["track", "chained"])
     ap.add_argument("--preset", default="tracking")
     ap.add_argument("--iterations", type=int, default=None)

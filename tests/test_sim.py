@@ -149,14 +149,40 @@ def test_stored_held_out_sequences_are_physical_motions(name):
             assert motion > 1e-4, (i, motion)
 
 
-def test_tracking_benchmark_runs_on_the_simulated_sequence():
-    """`python -m bench.tracking --sequence sim-flag` on its first frames: the template is
-    the first frame's mesh, which the tracker keeps, and every figure is reported."""
+def test_a_scanner_mesh_frame_is_the_point_scan_triangulated_as_one_sheet():
+    """`bench.tracking --scans mesh`: a frame's mesh holds the very points of its point-cloud
+    scan (so the two kinds of frames differ by their faces alone), triangulated into one
+    sheet (a disk: V − E + F = 1, no edge on three faces) that covers the cloth's area."""
+    from bench import sim_sequence, tracking
+
+    chart = sim_sequence.chart("sim-drape")
+    for number, vertices, faces in sim_sequence.frames("sim-drape")[::15]:
+        points, triangles = tracking.scanner_mesh(vertices, faces, chart, seed=1000 + number)
+        np.testing.assert_array_equal(points, tracking.noisy_scan(vertices, faces, seed=1000 + number))
+        edges = np.sort(np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]]), 1)
+        unique, count = np.unique(edges, axis=0, return_counts=True)
+        assert count.max() == 2
+        assert len(np.unique(triangles)) - len(unique) + len(triangles) == 1
+        area = _area(points, triangles) / _area(vertices, faces)
+        assert 0.9 < area < 1.1, area
+
+
+def _area(vertices: np.ndarray, faces: np.ndarray) -> float:
+    a, b, c = (vertices[faces[:, k]] for k in range(3))
+    return float(0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1).sum())
+
+
+@pytest.mark.parametrize("scans", ["points", "mesh"])
+def test_tracking_benchmark_runs_on_the_simulated_sequence(scans):
+    """`python -m bench.tracking --sequence sim-flag [--scans mesh]` on its first frames: the
+    template is the first frame's mesh, which the tracker keeps, and every figure is
+    reported."""
     import argparse
 
     from bench import tracking
 
     args = argparse.Namespace(
+        scans=scans,
         sequence=tracking.SIM_SEQUENCE,
         every=1,
         limit=3,
