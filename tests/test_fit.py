@@ -437,9 +437,10 @@ def test_wide_selection_selects_among_three_schedules(case):
 
 
 def test_wall_seconds_split_the_call(case):
-    """Setup, iterations and finish are timed inside the call: non-negative, within the wall
-    time measured around it; the iterations take the largest part of a 40-iteration fit (the
-    isometric refinement, part of the finish, off: its 30 steps cost about 30 iterations)."""
+    """Setup, iterations and finish are timed inside the call: each one measured (positive),
+    together within the wall time measured around it. (Which part is the largest is a
+    matter for the benchmarks: under load, a 40-iteration fit's setup has taken longer than
+    its iterations.)"""
     import time
 
     t0 = time.perf_counter()
@@ -452,8 +453,7 @@ def test_wall_seconds_split_the_call(case):
     )
     wall = time.perf_counter() - t0
     setup, iterations, finish = r.diagnostics["wall_seconds"]
-    assert min(setup, iterations, finish) >= 0 and setup + iterations + finish <= wall
-    assert iterations > max(setup, finish)
+    assert min(setup, iterations, finish) > 0 and setup + iterations + finish <= wall
 
 
 def test_paper_preset_is_the_method_as_printed(case):
