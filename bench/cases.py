@@ -121,17 +121,40 @@ def rotation_matrix(axis: np.ndarray, degrees: float) -> np.ndarray:
     return np.eye(3) + np.sin(t) * k + (1 - np.cos(t)) * (k @ k)
 
 
-def sample_surface(
-    vertices: np.ndarray, faces: np.ndarray, count: int, rng: np.random.Generator
-) -> np.ndarray:
-    """``count`` points uniformly distributed on a triangle mesh (area-weighted)."""
+def face_areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """The area of every triangle."""
     a, b, c = (vertices[faces[:, k]] for k in range(3))
-    area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    return 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+
+
+def surface_draws(
+    vertices: np.ndarray, faces: np.ndarray, count: int, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``count`` area-uniform draws on a triangle mesh: (face index, r1, r2), the point of face
+    (a, b, c) at a + r1 (b − a) + r2 (c − a) (:func:`at_draws`)."""
+    area = face_areas(vertices, faces)
     fi = rng.choice(len(faces), size=count, p=area / area.sum())
     r1, r2 = rng.random(count), rng.random(count)
     flip = r1 + r2 > 1
     r1[flip], r2[flip] = 1 - r1[flip], 1 - r2[flip]
-    return a[fi] + r1[:, None] * (b[fi] - a[fi]) + r2[:, None] * (c[fi] - a[fi])
+    return fi, r1, r2
+
+
+def at_draws(
+    values: np.ndarray, faces: np.ndarray, draws: tuple[np.ndarray, np.ndarray, np.ndarray]
+) -> np.ndarray:
+    """Per-vertex ``values`` (positions, or any chart of the mesh) interpolated at the
+    :func:`surface_draws`."""
+    fi, r1, r2 = draws
+    a, b, c = (values[faces[fi, k]] for k in range(3))
+    return a + r1[:, None] * (b - a) + r2[:, None] * (c - a)
+
+
+def sample_surface(
+    vertices: np.ndarray, faces: np.ndarray, count: int, rng: np.random.Generator
+) -> np.ndarray:
+    """``count`` points uniformly distributed on a triangle mesh (area-weighted)."""
+    return at_draws(vertices, faces, surface_draws(vertices, faces, count, rng))
 
 
 def scan_variant(

@@ -46,7 +46,16 @@ from typing import Any
 
 import numpy as np
 
-from .cases import REAL_NOISE, REAL_POINTS, SHARED_DATA, bbox_diagonal, load_mesh, sample_surface
+from .cases import (
+    REAL_NOISE,
+    REAL_POINTS,
+    SHARED_DATA,
+    at_draws,
+    bbox_diagonal,
+    load_mesh,
+    sample_surface,
+    surface_draws,
+)
 
 WIND = SHARED_DATA / "diffcloth" / "tshirt1000_wind_sim"
 #: The simulated sequence with per-frame truth (bench/sim_sequence.py: a flag in gusty wind).
@@ -90,16 +99,9 @@ def scanner_mesh(
     from scipy.spatial import Delaunay
 
     rng = np.random.default_rng(seed)
-    a, b, c = (vertices[faces[:, k]] for k in range(3))
-    area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
-    fi = rng.choice(len(faces), size=REAL_POINTS, p=area / area.sum())
-    r1, r2 = rng.random(REAL_POINTS), rng.random(REAL_POINTS)
-    flip = r1 + r2 > 1
-    r1[flip], r2[flip] = 1 - r1[flip], 1 - r2[flip]
-    # The points as sample_surface places them (the same draws: noisy_scan's very points).
-    points = a[fi] + r1[:, None] * (b[fi] - a[fi]) + r2[:, None] * (c[fi] - a[fi])
-    ca, cb, cc = (chart[faces[fi, k]] for k in range(3))
-    flat = ca + r1[:, None] * (cb - ca) + r2[:, None] * (cc - ca)
+    # The same draws as noisy_scan's: its very points.
+    draws = surface_draws(vertices, faces, REAL_POINTS, rng)
+    points, flat = at_draws(vertices, faces, draws), at_draws(chart, faces, draws)
     triangles = Delaunay(flat).simplices
     longest = np.linalg.norm(flat[triangles] - flat[np.roll(triangles, 1, axis=1)], axis=2).max(axis=1)
     spacing = np.sqrt(np.prod(np.ptp(flat, axis=0)) / REAL_POINTS)
