@@ -81,7 +81,36 @@ pub const TIED_VARIANCES: f64 = 0.1;
 /// turns, the circle is sampled every 30°.
 pub const TIED_TURNS: [f64; 4] = [30.0, 60.0, -30.0, -60.0];
 
+/// A frame's largest (smallest) principal axis is distinct when the middle variance lies below
+/// (above) it by more than this fraction: a garment's depth, a sheet's normal, a tall or wide
+/// shape's long axis.
+pub const DISTINCT_VARIANCES: f64 = 0.3;
+
+/// Two frames agree when each distinct axis that both have lies within this angle (degrees,
+/// either sign) of the other's: half the quarter turn between two cube candidates.
+pub const AGREEING_AXES_DEGREES: f64 = 45.0;
+
 impl Axes {
+    /// Whether `other`'s largest and smallest principal axes lie within
+    /// [`AGREEING_AXES_DEGREES`] of this frame's, wherever both frames have that axis distinct
+    /// ([`DISTINCT_VARIANCES`]): a shape and a quarter-turned copy of it do not agree, a
+    /// shape and its deformed or noisy copy do (their tied axes are not compared).
+    pub fn agrees_with(&self, other: &Axes) -> bool {
+        let distinct = |a: &Axes, k: usize| {
+            let v = a.variances;
+            if k == 0 {
+                v[1] < (1.0 - DISTINCT_VARIANCES) * v[0]
+            } else {
+                v[2] < (1.0 - DISTINCT_VARIANCES) * v[1]
+            }
+        };
+        let cos = AGREEING_AXES_DEGREES.to_radians().cos();
+        [0, 2].into_iter().all(|k| {
+            !(distinct(self, k) && distinct(other, k))
+                || self.frame.column(k).dot(&other.frame.column(k)).abs() >= cos
+        })
+    }
+
     /// The principal axis whose variance stands apart when the other two tie within
     /// `TIED_VARIANCES` (10 %); `None` when no two tie, or all three do.
     pub fn tied_turn_axis(&self) -> Option<Vec3> {

@@ -58,7 +58,8 @@ pub enum Motion {
 }
 
 /// A template whose two-sided distance as given is at most this fraction of the scan's RMS
-/// radius is placed already (the distance is of the order of the fold depth, a turned or
+/// radius, and whose principal axes agree with the scan's ([`Axes::agrees_with`]), is placed
+/// already (the distance is of the order of the fold depth, a turned or
 /// displaced one's of the order of the radius): only its own reading and its half turns are
 /// searched ([`PLACED_TURN`]), and it is turned back by a half turn where that halves its score
 /// ([`SEARCH_GAIN`]), else kept as given; in a scene ([`SCENE`]) it is kept without a search.
@@ -168,7 +169,10 @@ pub fn align(template: &[[f64; 3]], scan: &[[f64; 3]], motion: Motion) -> Alignm
     // half turns, and turned back by a half turn where that halves its score
     // ([`SEARCH_GAIN`]): a garment whose front and back differ a little can lie within
     // [`PLACED`] back to front.
-    let placed = identity_score <= PLACED * sa.rms_radius;
+    // A template turned a quarter turn from its scan can lie within [`PLACED`] of it by the
+    // trimmed score alone (a round torso turned about its axis, the sleeves trimmed away): a
+    // template whose principal axes disagree with the scan's is not placed.
+    let placed = identity_score <= PLACED * sa.rms_radius && ta.agrees_with(&sa);
     let scale = start_scale(&ta, &sa, scaled);
     let (refined, given_index) =
         refined_placements(&clouds, &ta, &sa, scale, scaled, identity, placed);
