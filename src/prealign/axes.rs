@@ -92,8 +92,8 @@ pub const AGREEING_AXES_DEGREES: f64 = 45.0;
 
 impl Axes {
     /// Whether `other`'s largest and smallest principal axes lie within
-    /// [`AGREEING_AXES_DEGREES`] of this frame's, wherever both frames have that axis distinct
-    /// ([`DISTINCT_VARIANCES`]): a shape and a quarter-turned copy of it do not agree, a
+    /// `AGREEING_AXES_DEGREES` (45°) of this frame's, wherever both frames have that axis distinct
+    /// (`DISTINCT_VARIANCES`, 30 %): a shape and a quarter-turned copy of it do not agree, a
     /// shape and its deformed or noisy copy do (their tied axes are not compared).
     pub fn agrees_with(&self, other: &Axes) -> bool {
         let distinct = |a: &Axes, k: usize| {

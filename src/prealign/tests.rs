@@ -383,21 +383,26 @@ fn the_search_does_not_depend_on_the_scan_s_unit_or_position() {
 fn sleeved_tube(count: usize, noise: f64, seed: u64) -> Vec<[f64; 3]> {
     use std::f64::consts::TAU;
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let parts = [(TAU * 0.2 * 0.8, 0.0), (TAU * 0.07 * 0.3, -1.0), (TAU * 0.07 * 0.22, 1.0)];
-    let total: f64 = parts.iter().map(|p| p.0).sum();
+    // The three parts' areas: the torso, the left sleeve, the right sleeve.
+    let areas = [TAU * 0.2 * 0.8, TAU * 0.07 * 0.3, TAU * 0.07 * 0.22];
+    let total: f64 = areas.iter().sum();
     (0..count)
         .map(|_| {
             let (pick, u, v): (f64, f64, f64) = (rng.random(), rng.random(), rng.random());
             let theta = TAU * u;
-            let [x, y, z] = if pick < parts[0].0 / total {
+            let [x, y, z] = if pick < areas[0] / total {
                 [0.2 * theta.cos(), 0.2 * theta.sin(), 0.8 * v]
             } else {
-                let (length, side) = if pick < (parts[0].0 + parts[1].0) / total {
+                let (length, side) = if pick < (areas[0] + areas[1]) / total {
                     (0.3, -1.0)
                 } else {
                     (0.22, 1.0)
                 };
-                [side * (0.2 + length * v), 0.07 * theta.cos(), 0.7 + 0.07 * theta.sin()]
+                [
+                    side * (0.2 + length * v),
+                    0.07 * theta.cos(),
+                    0.7 + 0.07 * theta.sin(),
+                ]
             };
             let n = |rng: &mut ChaCha8Rng| noise * (rng.random::<f64>() - 0.5);
             [x + n(&mut rng), y + n(&mut rng), z + n(&mut rng)]
