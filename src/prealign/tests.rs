@@ -46,6 +46,24 @@ fn rotation(axis: [f64; 3], degrees: f64) -> Mat3 {
     *Rotation3::from_axis_angle(&Unit::new_normalize(vec3(&axis)), degrees.to_radians()).matrix()
 }
 
+/// The rigid turn by `degrees` about the z axis through the origin.
+fn turn_about_z(degrees: f64) -> Similarity {
+    Similarity {
+        rotation: rotation([0.0, 0.0, 1.0], degrees),
+        scale: 1.0,
+        translation: Vec3::zeros(),
+    }
+}
+
+/// The rigid alignment of `template` onto `scan`, whose placement as given scores within
+/// [`PLACED`] (asserted): by its score alone, the template looks placed.
+fn align_looking_placed(template: &[[f64; 3]], scan: &[[f64; 3]]) -> Alignment {
+    let got = align(template, scan, Motion::Rigid);
+    let radius = principal_axes(scan).rms_radius;
+    assert!(got.identity_score <= PLACED * radius, "{got:?}");
+    got
+}
+
 fn angle_between(a: &Mat3, b: &Mat3) -> f64 {
     let at = |rotation: &Mat3| Similarity {
         rotation: *rotation,
@@ -184,15 +202,9 @@ fn a_tube_turned_back_to_front_is_turned_back() {
     // Half a turn about its axis, the tube lies within `PLACED` of its scan as given (a skirt
     // whose front and back differ a little), but the search finds the placement that fits.
     let template = skirt_tube(2000, 0.0, 21);
-    let half_turn = Similarity {
-        rotation: rotation([0.0, 0.0, 1.0], 180.0),
-        scale: 1.0,
-        translation: Vec3::zeros(),
-    };
+    let half_turn = turn_about_z(180.0);
     let scan = half_turn.apply_all(&skirt_tube(3000, 0.004, 22));
-    let got = align(&template, &scan, Motion::Rigid);
-    let radius = principal_axes(&scan).rms_radius;
-    assert!(got.identity_score <= PLACED * radius, "{got:?}");
+    let got = align_looking_placed(&template, &scan);
     assert!(
         got.searched && got.score < 0.5 * got.identity_score,
         "{got:?}"
@@ -246,11 +258,7 @@ fn a_roughly_placed_template_of_a_deformed_scan_is_left_to_the_fit() {
     assert!(got.transform.is_identity(), "{got:?}");
     // The same scan turned by 90° about the vertical is found again: its placement as given
     // is not in the best basin.
-    let turned = Similarity {
-        rotation: rotation([0.0, 0.0, 1.0], 90.0),
-        scale: 1.0,
-        translation: Vec3::zeros(),
-    };
+    let turned = turn_about_z(90.0);
     let got = align(&template, &turned.apply_all(&bent), Motion::Rigid);
     assert!(
         angle_between(&got.transform.rotation, &turned.rotation) < 15.0,
@@ -417,15 +425,9 @@ fn a_template_a_quarter_turn_from_its_scan_is_searched_though_its_score_looks_pl
     // be searched. Its principal axes (the sleeves' x, the depth y) are a quarter turn from the
     // scan's: the search runs over every reading and finds the turn.
     let template = sleeved_tube(3000, 0.0, 31);
-    let turned = Similarity {
-        rotation: rotation([0.0, 0.0, 1.0], 90.0),
-        scale: 1.0,
-        translation: Vec3::zeros(),
-    };
+    let turned = turn_about_z(90.0);
     let scan = turned.apply_all(&sleeved_tube(3000, 0.004, 32));
-    let got = align(&template, &scan, Motion::Rigid);
-    let radius = principal_axes(&scan).rms_radius;
-    assert!(got.identity_score <= PLACED * radius, "{got:?}");
+    let got = align_looking_placed(&template, &scan);
     assert!(!principal_axes(&template).agrees_with(&principal_axes(&scan)));
     assert!(
         angle_between(&got.transform.rotation, &turned.rotation) < SAME_ANGLE,
