@@ -210,6 +210,27 @@ mod tests {
     }
 
     #[test]
+    fn frames_agree_unless_a_distinct_axis_turned_past_45_degrees() {
+        let turn = |degrees: f64| {
+            *Rotation3::from_axis_angle(&Vec3::z_axis(), degrees.to_radians()).matrix()
+        };
+        // A 1 × 2 sheet: its long axis (largest) and normal (smallest) are distinct.
+        let strip = principal_axes(&grid(11, 21, &Mat3::identity()));
+        assert!(strip.agrees_with(&strip));
+        assert!(strip.agrees_with(&principal_axes(&grid(11, 21, &turn(40.0)))));
+        assert!(!strip.agrees_with(&principal_axes(&grid(11, 21, &turn(50.0)))));
+        assert!(!strip.agrees_with(&principal_axes(&grid(11, 21, &turn(90.0)))));
+        // Half a turn flips the axes' signs only: they agree.
+        assert!(strip.agrees_with(&principal_axes(&grid(11, 21, &turn(180.0)))));
+        // A square sheet's in-plane axes tie: only its normal is compared, which a turn about
+        // it keeps; tipped onto its side, the normal disagrees.
+        let square = principal_axes(&grid(21, 21, &Mat3::identity()));
+        assert!(square.agrees_with(&principal_axes(&grid(21, 21, &turn(45.0)))));
+        let tipped = *Rotation3::from_axis_angle(&Vec3::x_axis(), 90f64.to_radians()).matrix();
+        assert!(!square.agrees_with(&principal_axes(&grid(21, 21, &tipped))));
+    }
+
+    #[test]
     fn a_square_sheet_s_frame_is_tied_about_its_normal_and_gets_turned_candidates() {
         let r = *Rotation3::from_axis_angle(&Unit::new_normalize(Vec3::new(1.0, 2.0, -1.5)), 0.9)
             .matrix();
