@@ -8,6 +8,11 @@ use nalgebra::{Rotation3, Unit};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+/// `p` with each coordinate moved by a uniform draw in ±`noise` / 2 (x, y, z in turn).
+fn jittered(p: [f64; 3], noise: f64, rng: &mut ChaCha8Rng) -> [f64; 3] {
+    p.map(|c| c + noise * (rng.random::<f64>() - 0.5))
+}
+
 /// `count` points on an asymmetric bent, bumped sheet (no symmetry of the cube group maps it
 /// onto itself): 0.8 × 0.5, bent up along x, a bump off-centre, a flap on one corner.
 fn asymmetric_surface(count: usize, noise: f64, seed: u64) -> Vec<[f64; 3]> {
@@ -24,8 +29,7 @@ fn asymmetric_surface(count: usize, noise: f64, seed: u64) -> Vec<[f64; 3]> {
                 0.0
             };
             let z = 0.25 * u * u + bump + flap;
-            let n = |rng: &mut ChaCha8Rng| noise * (rng.random::<f64>() - 0.5);
-            [x + n(&mut rng), y + n(&mut rng), z + n(&mut rng)]
+            jittered([x, y, z], noise, &mut rng)
         })
         .collect()
 }
@@ -190,9 +194,7 @@ fn skirt_tube(count: usize, noise: f64, seed: u64) -> Vec<[f64; 3]> {
             let (u, v): (f64, f64) = (rng.random(), rng.random());
             let theta = std::f64::consts::TAU * u;
             let r = 1.0 + 0.1 * (2.0 * theta).cos() + 0.1 * (3.0 * theta).sin() + 0.2 * (1.0 - v);
-            let n = |rng: &mut ChaCha8Rng| noise * (rng.random::<f64>() - 0.5);
-            let (x, y, z) = (r * theta.cos(), r * theta.sin(), 2.0 * v);
-            [x + n(&mut rng), y + n(&mut rng), z + n(&mut rng)]
+            jittered([r * theta.cos(), r * theta.sin(), 2.0 * v], noise, &mut rng)
         })
         .collect()
 }
@@ -398,7 +400,7 @@ fn sleeved_tube(count: usize, noise: f64, seed: u64) -> Vec<[f64; 3]> {
         .map(|_| {
             let (pick, u, v): (f64, f64, f64) = (rng.random(), rng.random(), rng.random());
             let theta = TAU * u;
-            let [x, y, z] = if pick < areas[0] / total {
+            let p = if pick < areas[0] / total {
                 [0.2 * theta.cos(), 0.2 * theta.sin(), 0.8 * v]
             } else {
                 let (length, side) = if pick < (areas[0] + areas[1]) / total {
@@ -412,8 +414,7 @@ fn sleeved_tube(count: usize, noise: f64, seed: u64) -> Vec<[f64; 3]> {
                     0.7 + 0.07 * theta.sin(),
                 ]
             };
-            let n = |rng: &mut ChaCha8Rng| noise * (rng.random::<f64>() - 0.5);
-            [x + n(&mut rng), y + n(&mut rng), z + n(&mut rng)]
+            jittered(p, noise, &mut rng)
         })
         .collect()
 }
